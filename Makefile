@@ -1,0 +1,86 @@
+# shapesim — one non-recursive make (Miller, "Recursive Make Considered Harmful").
+# Fragments (share/module.mk, <prog>/module.mk, tests/module.mk) append to the lists below
+# and hold rules only for their own outputs.
+#
+#   make                 build the library and every program into bin/
+#   make test            unit tests (GoogleTest) and program tests
+#   make bench           Google Benchmark: run time and the error it buys
+#   make install PREFIX=/usr/local
+#   make WERROR=1        warnings are errors (CI)
+#   make test SAN=1      unit tests under AddressSanitizer + UBSan (objects in build-san/)
+#   make V=1             echo commands
+
+SHELL := bash
+.SHELLFLAGS := -o pipefail -ec
+.DELETE_ON_ERROR:
+.SUFFIXES:
+.DEFAULT_GOAL := all
+
+PREFIX  ?= /usr/local
+CXX     ?= g++
+OPT     ?= -O2 -march=x86-64-v2
+WARN    := -Wall -Wextra $(if $(WERROR),-Werror)
+SANFLAGS := $(if $(SAN),-fsanitize=address,undefined -fno-omit-frame-pointer -fno-sanitize-recover=all)
+BUILD   := build$(if $(SAN),-san)
+BIN     := $(if $(SAN),$(BUILD)/bin,bin)
+VERSION := $(shell git describe --always --dirty 2>/dev/null || echo unknown)
+
+CPPFLAGS += -Ishare -isystem /usr/include/eigen3 -DSHAPESIM_VERSION='"$(VERSION)"'
+CXXFLAGS ?= $(OPT) -g
+CXXFLAGS += -std=c++17 $(WARN) $(SANFLAGS) -pthread
+LDFLAGS  += $(SANFLAGS) -pthread
+LDLIBS   := -lcfitsio -lboost_program_options -lsep
+
+Q := $(if $(V),,@)
+
+# Lists the fragments append to.
+LIB_SRCS   :=
+PROGRAMS   :=
+UNIT_TESTS :=
+BENCH_SRCS :=
+
+include share/module.mk
+include detect/module.mk decompose/module.mk smooth/module.mk sample/module.mk
+include render/module.mk measure/module.mk
+include tests/module.mk
+
+LIB      := $(BUILD)/libshapesim.a
+LIB_OBJS := $(LIB_SRCS:%.cpp=$(BUILD)/%.o)
+
+.PHONY: all deps test unit-test program-test bench stress install clean
+all: $(PROGRAMS:%=$(BIN)/%)
+
+# Every first target installs what is missing (as root) or prints the apt line.
+deps:
+	$(Q)share/scripts/install-deps.sh
+
+$(BUILD)/%.o: %.cpp | deps
+	@mkdir -p $(@D)
+	$(if $(Q),@echo "  CXX  $<")
+	$(Q)$(CXX) $(CPPFLAGS) -MMD -MP -MT $@ -MF $(@:.o=.d) $(CXXFLAGS) -c $< -o $@.tmp.o
+	$(Q)mv $@.tmp.o $@
+
+$(LIB): $(LIB_OBJS)
+	@mkdir -p $(@D)
+	$(if $(Q),@echo "  AR   $@")
+	$(Q)rm -f $@.tmp && ar rcs $@.tmp $^ && mv $@.tmp $@
+
+# Each program links its one main.cpp against the library.
+$(BIN)/shapesim-%: $(BUILD)/%/main.o $(LIB)
+	@mkdir -p $(@D)
+	$(if $(Q),@echo "  LD   $@")
+	$(Q)$(CXX) $(LDFLAGS) $^ $(LDLIBS) -o $@.tmp && mv $@.tmp $@
+
+install: all
+	install -d $(DESTDIR)$(PREFIX)/bin $(DESTDIR)$(PREFIX)/lib \
+	  $(DESTDIR)$(PREFIX)/include/shapesim/app $(DESTDIR)$(PREFIX)/share/shapesim
+	install -m 755 $(PROGRAMS:%=$(BIN)/%) $(DESTDIR)$(PREFIX)/bin/
+	install -m 644 $(LIB) $(DESTDIR)$(PREFIX)/lib/
+	install -m 644 share/shapesim/*.hpp $(DESTDIR)$(PREFIX)/include/shapesim/
+	install -m 644 share/shapesim/app/*.hpp $(DESTDIR)$(PREFIX)/include/shapesim/app/
+	if [ -d share/data ]; then cp -R share/data/. $(DESTDIR)$(PREFIX)/share/shapesim/; fi
+
+clean:
+	rm -rf build build-san bin
+
+-include $(shell find $(BUILD) -name '*.d' 2>/dev/null)

@@ -1,0 +1,35 @@
+#!/usr/bin/env bash
+# Install the Debian packages shapesim needs, only those missing.
+# As root: runs apt-get. Otherwise: prints the exact apt line and fails if anything is missing.
+# Usage: install-deps.sh [--check]   (--check: only report, never install)
+set -euo pipefail
+
+packages=(
+  g++ make pkg-config
+  libcfitsio-dev            # FITS I/O
+  libeigen3-dev             # linear algebra
+  libboost-program-options-dev
+  nlohmann-json3-dev        # JSON lines
+  libsep-dev                # SExtractor algorithms (detection)
+  librandom123-dev          # counter-based random streams
+  libgtest-dev              # unit tests
+  libbenchmark-dev          # make bench
+)
+
+missing=()
+for p in "${packages[@]}"; do
+  dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q 'ok installed' || missing+=("$p")
+done
+[ ${#missing[@]} -eq 0 ] && exit 0
+
+line="apt-get install -y --no-install-recommends ${missing[*]}"
+if [ "${1:-}" = "--check" ] || [ "$(id -u)" -ne 0 ]; then
+  echo "shapesim: missing Debian packages; run as root:" >&2
+  echo "  apt-get update && $line" >&2
+  exit 1
+fi
+echo "shapesim: installing ${missing[*]}" >&2
+export DEBIAN_FRONTEND=noninteractive
+apt-get update -qq >&2
+# shellcheck disable=SC2086
+apt-get install -y -qq --no-install-recommends ${missing[*]} >&2

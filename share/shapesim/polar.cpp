@@ -1,0 +1,191 @@
+#include "shapesim/polar.hpp"
+
+#include "shapesim/basis1d.hpp"
+#include "shapesim/error.hpp"
+
+#include <cmath>
+#include <map>
+#include <memory>
+#include <mutex>
+
+namespace shapesim {
+
+namespace {
+constexpr double kInvSqrtPi = 0.56418958354775628695;  // 1/√π
+constexpr double kRescale = 1e100;
+}  // namespace
+
+void polar_basis(double dx, double dy, double beta_pix, int n_max, Complex* out) {
+    const double t = (dx * dx + dy * dy) / (beta_pix * beta_pix);
+    const double theta = std::atan2(dy, dx);
+    const double prefactor = kInvSqrtPi / beta_pix;
+    for (int m = 0; m <= n_max; ++m) {
+        // g_0 = t^{m/2} e^{-t/2} / √(m!) in logs; the recurrence runs on g / exp(log_scale).
+        double log_scale;
+        if (t > 0.0)
+            log_scale = 0.5 * m * std::log(t) - 0.5 * t - 0.5 * std::lgamma(m + 1.0);
+        else
+            log_scale = (m == 0) ? 0.0 : -HUGE_VAL;
+        double factor = std::exp(log_scale);
+        const Complex phase = std::polar(1.0, m * theta);
+        double g_prev = 0.0, g = 1.0;
+        for (int q = 0; m + 2 * q <= n_max; ++q) {
+            if (q > 0) {
+                const int k = q - 1;  // step from g_k to g_{k+1}
+                const double next =
+                    (2.0 * k + m + 1.0 - t) / std::sqrt((k + 1.0) * (k + m + 1.0)) * g -
+                    std::sqrt(k * (k + m) / ((k + 1.0) * (k + m + 1.0))) * g_prev;
+                g_prev = g;
+                g = next;
+                if (std::abs(g) > kRescale) {
+                    g /= kRescale;
+                    g_prev /= kRescale;
+                    log_scale += std::log(kRescale);
+                    factor = std::exp(log_scale);
+                }
+            }
+            const double sign = (q % 2 == 0) ? 1.0 : -1.0;
+            out[polar_index(m + 2 * q, m)] = (sign * prefactor * g * factor) * phase;
+        }
+    }
+}
+
+double evaluate(const ShapeletModel& model, double x, double y) {
+    std::vector<Complex> chi(polar_count(model.n_max));
+    polar_basis(x - model.x, y - model.y, model.beta_pix, model.n_max, chi.data());
+    double value = 0.0;
+    int k = 0;
+    for (const auto& [n, m] : polar_indices(model.n_max)) {
+        (void)n;
+        const double term = (model.coeffs[k] * chi[k]).real();
+        value += (m == 0) ? term : 2.0 * term;
+        ++k;
+    }
+    return value;
+}
+
+namespace {
+Eigen::MatrixXcd compute_polar_cartesian(int n) {
+    // T_{m,n1} = ∫∫ χ_{n,m}(x, y; 1) φ_{n1}(x) φ_{n−n1}(y) dx dy, exact with (n+1)² nodes.
+    const GaussHermite& rule = gauss_hermite(n + 1);
+    const int k = n + 1;
+    Eigen::MatrixXd phi(n + 1, k);  // φ_j at each node
+    for (int i = 0; i < k; ++i) hermite_functions(rule.nodes[i], n, phi.col(i).data());
+    Eigen::MatrixXcd t = Eigen::MatrixXcd::Zero(n + 1, n + 1);
+    std::vector<Complex> chi(polar_count(n));
+    for (int i = 0; i < k; ++i)
+        for (int j = 0; j < k; ++j) {
+            polar_basis(rule.nodes[i], rule.nodes[j], 1.0, n, chi.data());
+            const double w = rule.weights[i] * rule.weights[j];
+            for (int m = n % 2; m <= n; m += 2) {
+                const Complex c = w * chi[polar_index(n, m)];
+                for (int n1 = 0; n1 <= n; ++n1) {
+                    const double basis = phi(n1, i) * phi(n - n1, j);
+                    t((n + m) / 2, n1) += c * basis;
+                    if (m > 0) t((n - m) / 2, n1) += std::conj(c) * basis;
+                }
+            }
+        }
+    return t;
+}
+
+template <class Value, class Make>
+const Value& cached(std::map<int, std::unique_ptr<Value>>& cache, std::mutex& mutex, int key,
+                    Make make) {
+    std::lock_guard<std::mutex> lock(mutex);
+    auto& slot = cache[key];
+    if (!slot) slot = std::make_unique<Value>(make(key));
+    return *slot;
+}
+
+Eigen::MatrixXd compute_real_to_cartesian(int n_max) {
+    Eigen::MatrixXd r = Eigen::MatrixXd::Zero(real_count(n_max), real_count(n_max));
+    int column = 0;
+    for (int n = 0; n <= n_max; ++n) {
+        const Eigen::MatrixXcd& t = polar_cartesian_matrix(n);
+        for (int m = n % 2; m <= n; m += 2) {
+            const int row_m = (n + m) / 2;
+            for (int n1 = 0; n1 <= n; ++n1) {
+                const int row = cartesian_index(n1, n - n1);
+                if (m == 0) {
+                    r(row, column) = t(row_m, n1).real();
+                } else {
+                    r(row, column) = 2.0 * t(row_m, n1).real();
+                    r(row, column + 1) = -2.0 * t(row_m, n1).imag();
+                }
+            }
+            column += (m == 0) ? 1 : 2;
+        }
+    }
+    return r;
+}
+
+Eigen::MatrixXd compute_cartesian_to_real(int n_max) {
+    Eigen::MatrixXd r = Eigen::MatrixXd::Zero(real_count(n_max), real_count(n_max));
+    int row = 0;
+    for (int n = 0; n <= n_max; ++n) {
+        const Eigen::MatrixXcd& t = polar_cartesian_matrix(n);
+        for (int m = n % 2; m <= n; m += 2) {
+            const int row_m = (n + m) / 2;
+            for (int n1 = 0; n1 <= n; ++n1) {
+                const int column = cartesian_index(n1, n - n1);
+                r(row, column) = t(row_m, n1).real();
+                if (m > 0) r(row + 1, column) = -t(row_m, n1).imag();
+            }
+            row += (m == 0) ? 1 : 2;
+        }
+    }
+    return r;
+}
+}  // namespace
+
+const Eigen::MatrixXcd& polar_cartesian_matrix(int n) {
+    require(n >= 0, "polar_cartesian_matrix: negative order");
+    static std::mutex mutex;
+    static std::map<int, std::unique_ptr<Eigen::MatrixXcd>> cache;
+    return cached(cache, mutex, n, compute_polar_cartesian);
+}
+
+const Eigen::MatrixXd& real_to_cartesian_matrix(int n_max) {
+    require(n_max >= 0, "real_to_cartesian_matrix: negative n_max");
+    static std::mutex mutex;
+    static std::map<int, std::unique_ptr<Eigen::MatrixXd>> cache;
+    return cached(cache, mutex, n_max, compute_real_to_cartesian);
+}
+
+const Eigen::MatrixXd& cartesian_to_real_matrix(int n_max) {
+    require(n_max >= 0, "cartesian_to_real_matrix: negative n_max");
+    static std::mutex mutex;
+    static std::map<int, std::unique_ptr<Eigen::MatrixXd>> cache;
+    return cached(cache, mutex, n_max, compute_cartesian_to_real);
+}
+
+Eigen::VectorXd pack_cartesian(const Eigen::MatrixXd& b, int n_max) {
+    Eigen::VectorXd packed(real_count(n_max));
+    for (int n = 0; n <= n_max; ++n)
+        for (int n1 = 0; n1 <= n; ++n1) packed(cartesian_index(n1, n - n1)) = b(n1, n - n1);
+    return packed;
+}
+
+Eigen::MatrixXd unpack_cartesian(const Eigen::VectorXd& packed, int n_max) {
+    Eigen::MatrixXd b = Eigen::MatrixXd::Zero(n_max + 1, n_max + 1);
+    for (int n = 0; n <= n_max; ++n)
+        for (int n1 = 0; n1 <= n; ++n1) b(n1, n - n1) = packed(cartesian_index(n1, n - n1));
+    return b;
+}
+
+CartesianModel to_cartesian(const ShapeletModel& model) {
+    CartesianModel out(model.x, model.y, model.beta_pix, model.n_max);
+    out.b = unpack_cartesian(real_to_cartesian_matrix(model.n_max) * real_parameters(model),
+                             model.n_max);
+    return out;
+}
+
+ShapeletModel to_polar(const CartesianModel& model) {
+    ShapeletModel out(model.x, model.y, model.beta_pix, model.n_max);
+    set_real_parameters(out, cartesian_to_real_matrix(model.n_max) *
+                                 pack_cartesian(model.b, model.n_max));
+    return out;
+}
+
+}  // namespace shapesim

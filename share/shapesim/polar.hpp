@@ -1,0 +1,51 @@
+// The polar shapelet basis χ_{n,m} (paper eq. 2) and the exact change of basis between polar
+// and Cartesian coefficients.
+//
+//   χ_{n,m}(r, θ; β) = (−1)^q / (β √π) · [q!/p!]^{1/2} (r/β)^{|m|} L_q^{|m|}(r²/β²) e^{−r²/2β²} e^{imθ}
+// with q = (n − |m|)/2, p = (n + |m|)/2, θ counter-clockwise from +x (y up, FITS orientation).
+// The radial part is evaluated with the normalised Laguerre recurrence
+//   g_{q+1} = (2q+|m|+1−t)/√((q+1)(q+|m|+1)) g_q − √(q(q+|m|)/((q+1)(q+|m|+1))) g_{q−1},
+//   g_0 = t^{|m|/2} e^{−t/2} / √(|m|!),  t = r²/β²,
+// so no factorial or Laguerre polynomial is ever formed.
+//
+// Change of basis: within each order n, χ_{n,m} = Σ_{n1+n2=n} T^{(n)}_{m,n1} B_{n1}(x) B_{n2}(y),
+// T^{(n)} unitary. It is computed exactly by (n+1)²-point Gauss–Hermite quadrature (the
+// integrands are polynomial × Gaussian) and cached per n (thread-safe).
+#pragma once
+
+#include "shapesim/model.hpp"
+
+#include <Eigen/Dense>
+
+namespace shapesim {
+
+/// χ_{n,m}(dx, dy; β) for the packed (n, m ≥ 0) up to n_max, at offset (dx, dy) in pixels from
+/// the centre; out has polar_count(n_max) entries. (χ_{n,−m} = conj χ_{n,m}.)
+void polar_basis(double dx, double dy, double beta_pix, int n_max, Complex* out);
+
+/// Value of a polar model at a point (FITS pixel coordinates), unintegrated.
+double evaluate(const ShapeletModel& model, double x, double y);
+
+/// T^{(n)}: rows m = −n, −n+2, …, n; columns n1 = 0..n (n2 = n − n1). Unitary.
+const Eigen::MatrixXcd& polar_cartesian_matrix(int n);
+
+/// Real matrix mapping the real parameter vector (see model.hpp) to Cartesian coefficients,
+/// both of size real_count(n_max). Cartesian order: n = 0..n_max, then n1 = 0..n.
+/// Its inverse is `cartesian_to_real_matrix`; both are cached per n_max.
+const Eigen::MatrixXd& real_to_cartesian_matrix(int n_max);
+const Eigen::MatrixXd& cartesian_to_real_matrix(int n_max);
+
+/// Index of b(n1, n2) in the packed Cartesian order used by the matrices above.
+constexpr int cartesian_index(int n1, int n2) {
+    return (n1 + n2) * (n1 + n2 + 1) / 2 + n1;
+}
+
+/// Exact conversions (same centre and β).
+CartesianModel to_cartesian(const ShapeletModel& model);
+ShapeletModel to_polar(const CartesianModel& model);
+
+/// Pack/unpack a Cartesian matrix b(n1, n2) into the packed Cartesian vector.
+Eigen::VectorXd pack_cartesian(const Eigen::MatrixXd& b, int n_max);
+Eigen::MatrixXd unpack_cartesian(const Eigen::VectorXd& packed, int n_max);
+
+}  // namespace shapesim

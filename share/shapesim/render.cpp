@@ -1,0 +1,51 @@
+#include "shapesim/render.hpp"
+
+#include "shapesim/basis1d.hpp"
+#include "shapesim/polar.hpp"
+
+#include <algorithm>
+
+namespace shapesim {
+
+PixelWindow PixelWindow::clipped_to(int image_nx, int image_ny) const {
+    PixelWindow w;
+    w.column0 = std::max(column0, 0);
+    w.row0 = std::max(row0, 0);
+    w.nx = std::min(column0 + nx, image_nx) - w.column0;
+    w.ny = std::min(row0 + ny, image_ny) - w.row0;
+    if (w.nx < 0) w.nx = 0;
+    if (w.ny < 0) w.ny = 0;
+    return w;
+}
+
+void add_to_image(const CartesianModel& model, ImageArray& image, const PixelWindow& window,
+                  RenderWorkspace& ws) {
+    const PixelWindow w = window.clipped_to(int(image.cols()), int(image.rows()));
+    if (w.empty()) return;
+    // Offsets of the window's first pixel centre from the model centre, in pixels.
+    const double dx0 = fits_x_of_column(w.column0) - model.x;
+    const double dy0 = fits_y_of_row(w.row0) - model.y;
+    pixel_basis_1d(model.n_max, model.beta_pix, dx0, w.nx, ws.phi_x);
+    pixel_basis_1d(model.n_max, model.beta_pix, dy0, w.ny, ws.phi_y);
+    // block(j, i) = Σ_{n2} Φ_y(n2, j) Σ_{n1} b(n1, n2) Φ_x(n1, i)
+    ws.partial.noalias() = model.b.transpose() * ws.phi_x;
+    ws.block.noalias() = ws.phi_y.transpose() * ws.partial;
+    image.block(w.row0, w.column0, w.ny, w.nx) += ws.block.array();
+}
+
+void add_to_image(const CartesianModel& model, ImageArray& image, const PixelWindow& window) {
+    RenderWorkspace ws;
+    add_to_image(model, image, window, ws);
+}
+
+ImageArray render_stamp(const CartesianModel& model, int nx, int ny) {
+    ImageArray image = ImageArray::Zero(ny, nx);
+    add_to_image(model, image, PixelWindow{0, 0, nx, ny});
+    return image;
+}
+
+ImageArray render_stamp(const ShapeletModel& model, int nx, int ny) {
+    return render_stamp(to_cartesian(model), nx, ny);
+}
+
+}  // namespace shapesim

@@ -1,0 +1,2 @@
+# shapesim-smooth: one thin main.cpp linked against the library (rule in the top Makefile).
+PROGRAMS += shapesim-smooth

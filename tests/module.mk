@@ -1,0 +1,30 @@
+# Tests: one GoogleTest binary from tests/unit/*_test.cpp; program tests are shell scripts
+# under tests/programs/<prog>/*.sh run against $(BIN) (exit 77 = skipped).
+UNIT_TESTS += $(sort $(wildcard tests/unit/*_test.cpp))
+BENCH_SRCS += $(sort $(wildcard tests/bench/*_bench.cpp))
+PROGRAM_TESTS := $(sort $(wildcard tests/programs/*/*.sh))
+
+UNIT_BIN  := $(BUILD)/tests/unit_tests
+BENCH_BIN := $(BUILD)/tests/benchmarks
+
+$(UNIT_BIN): $(UNIT_TESTS:%.cpp=$(BUILD)/%.o) $(LIB)
+	@mkdir -p $(@D)
+	$(if $(Q),@echo "  LD   $@")
+	$(Q)$(CXX) $(LDFLAGS) $^ -lgtest -lgtest_main $(LDLIBS) -o $@.tmp && mv $@.tmp $@
+
+$(BENCH_BIN): $(BENCH_SRCS:%.cpp=$(BUILD)/%.o) $(LIB)
+	@mkdir -p $(@D)
+	$(if $(Q),@echo "  LD   $@")
+	$(Q)$(CXX) $(LDFLAGS) $^ -lbenchmark -lbenchmark_main $(LDLIBS) -o $@.tmp && mv $@.tmp $@
+
+test: unit-test program-test
+
+# GTEST_FILTER=... narrows the unit tests; SHAPESIM_DATA points tests at the shipped data.
+unit-test: $(UNIT_BIN)
+	$(UNIT_BIN) --gtest_brief=1 $(if $(GTEST_FILTER),--gtest_filter=$(GTEST_FILTER))
+
+program-test: all
+	BIN=$(abspath $(BIN)) tests/run-program-tests.sh $(PROGRAM_TESTS)
+
+bench: $(BENCH_BIN)
+	$(BENCH_BIN) $(BENCH_ARGS)
