@@ -20,7 +20,9 @@ PREFIX  ?= /usr/local
 CXX     ?= g++
 OPT     ?= -O2 -march=x86-64-v2
 WARN    := -Wall -Wextra $(if $(WERROR),-Werror)
-SANFLAGS := $(if $(SAN),-fsanitize=address,undefined -fno-omit-frame-pointer -fno-sanitize-recover=all)
+comma := ,
+SANFLAGS := $(if $(SAN),-fsanitize=address$(comma)undefined -fno-omit-frame-pointer \
+            -fno-sanitize-recover=all)
 BUILD   := build$(if $(SAN),-san)
 BIN     := $(if $(SAN),$(BUILD)/bin,bin)
 VERSION := $(shell git describe --always --dirty 2>/dev/null || echo unknown)
@@ -33,6 +35,9 @@ LDLIBS   := -lcfitsio -lboost_program_options -lsep
 
 Q := $(if $(V),,@)
 
+LIB      := $(BUILD)/libshapesim.a
+LIB_OBJS  = $(LIB_SRCS:%.cpp=$(BUILD)/%.o)
+
 # Lists the fragments append to.
 LIB_SRCS   :=
 PROGRAMS   :=
@@ -43,9 +48,6 @@ include share/module.mk
 include detect/module.mk decompose/module.mk smooth/module.mk sample/module.mk
 include render/module.mk measure/module.mk
 include tests/module.mk
-
-LIB      := $(BUILD)/libshapesim.a
-LIB_OBJS := $(LIB_SRCS:%.cpp=$(BUILD)/%.o)
 
 .PHONY: all deps test unit-test program-test bench stress install clean
 all: $(PROGRAMS:%=$(BIN)/%)

@@ -1,10 +1,13 @@
 # Tests: one GoogleTest binary from tests/unit/*_test.cpp; program tests are shell scripts
 # under tests/programs/<prog>/*.sh run against $(BIN) (exit 77 = skipped).
-UNIT_TESTS += $(sort $(wildcard tests/unit/*_test.cpp))
+UNIT_TESTS += $(sort $(wildcard tests/unit/*.cpp))
 BENCH_SRCS += $(sort $(wildcard tests/bench/*_bench.cpp))
 PROGRAM_TESTS := $(sort $(wildcard tests/programs/*/*.sh))
 
 UNIT_BIN  := $(BUILD)/tests/unit_tests
+
+# Tests find their fixtures from the source tree, wherever the binary runs.
+$(BUILD)/tests/%.o: CPPFLAGS += -DSHAPESIM_SOURCE_DIR='"$(CURDIR)"'
 BENCH_BIN := $(BUILD)/tests/benchmarks
 
 $(UNIT_BIN): $(UNIT_TESTS:%.cpp=$(BUILD)/%.o) $(LIB)

@@ -1,0 +1,48 @@
+// Weighted linear least-squares shapelet decomposition of a pixel stamp (DESIGN §3).
+//
+// At a given centre, β and n_max, the model is linear in its coefficients, so the best fit
+// minimises χ² = Σ_p w_p (I_p − Σ_k A_{pk} c_k)² with A the *pixel-integrated* basis (so a
+// model rendered by render.hpp is recovered exactly). The fit runs on the Cartesian basis —
+// separable, A_{p,(n1,n2)} = Φ_x(n1, i) Φ_y(n2, j) — whose span at each n_max equals the
+// polar one; the coefficients and their covariance are then mapped to polar exactly.
+// Solve: column-pivoting Householder QR of W^{1/2} A (no normal equations, no inverse);
+// covariance (AᵀWA)⁻¹ = R⁻¹R⁻ᵀ from the same factor. χ²_r = χ² / (pixels used − coefficients).
+//
+// Pixels are used when their weight is > 0 and finite, their image value is finite and the
+// mask (when given) is 0. Weights are inverse variances in the image's units.
+#pragma once
+
+#include "shapesim/image.hpp"
+#include "shapesim/model.hpp"
+
+#include <Eigen/Dense>
+#include <cstdint>
+
+namespace shapesim {
+
+/// Per-pixel mask, same shape as the image: non-zero excludes the pixel (e.g. a neighbour's).
+using MaskArray = Eigen::Array<std::uint8_t, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>;
+
+/// What a decomposition returns.
+struct ShapeletFit {
+    ShapeletModel model;          ///< polar coefficients at the requested centre, β, n_max
+    Eigen::MatrixXd covariance;   ///< of the real parameter vector (model.hpp order)
+    double chi2 = 0.0;            ///< Σ w (data − model)² over used pixels
+    double chi2r = 0.0;           ///< chi2 / dof
+    long pixels_used = 0;
+    long dof = 0;                 ///< pixels_used − real_count(n_max)
+    ImageArray model_image;       ///< pixel-integrated model over the whole stamp
+    ImageArray residual;          ///< image − model (NaN where the image is not finite)
+
+    /// 1σ errors of the real parameter vector.
+    Eigen::VectorXd errors() const { return covariance.diagonal().cwiseSqrt(); }
+};
+
+/// Fit a shapelet model to `image` with inverse-variance `weight` (same shape), optional
+/// `mask`, centre (x, y) in the stamp's FITS pixel coordinates, scale beta_pix and n_max.
+/// Throws Error when shapes differ, a weight is negative or infinite, β ≤ 0, there are fewer
+/// usable pixels than coefficients, or the design is rank-deficient (basis not constrained).
+ShapeletFit fit_shapelets(const ImageArray& image, const ImageArray& weight,
+                          const MaskArray* mask, double x, double y, double beta_pix, int n_max);
+
+}  // namespace shapesim
