@@ -6,91 +6,140 @@
 #include "shapesim/render.hpp"
 
 #include <cmath>
+#include <optional>
 #include <string>
-#include <vector>
 
 namespace shapesim {
 
 namespace {
-// Checks the inputs and lists the usable pixels (row-major index).
-std::vector<long> usable_pixels(const ImageArray& image, const ImageArray& weight,
-                                const MaskArray* mask) {
+// Checks the inputs; returns the effective weights (0 where a pixel is not used), the image
+// with unused pixels zeroed, and the count of used pixels.
+struct CleanStamp {
+    Eigen::MatrixXd weight, image;  // ny × nx
+    long used = 0;
+};
+
+CleanStamp clean_stamp(const ImageArray& image, const ImageArray& weight, const MaskArray* mask) {
     if (weight.rows() != image.rows() || weight.cols() != image.cols())
         throw Error("weight map shape differs from the image", {}, 0, "weight");
     if (mask && (mask->rows() != image.rows() || mask->cols() != image.cols()))
         throw Error("mask shape differs from the image", {}, 0, "mask");
-    std::vector<long> used;
-    used.reserve(image.size());
-    for (long p = 0; p < image.size(); ++p) {
-        const double w = weight.data()[p];
-        if (w < 0.0 || std::isinf(w))
-            throw Error("weights must be finite and >= 0, got " + std::to_string(w) + " at pixel " +
-                            std::to_string(p % image.cols() + 1) + "," +
-                            std::to_string(p / image.cols() + 1),
-                        {}, 0, "weight");
-        if (!(w > 0.0) || !std::isfinite(image.data()[p])) continue;
-        if (mask && mask->data()[p] != 0) continue;
-        used.push_back(p);
-    }
-    return used;
+    CleanStamp s{Eigen::MatrixXd::Zero(image.rows(), image.cols()),
+                 Eigen::MatrixXd::Zero(image.rows(), image.cols()), 0};
+    for (Eigen::Index j = 0; j < image.rows(); ++j)
+        for (Eigen::Index i = 0; i < image.cols(); ++i) {
+            const double w = weight(j, i);
+            if (w < 0.0 || std::isinf(w))
+                throw Error("weights must be finite and >= 0, got " + std::to_string(w) +
+                                " at pixel " + std::to_string(i + 1) + "," + std::to_string(j + 1),
+                            {}, 0, "weight");
+            if (!(w > 0.0) || !std::isfinite(image(j, i)) || (mask && (*mask)(j, i) != 0)) continue;
+            s.weight(j, i) = w;
+            s.image(j, i) = image(j, i);
+            ++s.used;
+        }
+    return s;
+}
+
+struct Solution {
+    Eigen::VectorXd cart;      // packed Cartesian coefficients
+    Eigen::MatrixXd cov_cart;  // their covariance
+};
+
+// Normal equations built separably (see lsq.hpp), LDLT solve; empty when ill-conditioned.
+std::optional<Solution> solve_normal(const CleanStamp& s, const Eigen::MatrixXd& phi_x,
+                                     const Eigen::MatrixXd& phi_y, int n_max, bool required) {
+    const int nb = n_max + 1, nx = int(phi_x.cols()), ny = int(phi_y.cols());
+    Eigen::MatrixXd x2(nb * nb, nx), y2(nb * nb, ny);  // products Φ(n,·)Φ(m,·)
+    for (int n = 0; n < nb; ++n)
+        for (int m = 0; m < nb; ++m) {
+            x2.row(n * nb + m) = phi_x.row(n).cwiseProduct(phi_x.row(m));
+            y2.row(n * nb + m) = phi_y.row(n).cwiseProduct(phi_y.row(m));
+        }
+    const Eigen::MatrixXd h = (x2 * s.weight.transpose()) * y2.transpose();
+    const Eigen::MatrixXd rhs_b = phi_x * s.image.cwiseProduct(s.weight).transpose() * phi_y.transpose();
+    const int nc = real_count(n_max);
+    Eigen::MatrixXd normal(nc, nc);
+    Eigen::VectorXd rhs(nc);
+    for (int n = 0; n <= n_max; ++n)
+        for (int n1 = 0; n1 <= n; ++n1) {
+            const int row = cartesian_index(n1, n - n1);
+            rhs(row) = rhs_b(n1, n - n1);
+            for (int m = 0; m <= n_max; ++m)
+                for (int m1 = 0; m1 <= m; ++m1)
+                    normal(row, cartesian_index(m1, m - m1)) = h(n1 * nb + m1, (n - n1) * nb + (m - m1));
+        }
+    Eigen::LDLT<Eigen::MatrixXd> ldlt(normal);
+    if (!required && (ldlt.info() != Eigen::Success || !(ldlt.rcond() > 1e-10))) return std::nullopt;
+    return Solution{ldlt.solve(rhs), ldlt.solve(Eigen::MatrixXd::Identity(nc, nc))};
+}
+
+// Column-pivoting QR of the weighted design matrix; throws when rank-deficient.
+Solution solve_qr(const CleanStamp& s, const Eigen::MatrixXd& phi_x, const Eigen::MatrixXd& phi_y,
+                  int n_max) {
+    const int nc = real_count(n_max);
+    Eigen::MatrixXd design(s.used, nc);
+    Eigen::VectorXd rhs(s.used);
+    long r = 0;
+    for (Eigen::Index j = 0; j < s.weight.rows(); ++j)
+        for (Eigen::Index i = 0; i < s.weight.cols(); ++i) {
+            if (s.weight(j, i) == 0.0) continue;
+            const double sw = std::sqrt(s.weight(j, i));
+            for (int n = 0; n <= n_max; ++n)
+                for (int n1 = 0; n1 <= n; ++n1)
+                    design(r, cartesian_index(n1, n - n1)) = sw * phi_x(n1, i) * phi_y(n - n1, j);
+            rhs(r++) = sw * s.image(j, i);
+        }
+    Eigen::ColPivHouseholderQR<Eigen::MatrixXd> qr(design);
+    if (qr.rank() < nc)
+        throw Error("the pixels do not constrain every coefficient (rank " +
+                    std::to_string(qr.rank()) + " of " + std::to_string(nc) +
+                    "): lower n_max or change beta");
+    // (AᵀWA)⁻¹ = P R⁻¹ R⁻ᵀ Pᵀ with R the leading triangle of the factor.
+    const Eigen::MatrixXd r_inverse = qr.matrixR().topLeftCorner(nc, nc)
+                                          .triangularView<Eigen::Upper>()
+                                          .solve(Eigen::MatrixXd::Identity(nc, nc));
+    const auto& p = qr.colsPermutation();
+    return Solution{qr.solve(rhs), p * (r_inverse * r_inverse.transpose()) * p.transpose()};
 }
 }  // namespace
 
 ShapeletFit fit_shapelets(const ImageArray& image, const ImageArray& weight,
                           const MaskArray* mask, double x, double y, double beta_pix,
-                          int n_max) {
+                          int n_max, LsqSolver solver) {
     require(n_max >= 0, "fit_shapelets: n_max must be >= 0");
     if (!(beta_pix > 0.0) || !std::isfinite(beta_pix))
         throw Error("must be finite and > 0, got " + std::to_string(beta_pix), {}, 0, "beta");
-    const std::vector<long> used = usable_pixels(image, weight, mask);
-    const int ncoeff = real_count(n_max);
-    if (long(used.size()) <= ncoeff)
-        throw Error(std::to_string(used.size()) + " usable pixels for " + std::to_string(ncoeff) +
+    const CleanStamp s = clean_stamp(image, weight, mask);
+    const int nc = real_count(n_max);
+    if (s.used <= nc)
+        throw Error(std::to_string(s.used) + " usable pixels for " + std::to_string(nc) +
                     " coefficients (n_max " + std::to_string(n_max) + ")");
 
-    // Weighted design matrix on the pixel-integrated Cartesian basis.
     const int nx = int(image.cols()), ny = int(image.rows());
     const Eigen::MatrixXd phi_x = pixel_basis_1d(n_max, beta_pix, 1.0 - x, nx);
     const Eigen::MatrixXd phi_y = pixel_basis_1d(n_max, beta_pix, 1.0 - y, ny);
-    Eigen::MatrixXd design(used.size(), ncoeff);
-    Eigen::VectorXd rhs(used.size());
-    for (size_t r = 0; r < used.size(); ++r) {
-        const long i = used[r] % nx, j = used[r] / nx;
-        const double sw = std::sqrt(weight.data()[used[r]]);
-        for (int n = 0; n <= n_max; ++n)
-            for (int n1 = 0; n1 <= n; ++n1)
-                design(r, cartesian_index(n1, n - n1)) = sw * phi_x(n1, i) * phi_y(n - n1, j);
-        rhs(r) = sw * image.data()[used[r]];
-    }
-
-    // Solve by column-pivoting QR; the rank check catches unconstrained basis functions.
-    Eigen::ColPivHouseholderQR<Eigen::MatrixXd> qr(design);
-    if (qr.rank() < ncoeff)
-        throw Error("the pixels do not constrain every coefficient (rank " +
-                    std::to_string(qr.rank()) + " of " + std::to_string(ncoeff) +
-                    "): lower n_max or change beta");
-    const Eigen::VectorXd cart = qr.solve(rhs);
-    // (AᵀA)⁻¹ = P R⁻¹ R⁻ᵀ Pᵀ with R the leading triangle of the factor.
-    const auto r_factor = qr.matrixR().topLeftCorner(ncoeff, ncoeff).triangularView<Eigen::Upper>();
-    Eigen::MatrixXd r_inverse = r_factor.solve(Eigen::MatrixXd::Identity(ncoeff, ncoeff));
-    const Eigen::MatrixXd cov_permuted = r_inverse * r_inverse.transpose();
-    const Eigen::MatrixXd cov_cart =
-        qr.colsPermutation() * cov_permuted * qr.colsPermutation().transpose();
-
+    std::optional<Solution> sol;
+    if (solver != LsqSolver::qr)
+        sol = solve_normal(s, phi_x, phi_y, n_max, solver == LsqSolver::normal);
     ShapeletFit fit;
+    fit.solver_used = sol ? LsqSolver::normal : LsqSolver::qr;
+    if (!sol) sol = solve_qr(s, phi_x, phi_y, n_max);
+
     const Eigen::MatrixXd& to_real = cartesian_to_real_matrix(n_max);
     fit.model = ShapeletModel(x, y, beta_pix, n_max);
-    set_real_parameters(fit.model, to_real * cart);
-    fit.covariance = to_real * cov_cart * to_real.transpose();
-    fit.pixels_used = long(used.size());
-    fit.dof = fit.pixels_used - ncoeff;
-    fit.chi2 = (design * cart - rhs).squaredNorm();
-    fit.chi2r = fit.chi2 / double(fit.dof);
+    set_real_parameters(fit.model, to_real * sol->cart);
+    fit.covariance = to_real * sol->cov_cart * to_real.transpose();
 
+    // Model and residual images; χ² from the residuals of the used pixels.
     CartesianModel cart_model(x, y, beta_pix, n_max);
-    cart_model.b = unpack_cartesian(cart, n_max);
+    cart_model.b = unpack_cartesian(sol->cart, n_max);
     fit.model_image = render_stamp(cart_model, nx, ny);
     fit.residual = image - fit.model_image;
+    fit.chi2 = (s.weight.array() * (s.image.array() - fit.model_image).square()).sum();
+    fit.pixels_used = s.used;
+    fit.dof = s.used - nc;
+    fit.chi2r = fit.chi2 / double(fit.dof);
     return fit;
 }
 

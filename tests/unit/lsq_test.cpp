@@ -80,6 +80,33 @@ TEST(Lsq, PullsAreUnitNormal) {
     EXPECT_NEAR(chi2r_sum / trials, 1.0, 0.01);
 }
 
+// The separable normal-equation path and the QR path agree, on every reference stamp.
+TEST(Lsq, NormalAndQrSolversAgree) {
+    for (const auto& r : test::reference_models()) {
+        const ImageArray weight = ImageArray::Ones(r.ny, r.nx);
+        const auto fit = [&](LsqSolver solver) {
+            return fit_shapelets(r.stamp, weight, nullptr, r.model.x, r.model.y, r.model.beta_pix,
+                                 r.model.n_max, solver);
+        };
+        const ShapeletFit normal = fit(LsqSolver::normal), qr = fit(LsqSolver::qr);
+        EXPECT_EQ(fit(LsqSolver::automatic).solver_used, LsqSolver::normal) << r.id;
+        EXPECT_LT(max_relative_error(normal.model, qr.model), 1e-11) << r.id;
+        EXPECT_LT((normal.covariance - qr.covariance).cwiseAbs().maxCoeff(),
+                  1e-10 * qr.covariance.cwiseAbs().maxCoeff()) << r.id;
+    }
+}
+
+// A basis much finer than the pixels is ill-conditioned: the automatic choice falls back to
+// QR, which still fits the (noise-free) data.
+TEST(Lsq, IllConditionedFallsBackToQr) {
+    const ShapeletModel truth = test::random_model(8, 0.45, 10.2, 9.9, 4);
+    const ImageArray image = render_stamp(truth, 20, 20);
+    const ShapeletFit fit =
+        fit_shapelets(image, ImageArray::Ones(20, 20), nullptr, truth.x, truth.y, 0.45, 8);
+    EXPECT_EQ(fit.solver_used, LsqSolver::qr);
+    EXPECT_LT(fit.residual.abs().maxCoeff(), 1e-9 * image.abs().maxCoeff());
+}
+
 TEST(Lsq, BadInputIsAnError) {
     const ImageArray image = ImageArray::Ones(10, 10);
     const ImageArray weight = ImageArray::Ones(10, 10);
