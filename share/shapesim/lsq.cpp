@@ -126,10 +126,12 @@ ShapeletFit fit_shapelets(const ImageArray& image, const ImageArray& weight,
     fit.solver_used = sol ? LsqSolver::normal : LsqSolver::qr;
     if (!sol) sol = solve_qr(s, phi_x, phi_y, n_max);
 
-    const Eigen::MatrixXd& to_real = cartesian_to_real_matrix(n_max);
+    // B cov Bᵀ with B the (block-diagonal) Cartesian → real parameter map.
+    constexpr BasisChange to_real = BasisChange::cartesian_to_real;
     fit.model = ShapeletModel(x, y, beta_pix, n_max);
-    set_real_parameters(fit.model, to_real * sol->cart);
-    fit.covariance = to_real * sol->cov_cart * to_real.transpose();
+    set_real_parameters(fit.model, change_basis_rows(to_real, sol->cart, n_max));
+    fit.covariance = change_basis_rows(
+        to_real, change_basis_rows(to_real, sol->cov_cart, n_max).transpose(), n_max);
 
     // Model and residual images; χ² from the residuals of the used pixels.
     CartesianModel cart_model(x, y, beta_pix, n_max);

@@ -19,11 +19,14 @@ void polar_basis(double dx, double dy, double beta_pix, int n_max, Complex* out)
     const double t = (dx * dx + dy * dy) / (beta_pix * beta_pix);
     const double theta = std::atan2(dy, dx);
     const double prefactor = kInvSqrtPi / beta_pix;
+    const double log_t = t > 0.0 ? std::log(t) : 0.0;
+    double log_factorial = 0.0;  // log m!, summed here: std::lgamma writes a global (races)
     for (int m = 0; m <= n_max; ++m) {
+        if (m > 0) log_factorial += std::log(double(m));
         // g_0 = t^{m/2} e^{-t/2} / √(m!) in logs; the recurrence runs on g / exp(log_scale).
         double log_scale;
         if (t > 0.0)
-            log_scale = 0.5 * m * std::log(t) - 0.5 * t - 0.5 * std::lgamma(m + 1.0);
+            log_scale = 0.5 * m * log_t - 0.5 * t - 0.5 * log_factorial;
         else
             log_scale = (m == 0) ? 0.0 : -HUGE_VAL;
         double factor = std::exp(log_scale);
@@ -98,42 +101,38 @@ const Value& cached(std::map<int, std::unique_ptr<Value>>& cache, std::mutex& mu
     return *slot;
 }
 
-Eigen::MatrixXd compute_real_to_cartesian(int n_max) {
-    Eigen::MatrixXd r = Eigen::MatrixXd::Zero(real_count(n_max), real_count(n_max));
+// Block of order n: real parameters (m ≥ 0: Re a, then Im a for m > 0) → b(n1, n − n1).
+Eigen::MatrixXd compute_real_to_cartesian_block(int n) {
+    const Eigen::MatrixXcd& t = polar_cartesian_matrix(n);
+    Eigen::MatrixXd r = Eigen::MatrixXd::Zero(n + 1, n + 1);
     int column = 0;
-    for (int n = 0; n <= n_max; ++n) {
-        const Eigen::MatrixXcd& t = polar_cartesian_matrix(n);
-        for (int m = n % 2; m <= n; m += 2) {
-            const int row_m = (n + m) / 2;
-            for (int n1 = 0; n1 <= n; ++n1) {
-                const int row = cartesian_index(n1, n - n1);
-                if (m == 0) {
-                    r(row, column) = t(row_m, n1).real();
-                } else {
-                    r(row, column) = 2.0 * t(row_m, n1).real();
-                    r(row, column + 1) = -2.0 * t(row_m, n1).imag();
-                }
+    for (int m = n % 2; m <= n; m += 2) {
+        const int row_m = (n + m) / 2;
+        for (int n1 = 0; n1 <= n; ++n1) {
+            if (m == 0) {
+                r(n1, column) = t(row_m, n1).real();
+            } else {  // a χ_m + conj(a χ_m) = 2 Re(a) Re χ_m − 2 Im(a) Im χ_m
+                r(n1, column) = 2.0 * t(row_m, n1).real();
+                r(n1, column + 1) = -2.0 * t(row_m, n1).imag();
             }
-            column += (m == 0) ? 1 : 2;
         }
+        column += (m == 0) ? 1 : 2;
     }
     return r;
 }
 
-Eigen::MatrixXd compute_cartesian_to_real(int n_max) {
-    Eigen::MatrixXd r = Eigen::MatrixXd::Zero(real_count(n_max), real_count(n_max));
+// Its inverse: a_m = Σ_{n1} b(n1) conj T_{m,n1} (T unitary).
+Eigen::MatrixXd compute_cartesian_to_real_block(int n) {
+    const Eigen::MatrixXcd& t = polar_cartesian_matrix(n);
+    Eigen::MatrixXd r = Eigen::MatrixXd::Zero(n + 1, n + 1);
     int row = 0;
-    for (int n = 0; n <= n_max; ++n) {
-        const Eigen::MatrixXcd& t = polar_cartesian_matrix(n);
-        for (int m = n % 2; m <= n; m += 2) {
-            const int row_m = (n + m) / 2;
-            for (int n1 = 0; n1 <= n; ++n1) {
-                const int column = cartesian_index(n1, n - n1);
-                r(row, column) = t(row_m, n1).real();
-                if (m > 0) r(row + 1, column) = -t(row_m, n1).imag();
-            }
-            row += (m == 0) ? 1 : 2;
+    for (int m = n % 2; m <= n; m += 2) {
+        const int row_m = (n + m) / 2;
+        for (int n1 = 0; n1 <= n; ++n1) {
+            r(row, n1) = t(row_m, n1).real();
+            if (m > 0) r(row + 1, n1) = -t(row_m, n1).imag();
         }
+        row += (m == 0) ? 1 : 2;
     }
     return r;
 }
@@ -146,18 +145,35 @@ const Eigen::MatrixXcd& polar_cartesian_matrix(int n) {
     return cached(cache, mutex, n, compute_polar_cartesian);
 }
 
-const Eigen::MatrixXd& real_to_cartesian_matrix(int n_max) {
-    require(n_max >= 0, "real_to_cartesian_matrix: negative n_max");
+const Eigen::MatrixXd& change_basis_block(BasisChange direction, int n) {
+    require(n >= 0, "change_basis_block: negative order");
     static std::mutex mutex;
-    static std::map<int, std::unique_ptr<Eigen::MatrixXd>> cache;
-    return cached(cache, mutex, n_max, compute_real_to_cartesian);
+    static std::map<int, std::unique_ptr<Eigen::MatrixXd>> to_cartesian_cache, to_real_cache;
+    if (direction == BasisChange::real_to_cartesian)
+        return cached(to_cartesian_cache, mutex, n, compute_real_to_cartesian_block);
+    return cached(to_real_cache, mutex, n, compute_cartesian_to_real_block);
 }
 
-const Eigen::MatrixXd& cartesian_to_real_matrix(int n_max) {
-    require(n_max >= 0, "cartesian_to_real_matrix: negative n_max");
-    static std::mutex mutex;
-    static std::map<int, std::unique_ptr<Eigen::MatrixXd>> cache;
-    return cached(cache, mutex, n_max, compute_cartesian_to_real);
+Eigen::MatrixXd change_basis_rows(BasisChange direction, const Eigen::MatrixXd& x, int n_max) {
+    require(x.rows() == real_count(n_max), "change_basis_rows: size does not match n_max");
+    Eigen::MatrixXd out(x.rows(), x.cols());
+    for (int n = 0; n <= n_max; ++n) {
+        const int offset = n * (n + 1) / 2;
+        out.middleRows(offset, n + 1).noalias() =
+            change_basis_block(direction, n) * x.middleRows(offset, n + 1);
+    }
+    return out;
+}
+
+Eigen::MatrixXd change_basis_columns(BasisChange direction, const Eigen::MatrixXd& x, int n_max) {
+    require(x.cols() == real_count(n_max), "change_basis_columns: size does not match n_max");
+    Eigen::MatrixXd out(x.rows(), x.cols());
+    for (int n = 0; n <= n_max; ++n) {
+        const int offset = n * (n + 1) / 2;
+        out.middleCols(offset, n + 1).noalias() =
+            x.middleCols(offset, n + 1) * change_basis_block(direction, n);
+    }
+    return out;
 }
 
 Eigen::VectorXd pack_cartesian(const Eigen::MatrixXd& b, int n_max) {
@@ -176,15 +192,16 @@ Eigen::MatrixXd unpack_cartesian(const Eigen::VectorXd& packed, int n_max) {
 
 CartesianModel to_cartesian(const ShapeletModel& model) {
     CartesianModel out(model.x, model.y, model.beta_pix, model.n_max);
-    out.b = unpack_cartesian(real_to_cartesian_matrix(model.n_max) * real_parameters(model),
-                             model.n_max);
+    out.b = unpack_cartesian(
+        change_basis_rows(BasisChange::real_to_cartesian, real_parameters(model), model.n_max),
+        model.n_max);
     return out;
 }
 
 ShapeletModel to_polar(const CartesianModel& model) {
     ShapeletModel out(model.x, model.y, model.beta_pix, model.n_max);
-    set_real_parameters(out, cartesian_to_real_matrix(model.n_max) *
-                                 pack_cartesian(model.b, model.n_max));
+    set_real_parameters(out, change_basis_rows(BasisChange::cartesian_to_real,
+                                               pack_cartesian(model.b, model.n_max), model.n_max));
     return out;
 }
 

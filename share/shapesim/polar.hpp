@@ -29,11 +29,18 @@ double evaluate(const ShapeletModel& model, double x, double y);
 /// T^{(n)}: rows m = −n, −n+2, …, n; columns n1 = 0..n (n2 = n − n1). Unitary.
 const Eigen::MatrixXcd& polar_cartesian_matrix(int n);
 
-/// Real matrix mapping the real parameter vector (see model.hpp) to Cartesian coefficients,
-/// both of size real_count(n_max). Cartesian order: n = 0..n_max, then n1 = 0..n.
-/// Its inverse is `cartesian_to_real_matrix`; both are cached per n_max.
-const Eigen::MatrixXd& real_to_cartesian_matrix(int n_max);
-const Eigen::MatrixXd& cartesian_to_real_matrix(int n_max);
+/// The change of basis between the real parameter vector (model.hpp) and packed Cartesian
+/// coefficients (order n = 0..n_max, then n1 = 0..n) is block-diagonal by order n: both orders
+/// put order n at offset n(n+1)/2 with n + 1 entries. `change_basis_block` is the (n+1)² block
+/// (cached per n); the functions below apply the whole map block by block, O(n_max³) per column
+/// instead of O(n_max⁴) dense (and never store a dense matrix: 28 MB at n_max 60).
+enum class BasisChange { real_to_cartesian, cartesian_to_real };
+const Eigen::MatrixXd& change_basis_block(BasisChange direction, int n);
+
+/// B · X: rows of X (real_count(n_max) of them) mapped by the change of basis B.
+Eigen::MatrixXd change_basis_rows(BasisChange direction, const Eigen::MatrixXd& x, int n_max);
+/// X · B: columns of X (real_count(n_max) of them) mapped by B.
+Eigen::MatrixXd change_basis_columns(BasisChange direction, const Eigen::MatrixXd& x, int n_max);
 
 /// Index of b(n1, n2) in the packed Cartesian order used by the matrices above.
 constexpr int cartesian_index(int n1, int n2) {

@@ -1,0 +1,114 @@
+#include "shapesim/rng.hpp"
+
+#include "shapesim/error.hpp"
+
+#include <Random123/philox.h>
+
+#include <cmath>
+#include <string>
+
+namespace shapesim {
+
+std::array<std::uint64_t, 4> philox_block(const std::array<std::uint64_t, 4>& counter,
+                                          const std::array<std::uint64_t, 2>& key) {
+    const r123::Philox4x64::ctr_type c = {{counter[0], counter[1], counter[2], counter[3]}};
+    const r123::Philox4x64::key_type k = {{key[0], key[1]}};
+    const r123::Philox4x64::ctr_type r = r123::Philox4x64()(c, k);
+    return {r[0], r[1], r[2], r[3]};
+}
+
+RandomStream::RandomStream(std::uint64_t seed, std::uint64_t object_id, std::string_view purpose)
+    : key_{seed, object_id}, purpose_(fnv1a_64(purpose)) {}
+
+RandomStream::RandomStream(std::uint64_t seed, std::string_view object_id,
+                           std::string_view purpose)
+    : RandomStream(seed, fnv1a_64(object_id), purpose) {}
+
+void RandomStream::refill() {
+    buffered_block_ = position_ >> 2;
+    buffer_ = philox_block({buffered_block_, purpose_, 0, 0}, key_);
+}
+
+std::uint64_t RandomStream::uniform_index(std::uint64_t n) {
+    require(n >= 1, "uniform_index: n must be >= 1");
+    // Words below 2⁶⁴ mod n would make the low residues more likely: reject them.
+    const std::uint64_t threshold = (0 - n) % n;
+    std::uint64_t word;
+    do word = next_u64();
+    while (word < threshold);
+    return word % n;
+}
+
+std::pair<double, double> RandomStream::gaussian_pair() {
+    const double u1 = uniform_open();  // (0, 1): the log is finite
+    const double u2 = uniform();
+    const double radius = std::sqrt(-2.0 * std::log(u1));
+    const double theta = 6.283185307179586477 * u2;
+    return {radius * std::cos(theta), radius * std::sin(theta)};
+}
+
+double RandomStream::epanechnikov() {
+    // Uniforms on [−1, 1): 2u − 1 is exact for u = k·2⁻⁵³.
+    const double first = 2.0 * uniform() - 1.0;
+    const double second = 2.0 * uniform() - 1.0;
+    const double third = 2.0 * uniform() - 1.0;
+    const bool first_is_highest =
+        std::abs(first) >= std::abs(second) && std::abs(first) >= std::abs(third);
+    return first_is_highest ? second : first;
+}
+
+namespace {
+// ln k! for integral k ≥ 0, thread-safe and libm-light (std::lgamma writes the global signgam):
+// exact products up to 20!, then Stirling's series for ln Γ(k + 1) with terms to x⁻⁷ (the next
+// term is < 1/(1188 x⁹) < 1e-15 for x ≥ 21).
+double log_factorial(double k) {
+    if (k <= 20.0) {
+        double product = 1.0;
+        for (int j = 2; j <= int(k); ++j) product *= j;
+        return std::log(product);
+    }
+    const double x = k + 1.0, inv = 1.0 / x, inv2 = inv * inv;
+    const double series = inv * (1.0 / 12 - inv2 * (1.0 / 360 - inv2 * (1.0 / 1260 - inv2 / 1680)));
+    return (x - 0.5) * std::log(x) - x + 0.91893853320467274178 + series;  // ½ ln 2π
+}
+
+// Inversion: walk the CDF from 0 with one uniform (μ < 10, so e^{−μ} > 4.5e-5).
+std::uint64_t poisson_inversion(double mean, double u) {
+    double p = std::exp(-mean), cdf = p;
+    std::uint64_t k = 0;
+    while (u > cdf) {
+        ++k;
+        p *= mean / double(k);
+        if (p < 1e-300) break;  // u beyond the rounded total: the far tail, probability ~1e-16
+        cdf += p;
+    }
+    return k;
+}
+}  // namespace
+
+std::uint64_t RandomStream::poisson(double mean) {
+    if (!(mean >= 0.0) || !(mean <= 0x1.0p62))
+        throw Error("poisson: mean must be finite, >= 0 and <= 2^62, got " +
+                    std::to_string(mean));
+    if (mean == 0.0) return 0;
+    if (mean < 10.0) return poisson_inversion(mean, uniform());
+    // PTRS (Hörmann 1993, §3, with his constants): a transformed-rejection proposal from a
+    // hat over the inverse CDF, a squeeze for fast acceptance, and the exact test otherwise.
+    const double root = std::sqrt(mean), log_mean = std::log(mean);
+    const double b = 0.931 + 2.53 * root;
+    const double a = -0.059 + 0.02483 * b;
+    const double inv_alpha = 1.1239 + 1.1328 / (b - 3.4);
+    const double v_r = 0.9277 - 3.6224 / (b - 2.0);
+    for (;;) {
+        const double u = uniform_open() - 0.5;  // (−½, ½): us > 0 below
+        const double v = uniform_open();        // (0, 1): log v finite
+        const double us = 0.5 - std::abs(u);
+        const double k = std::floor((2.0 * a / us + b) * u + mean + 0.43);
+        if (us >= 0.07 && v <= v_r) return std::uint64_t(k);
+        if (k < 0.0 || (us < 0.013 && v > us)) continue;
+        const double log_hat = std::log(v * inv_alpha / (a / (us * us) + b));
+        if (log_hat <= -mean + k * log_mean - log_factorial(k)) return std::uint64_t(k);
+    }
+}
+
+}  // namespace shapesim

@@ -1,0 +1,116 @@
+// Counter-based random streams: every random draw in shapesim comes from a stream keyed by
+// (run seed, object id, purpose), so one object's realisation does not depend on thread count,
+// tile or order (DESIGN §2 "Randomness"): same key and same calls ⇒ bit-identical numbers.
+//
+// Generator: Philox4x64-10 of Random123 (Salmon, Moraes, Dror & Shaw 2011, "Parallel random
+// numbers: as easy as 1, 2, 3", SC'11), a keyed bijection of 256-bit counters. The layout is
+// fixed (changing it changes every simulation, so it is pinned by tests):
+//   key     = (run seed, object id)
+//   counter = (block, purpose, 0, 0)          block = 0, 1, 2, …; the last two words reserved
+// Each block gives four 64-bit words, used in order. String ids and purposes are hashed with
+// 64-bit FNV-1a over their bytes (offset basis 0xcbf29ce484222325, prime 0x100000001b3; Fowler,
+// Noll & Vo, IETF draft-eastlake-fnv). An integer id is used as it is, so the string "7" and the
+// integer 7 are different objects: a catalogue must keep one form per id field.
+//
+// Words consumed by each draw (part of the contract, as it fixes which numbers come next):
+//   next_u64, uniform*, coin, sign, angle: 1;  gaussian, gaussian_pair: 2 (Box–Muller, both
+//   from the same two words; gaussian returns the cosine branch and keeps no spare value);
+//   epanechnikov: 3;  uniform_index: 1, or more on the rare rejection (probability < n/2⁶⁴);
+//   poisson: 0 for mean 0, 1 for mean < 10 (inversion), 2 per trial for mean ≥ 10 (PTRS,
+//   ~1.1–1.2 trials on average).
+//
+// Distributions:
+//   uniform()        k · 2⁻⁵³ with k the top 53 bits of a word: [0, 1), all 2⁵³ values
+//   uniform_open()   (k + ½) · 2⁻⁵³: (0, 1), symmetric about ½
+//   gaussian()       Box–Muller: √(−2 ln u₁) cos 2πu₂, u₁ = uniform_open, u₂ = uniform
+//   poisson(μ)       μ < 10: inversion of the CDF (exact to rounding of the cumulative sum);
+//                    μ ≥ 10: Hörmann's transformed rejection with squeeze, PTRS (W. Hörmann,
+//                    "The transformed rejection method for generating Poisson random
+//                    variables", Insurance: Mathematics and Economics 12, 39, 1993); exact.
+//   epanechnikov()   density ¾(1 − x²) on [−1, 1], CDF (2 + 3x − x³)/4, by the paper's rule
+//                    (Massey et al. 2004 §4.1): "generating three random numbers from a uniform
+//                    probability distribution between −λ and λ. If the first does not have the
+//                    highest absolute value, take it and discard the rest; otherwise take the
+//                    second" (DESIGN §4) — Devroye (1986, p. 237)'s generator with the variates
+//                    relabelled. Ties (probability ~2⁻⁵²) count as "highest". Scale by λ.
+#pragma once
+
+#include <array>
+#include <cstdint>
+#include <string_view>
+#include <utility>
+
+namespace shapesim {
+
+/// 64-bit FNV-1a hash of the bytes of `text` (the fixed hash of string ids and purposes).
+constexpr std::uint64_t fnv1a_64(std::string_view text) {
+    std::uint64_t hash = 0xcbf29ce484222325ULL;
+    for (const char c : text) {
+        hash ^= static_cast<unsigned char>(c);
+        hash *= 0x100000001b3ULL;
+    }
+    return hash;
+}
+
+/// One Philox4x64-10 block (Random123 names its own macro philox4x64): the raw generator.
+std::array<std::uint64_t, 4> philox_block(const std::array<std::uint64_t, 4>& counter,
+                                          const std::array<std::uint64_t, 2>& key);
+
+/// A reproducible random stream for one (run seed, object, purpose). Cheap to construct
+/// (no state beyond the key and a position); not shared between threads — make one per use.
+class RandomStream {
+public:
+    /// @param seed the run seed (`--seed`); @param object_id the object's integer id;
+    /// @param purpose what the numbers are for ("position", "noise", …; hashed by FNV-1a)
+    RandomStream(std::uint64_t seed, std::uint64_t object_id, std::string_view purpose);
+    /// String object id, hashed by FNV-1a (= the integer form with fnv1a_64(object_id)).
+    RandomStream(std::uint64_t seed, std::string_view object_id, std::string_view purpose);
+
+    /// The next raw 64-bit word.
+    std::uint64_t next_u64() {
+        if ((position_ >> 2) != buffered_block_) refill();
+        return buffer_[position_++ & 3];
+    }
+    /// Words consumed so far; `seek(w)` makes the next word the w-th of the stream (0-based).
+    std::uint64_t position() const { return position_; }
+    void seek(std::uint64_t word) { position_ = word; }
+
+    /// Uniform on [0, 1) with 53 random bits.
+    double uniform() { return double(next_u64() >> 11) * 0x1.0p-53; }
+    /// Uniform on (0, 1): never 0 or 1.
+    double uniform_open() { return (double(next_u64() >> 11) + 0.5) * 0x1.0p-53; }
+    /// Uniform on [lo, hi).
+    double uniform(double lo, double hi) { return lo + (hi - lo) * uniform(); }
+    /// Uniform integer in [0, n), unbiased (rejection of the top 2⁶⁴ mod n words); n ≥ 1.
+    std::uint64_t uniform_index(std::uint64_t n);
+    /// Fair coin (the top bit of a word).
+    bool coin() { return (next_u64() >> 63) != 0; }
+    /// +1 or −1 with equal probability.
+    double sign() { return coin() ? 1.0 : -1.0; }
+    /// Uniform angle in [0, 2π) radians.
+    double angle() { return 6.283185307179586477 * uniform(); }
+
+    /// Standard normal deviate (Box–Muller, 2 words).
+    double gaussian() { return gaussian_pair().first; }
+    /// Normal deviate with the given mean and standard deviation.
+    double gaussian(double mean, double sigma) { return mean + sigma * gaussian(); }
+    /// Two independent standard normal deviates from 2 words.
+    std::pair<double, double> gaussian_pair();
+
+    /// Poisson deviate of mean μ (finite, 0 ≤ μ ≤ 2⁶²; μ = 0 gives 0); throws Error otherwise.
+    std::uint64_t poisson(double mean);
+
+    /// Epanechnikov deviate on [−1, 1] (the paper's three-uniform rule; multiply by λ).
+    double epanechnikov();
+
+private:
+    void refill();
+
+    std::array<std::uint64_t, 2> key_;
+    std::uint64_t purpose_;
+    std::uint64_t position_ = 0;
+    std::uint64_t buffered_block_ = ~std::uint64_t(0);
+    std::array<std::uint64_t, 4> buffer_{};
+};
+
+}  // namespace shapesim
