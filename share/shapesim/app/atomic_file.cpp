@@ -1,0 +1,85 @@
+#include "shapesim/app/atomic_file.hpp"
+
+#include "shapesim/error.hpp"
+
+#include <cerrno>
+#include <cstdio>
+#include <cstring>
+#include <iostream>
+#include <sys/stat.h>
+#include <unistd.h>
+
+namespace shapesim::app {
+
+namespace {
+std::string directory_of(const std::string& path) {
+    const auto slash = path.find_last_of('/');
+    if (slash == std::string::npos) return ".";
+    return slash == 0 ? "/" : path.substr(0, slash);
+}
+
+std::string errno_text(int err) { return std::strerror(err); }
+}  // namespace
+
+void check_writable(const std::string& path) {
+    if (path.empty()) throw Error("output file name is empty");
+    struct stat st;
+    if (stat(path.c_str(), &st) == 0 && S_ISDIR(st.st_mode))
+        throw Error("cannot write: is a directory", path);
+    // The temporary is created, and renamed, in the target's directory: that is what must be
+    // writable (a read-only existing target can still be replaced, as with `mv`).
+    const std::string dir = directory_of(path);
+    if (stat(dir.c_str(), &st) != 0)
+        throw Error("cannot write: directory " + dir + ": " + errno_text(errno), path);
+    if (!S_ISDIR(st.st_mode)) throw Error("cannot write: " + dir + " is not a directory", path);
+    if (access(dir.c_str(), W_OK | X_OK) != 0)
+        throw Error("cannot write: directory " + dir + ": " + errno_text(errno), path);
+}
+
+AtomicFile::AtomicFile(std::string target)
+    : target_(std::move(target)), temp_(target_ + ".tmp." + std::to_string(getpid())) {}
+
+AtomicFile::~AtomicFile() {
+    if (!committed_) discard();
+}
+
+void AtomicFile::commit() {
+    if (committed_) return;
+    if (std::rename(temp_.c_str(), target_.c_str()) != 0) {
+        const int err = errno;
+        discard();
+        throw Error("cannot rename " + temp_ + " to the output: " + errno_text(err), target_);
+    }
+    committed_ = true;
+}
+
+void AtomicFile::discard() noexcept { std::remove(temp_.c_str()); }
+
+AtomicTextFile::AtomicTextFile(const std::string& target) : name_(target) {
+    if (target == "-") return;
+    file_ = std::make_unique<AtomicFile>(target);
+    out_.open(file_->temp_path(), std::ios::out | std::ios::trunc | std::ios::binary);
+    if (!out_) throw Error("cannot create " + file_->temp_path() + ": " + errno_text(errno), name_);
+}
+
+AtomicTextFile::~AtomicTextFile() {
+    if (out_.is_open()) out_.close();  // before AtomicFile unlinks the temporary
+}
+
+std::ostream& AtomicTextFile::stream() {
+    return file_ ? static_cast<std::ostream&>(out_) : std::cout;
+}
+
+void AtomicTextFile::commit() {
+    std::ostream& out = stream();
+    errno = 0;
+    out.flush();
+    if (file_) out_.close();
+    if (!out) {
+        const int err = errno;
+        throw Error(std::string("write failed") + (err ? ": " + errno_text(err) : ""), name_);
+    }
+    if (file_) file_->commit();
+}
+
+}  // namespace shapesim::app

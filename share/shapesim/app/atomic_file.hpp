@@ -1,0 +1,70 @@
+// Atomic output files: a program never leaves a half-written output (DESIGN §1, STYLE (b)).
+//
+// An output `<name>` is written to `<name>.tmp.<pid>` beside it (same directory, so the final
+// rename(2) is atomic on POSIX file systems) and renamed onto `<name>` by commit(). If commit()
+// is never reached — an exception, an early return — the destructor unlinks the temporary, so
+// the target is either absent/untouched or complete. (A process killed by a signal can still
+// leave `*.tmp.<pid>` behind; .gitignore and `make clean` know the pattern.)
+//
+// `check_writable` lets a program refuse an unwritable output before doing any work.
+#pragma once
+
+#include <fstream>
+#include <iosfwd>
+#include <memory>
+#include <string>
+
+namespace shapesim::app {
+
+/// Throw Error unless `path` can be created or replaced: its directory exists and is
+/// writable, and `path` is not a directory. Call before any work (Gnuastro's
+/// `gal_checkset_writable_remove`); creates nothing.
+void check_writable(const std::string& path);
+
+/// A temporary name `<target>.tmp.<pid>` that becomes `target` on commit().
+/// The caller (e.g. cfitsio) creates and writes the temporary file itself.
+class AtomicFile {
+public:
+    /// @param target final path of the output
+    explicit AtomicFile(std::string target);
+    /// Unlinks the temporary unless committed.
+    ~AtomicFile();
+    AtomicFile(const AtomicFile&) = delete;
+    AtomicFile& operator=(const AtomicFile&) = delete;
+
+    const std::string& target() const { return target_; }
+    const std::string& temp_path() const { return temp_; }
+    bool committed() const { return committed_; }
+
+    /// Rename the temporary onto the target; throws Error (naming the target) on failure.
+    void commit();
+    /// Remove the temporary now (no error if it does not exist).
+    void discard() noexcept;
+
+private:
+    std::string target_, temp_;
+    bool committed_ = false;
+};
+
+/// A text output stream with AtomicFile semantics. The target "-" means stdout: then nothing
+/// is renamed and commit() only flushes and checks the stream.
+class AtomicTextFile {
+public:
+    /// Opens `<target>.tmp.<pid>` for writing (or stdout for "-"); throws Error on failure.
+    explicit AtomicTextFile(const std::string& target);
+    ~AtomicTextFile();
+
+    /// The stream to write to.
+    std::ostream& stream();
+    /// The target's name for messages ("-" for stdout).
+    const std::string& name() const { return name_; }
+    /// Flush and close, check for write errors, rename onto the target. Throws Error.
+    void commit();
+
+private:
+    std::string name_;
+    std::unique_ptr<AtomicFile> file_;  // null for stdout
+    std::ofstream out_;
+};
+
+}  // namespace shapesim::app

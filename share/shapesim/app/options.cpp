@@ -1,0 +1,222 @@
+#include "shapesim/app/options.hpp"
+
+#include "shapesim/error.hpp"
+
+#include <cerrno>
+#include <charconv>
+#include <cstring>
+#include <fstream>
+#include <iostream>
+#include <thread>
+
+#ifndef SHAPESIM_VERSION
+#define SHAPESIM_VERSION "unknown"
+#endif
+
+namespace shapesim::app {
+
+namespace {
+
+// Options about the run itself, not settings: never read from --config nor printed by
+// --print-params.
+bool is_meta(const std::string& name) {
+    return name == "help" || name == "version" || name == "config" || name == "print-params";
+}
+
+// Shortest text that reads back as the same double.
+std::string double_text(double v) {
+    char buf[32];
+    const auto end = std::to_chars(buf, buf + sizeof buf, v).ptr;
+    return std::string(buf, end);
+}
+
+// A stored option value as config-file text, one entry per value (vectors give several).
+std::vector<std::string> value_texts(const boost::any& v) {
+    using boost::any_cast;
+    if (const auto* s = any_cast<std::string>(&v)) return {*s};
+    if (const auto* b = any_cast<bool>(&v)) return {*b ? "true" : "false"};
+    if (const auto* d = any_cast<double>(&v)) return {double_text(*d)};
+    if (const auto* f = any_cast<float>(&v)) return {double_text(*f)};
+    if (const auto* i = any_cast<int>(&v)) return {std::to_string(*i)};
+    if (const auto* l = any_cast<long>(&v)) return {std::to_string(*l)};
+    if (const auto* ll = any_cast<long long>(&v)) return {std::to_string(*ll)};
+    if (const auto* u = any_cast<unsigned>(&v)) return {std::to_string(*u)};
+    if (const auto* ul = any_cast<unsigned long>(&v)) return {std::to_string(*ul)};
+    if (const auto* vs = any_cast<std::vector<std::string>>(&v)) return *vs;
+    if (const auto* vd = any_cast<std::vector<double>>(&v)) {
+        std::vector<std::string> out;
+        for (double d : *vd) out.push_back(double_text(d));
+        return out;
+    }
+    if (const auto* vi = any_cast<std::vector<int>>(&v)) {
+        std::vector<std::string> out;
+        for (int i : *vi) out.push_back(std::to_string(i));
+        return out;
+    }
+    throw Error("--print-params: an option has a type it cannot print");
+}
+
+std::uint64_t parse_seed(const std::string& text) {
+    std::uint64_t seed = 0;
+    const char* end = text.data() + text.size();
+    const auto [ptr, ec] = std::from_chars(text.data(), end, seed);
+    if (text.empty() || ec != std::errc() || ptr != end)
+        throw po::error("--seed: must be an integer in [0, 2^64 - 1], got '" + text + "'");
+    return seed;
+}
+
+}  // namespace
+
+std::string version_line(const std::string& program) {
+    return program + " (shapesim) " + SHAPESIM_VERSION;
+}
+
+ProgramOptions::ProgramOptions(std::string program, std::string synopsis, std::string description,
+                               unsigned common)
+    : program_(std::move(program)),
+      synopsis_(std::move(synopsis)),
+      description_(std::move(description)) {
+    declare_common(common);
+}
+
+void ProgramOptions::declare_common(unsigned common) {
+    auto add = common_options_.add_options();
+    add("help,h", "print this help and exit");
+    add("version", "print the version and exit");
+    if (common & Common::output)
+        add("output,o", po::value<std::string>()->value_name("FILE"),
+            "output file; written as FILE.tmp.<pid> and renamed when complete");
+    if (common & Common::quiet) add("quiet,q", po::bool_switch(), "print only errors on stderr");
+    if (common & Common::verbose)
+        add("verbose,v", po::bool_switch(), "also print one line per object on stderr");
+    if (common & Common::threads)
+        add("threads,j",
+            po::value<int>()->value_name("N")->default_value(1)->notifier(
+                in_range("threads", 0, 4096)),
+            "worker threads (0 = one per hardware thread); results do not depend on it");
+    if (common & Common::seed)
+        add("seed", po::value<std::string>(&seed_text_)->value_name("N")->default_value("0"),
+            "run seed (unsigned 64-bit); every random stream is keyed by (seed, object id)");
+    if (common & Common::like)
+        add("like", po::value<std::string>()->value_name("IMAGE"),
+            "field geometry (size, pixel scale, WCS) of this FITS image");
+    if (common & Common::config)
+        add("config", po::value<std::string>()->value_name("FILE"),
+            "read further options from FILE (`name = value` lines); the command line wins");
+    if (common & Common::print_params)
+        add("print-params", "print the effective parameters in --config syntax and exit");
+}
+
+po::options_description& ProgramOptions::group(const std::string& title) {
+    for (auto& [name, description] : groups_)
+        if (name == title) return *description;
+    groups_.emplace_back(title, std::make_unique<po::options_description>(title));
+    return *groups_.back().second;
+}
+
+void ProgramOptions::positional(const std::string& name, int max_count) {
+    positional_.add(name.c_str(), max_count);
+}
+
+po::options_description ProgramOptions::all_options(bool for_config) const {
+    po::options_description all;
+    for (const auto& group : groups_) all.add(*group.second);
+    for (const auto& option : common_options_.options())
+        if (!for_config || !is_meta(option->long_name())) all.add(option);
+    all.add(hidden_);
+    return all;
+}
+
+bool ProgramOptions::parse(int argc, const char* const argv[]) {
+    const po::options_description all = all_options(false);
+    auto parser = po::command_line_parser(argc, argv).options(all).positional(positional_);
+    if (allow_unregistered_) parser.allow_unregistered();
+    const po::parsed_options parsed = parser.run();
+    if (allow_unregistered_)
+        unrecognized_ = po::collect_unrecognized(parsed.options, po::include_positional);
+    po::store(parsed, values_);
+
+    // --help and --version win over everything else, including missing required options.
+    if (values_.count("help")) {
+        std::cout << help();
+        return false;
+    }
+    if (values_.count("version")) {
+        std::cout << version_line(program_) << '\n';
+        return false;
+    }
+    if (values_.count("config")) read_config(values_["config"].as<std::string>());
+    po::notify(values_);
+    resolve_common();
+    if (values_.count("print-params")) {
+        std::cout << params();
+        return false;
+    }
+    return true;
+}
+
+void ProgramOptions::read_config(const std::string& path) {
+    std::ifstream in(path);
+    if (!in) throw Error(std::string("cannot open: ") + std::strerror(errno), path);
+    try {
+        po::store(po::parse_config_file(in, all_options(true)), values_);
+    } catch (const po::error& e) {
+        throw po::error(path + ": " + e.what());
+    }
+}
+
+void ProgramOptions::resolve_common() {
+    const auto flag = [&](const char* name) {
+        return values_.count(name) && values_[name].as<bool>();
+    };
+    if (values_.count("output")) common_.output = values_["output"].as<std::string>();
+    if (flag("quiet") && flag("verbose"))
+        throw po::error("--quiet and --verbose exclude each other");
+    common_.verbosity = flag("quiet")     ? Verbosity::quiet
+                        : flag("verbose") ? Verbosity::verbose
+                                          : Verbosity::normal;
+    if (values_.count("threads")) {
+        common_.threads = values_["threads"].as<int>();
+        if (common_.threads == 0) common_.threads = int(std::thread::hardware_concurrency());
+        if (common_.threads <= 0) common_.threads = 1;
+    }
+    if (values_.count("seed")) {
+        common_.seed = parse_seed(seed_text_);
+        common_.seed_given = given("seed");
+    }
+    if (values_.count("like")) common_.like = values_["like"].as<std::string>();
+    if (values_.count("config")) common_.config = values_["config"].as<std::string>();
+}
+
+bool ProgramOptions::given(const std::string& name) const {
+    return values_.count(name) && !values_[name].defaulted();
+}
+
+std::string ProgramOptions::help() const {
+    std::ostringstream s;
+    s << "Usage: " << program_ << " " << synopsis_ << "\n" << description_ << "\n\n";
+    for (const auto& group : groups_) s << *group.second << "\n";
+    s << common_options_;
+    if (!epilog_.empty()) s << "\n" << epilog_ << "\n";
+    return s.str();
+}
+
+std::vector<std::pair<std::string, std::string>> ProgramOptions::settings() const {
+    std::vector<std::pair<std::string, std::string>> out;
+    const po::options_description options = all_options(true);  // outlives the loop
+    for (const auto& option : options.options()) {
+        const std::string name = option->long_name();
+        if (!values_.count(name) || values_[name].empty()) continue;
+        for (auto& text : value_texts(values_[name].value())) out.emplace_back(name, text);
+    }
+    return out;
+}
+
+std::string ProgramOptions::params() const {
+    std::ostringstream s;
+    s << "# " << version_line(program_) << "\n";
+    for (const auto& [name, text] : settings()) s << name << " = " << text << "\n";
+    return s.str();
+}
+
+}  // namespace shapesim::app

@@ -1,0 +1,488 @@
+#include "shapesim/fits_io.hpp"
+
+#include "shapesim/app/atomic_file.hpp"
+#include "shapesim/error.hpp"
+
+#include <fitsio.h>
+
+#include <cerrno>
+#include <cmath>
+#include <cstdio>
+#include <cstdlib>
+#include <cstring>
+#include <limits>
+#include <sys/stat.h>
+
+#ifndef SHAPESIM_VERSION
+#define SHAPESIM_VERSION "unknown"
+#endif
+
+namespace shapesim {
+
+namespace {
+
+// The one door for cfitsio statuses (Gnuastro's gal_fits_io_error): a non-zero status becomes
+// an Error with cfitsio's short text (or `instead`), the place and the keyword. cfitsio's
+// message stack is cleared so it does not grow across caught errors.
+void check(int status, const std::string& place, const std::string& keyword = {},
+           const std::string& instead = {}) {
+    if (status == 0) return;
+    char text[FLEN_STATUS] = "";
+    fits_get_errstatus(status, text);
+    fits_clear_errmsg();
+    std::string message = instead.empty() ? std::string(text) : instead;
+    // cfitsio's texts for a short read do not say why; the usual causes do.
+    if (instead.empty() && (status == END_OF_FILE || status == READ_ERROR))
+        message += " (truncated, or not a FITS file?)";
+    else if (instead.empty() && (status == UNKNOWN_REC || status == NO_SIMPLE))
+        message += " (not a FITS file?)";
+    throw Error(message, place, 0, keyword);
+}
+
+std::string trim_right(std::string s) {
+    while (!s.empty() && s.back() == ' ') s.pop_back();
+    return s;
+}
+
+// The file name without cfitsio's `[...]` specifiers, for messages.
+std::string root_name(const std::string& path) {
+    char root[FLEN_FILENAME] = "";
+    int status = 0;
+    fits_parse_rootname(const_cast<char*>(path.c_str()), root, &status);
+    fits_clear_errmsg();
+    return status == 0 && root[0] ? std::string(root) : path;
+}
+
+// Read a string keyword; false when absent or undefined. Throws through check() otherwise.
+bool read_string_key(fitsfile* f, const std::string& key, const std::string& place,
+                     std::string& out) {
+    char* value = nullptr;
+    int status = 0;
+    fits_read_key_longstr(f, key.c_str(), &value, nullptr, &status);
+    if (status == 0) out = trim_right(value);
+    int free_status = 0;  // cfitsio calls do nothing under a non-zero status: use a fresh one
+    if (value) fits_free_memory(value, &free_status);
+    if (status == KEY_NO_EXIST || status == VALUE_UNDEFINED) {
+        fits_clear_errmsg();
+        return false;
+    }
+    check(status, place, key);
+    return true;
+}
+
+}  // namespace
+
+// ---------------------------------------------------------------------------------- reading
+
+struct FitsReader::Impl {
+    fitsfile* f = nullptr;
+    std::string file, place;
+    int index = 0;
+
+    ~Impl() {
+        int status = 0;
+        if (f) fits_close_file(f, &status);
+        fits_clear_errmsg();
+    }
+    // Recompute the current HDU's index and place after every move.
+    void located() {
+        int number = 1;
+        fits_get_hdu_num(f, &number);
+        index = number - 1;
+        std::string extname;
+        if (read_string_key(f, "EXTNAME", file, extname) && !extname.empty())
+            place = file + "[" + extname + "]";
+        else
+            place = index == 0 ? file : file + "[" + std::to_string(index) + "]";
+    }
+};
+
+FitsReader::FitsReader(const std::string& path, FitsStart start) : impl_(std::make_unique<Impl>()) {
+    impl_->file = root_name(path);
+    int status = 0;
+    if (start == FitsStart::first_image)
+        fits_open_image(&impl_->f, path.c_str(), READONLY, &status);
+    else
+        fits_open_file(&impl_->f, path.c_str(), READONLY, &status);
+    if (status != 0) {
+        impl_->f = nullptr;  // cfitsio leaves no open file behind on failure
+        // cfitsio says "could not open the named file" for every cause; the OS says which.
+        struct stat st;
+        std::string why;
+        if (stat(impl_->file.c_str(), &st) != 0)
+            why = std::string("cannot open: ") + std::strerror(errno);
+        else if (S_ISDIR(st.st_mode))
+            why = "cannot open: is a directory";
+        check(status, path, {}, why);
+    }
+    impl_->located();
+}
+
+FitsReader::~FitsReader() = default;
+FitsReader::FitsReader(FitsReader&&) noexcept = default;
+FitsReader& FitsReader::operator=(FitsReader&&) noexcept = default;
+
+const std::string& FitsReader::file() const { return impl_->file; }
+const std::string& FitsReader::place() const { return impl_->place; }
+int FitsReader::hdu_index() const { return impl_->index; }
+
+int FitsReader::hdu_count() {
+    int count = 0, status = 0;
+    fits_get_num_hdus(impl_->f, &count, &status);
+    check(status, impl_->file);
+    return count;
+}
+
+void FitsReader::move_to(int index) {
+    int status = 0, type = 0;
+    fits_movabs_hdu(impl_->f, index + 1, &type, &status);
+    if (status != 0) {
+        const std::string place = impl_->file + "[" + std::to_string(index) + "]";
+        impl_->located();
+        check(status, place, {},
+              "no such HDU (the file has " + std::to_string(hdu_count()) + ", numbered from 0)");
+    }
+    impl_->located();
+}
+
+void FitsReader::move_to(const std::string& extname) {
+    int status = 0;
+    fits_movnam_hdu(impl_->f, ANY_HDU, const_cast<char*>(extname.c_str()), 0, &status);
+    if (status == BAD_HDU_NUM) {
+        impl_->located();
+        check(status, impl_->file, {}, "no HDU named '" + extname + "'");
+    }
+    check(status, impl_->file + "[" + extname + "]");
+    impl_->located();
+}
+
+bool FitsReader::has_hdu(const std::string& extname) {
+    const int here = impl_->index;
+    int status = 0;
+    fits_movnam_hdu(impl_->f, ANY_HDU, const_cast<char*>(extname.c_str()), 0, &status);
+    const bool found = status == 0;
+    if (status == BAD_HDU_NUM) {  // absent is an answer, not an error
+        status = 0;
+        fits_clear_errmsg();
+    }
+    check(status, impl_->file + "[" + extname + "]");
+    move_to(here);
+    return found;
+}
+
+std::vector<FitsHduInfo> FitsReader::list_hdus() {
+    const int here = impl_->index, count = hdu_count();
+    std::vector<FitsHduInfo> out;
+    for (int index = 0; index < count; ++index) {
+        move_to(index);
+        FitsHduInfo info;
+        info.index = index;
+        read_string_key(impl_->f, "EXTNAME", impl_->place, info.extname);
+        int status = 0, type = 0, naxis = 0;
+        fits_get_hdu_type(impl_->f, &type, &status);
+        info.is_image = type == IMAGE_HDU;
+        if (info.is_image) {
+            fits_get_img_dim(impl_->f, &naxis, &status);
+            info.naxes.resize(naxis);
+            if (naxis > 0) fits_get_img_sizell(impl_->f, naxis, info.naxes.data(), &status);
+        }
+        check(status, impl_->place);
+        out.push_back(std::move(info));
+    }
+    move_to(here);
+    return out;
+}
+
+ImageSize FitsReader::image_size() {
+    const std::string& place = impl_->place;
+    int status = 0, type = 0, naxis = 0;
+    fits_get_hdu_type(impl_->f, &type, &status);
+    check(status, place);
+    if (type != IMAGE_HDU) throw Error("not an image HDU (a table)", place);
+    fits_get_img_dim(impl_->f, &naxis, &status);
+    check(status, place, "NAXIS");
+    if (naxis == 0) throw Error("image is empty (NAXIS = 0)", place, 0, "NAXIS");
+    if (naxis < 2 || naxis > 9)
+        throw Error("expected a 2D image, got NAXIS = " + std::to_string(naxis), place, 0, "NAXIS");
+    LONGLONG naxes[9] = {0};
+    fits_get_img_sizell(impl_->f, naxis, naxes, &status);
+    check(status, place, "NAXIS1");
+    for (int k = 0; k < 2; ++k) {
+        const std::string key = "NAXIS" + std::to_string(k + 1);
+        if (naxes[k] <= 0) throw Error("image is empty", place, 0, key);
+        if (naxes[k] > std::numeric_limits<int>::max())
+            throw Error("image too large", place, 0, key);
+    }
+    for (int k = 2; k < naxis; ++k)  // a 2D image may carry degenerate axes (NAXIS3 = 1)
+        if (naxes[k] != 1)
+            throw Error("expected a 2D image, got NAXIS = " + std::to_string(naxis) + " with " +
+                            "NAXIS" + std::to_string(k + 1) + " = " + std::to_string(naxes[k]),
+                        place, 0, "NAXIS");
+    return {int(naxes[0]), int(naxes[1])};
+}
+
+ImageArray FitsReader::read_image() {
+    const ImageSize size = image_size();
+    ImageArray image(size.ny, size.nx);
+    // FITS stores x fastest, rows of constant y one after another: the ImageArray layout.
+    // A NaN null value makes cfitsio turn BLANK integers and NaN floats into NaN.
+    double null_value = std::numeric_limits<double>::quiet_NaN();
+    int any_null = 0, status = 0;
+    fits_read_img(impl_->f, TDOUBLE, 1, LONGLONG(size.nx) * size.ny, &null_value, image.data(),
+                  &any_null, &status);
+    check(status, impl_->place);
+    return image;
+}
+
+bool FitsReader::has_key(const std::string& key) {
+    char card[FLEN_CARD];
+    int status = 0;
+    fits_read_card(impl_->f, key.c_str(), card, &status);
+    if (status == KEY_NO_EXIST) {
+        fits_clear_errmsg();
+        return false;
+    }
+    check(status, impl_->place, key);
+    return true;
+}
+
+std::optional<double> FitsReader::optional_double(const std::string& key) {
+    double value = 0.0;
+    int status = 0;
+    fits_read_key(impl_->f, TDOUBLE, key.c_str(), &value, nullptr, &status);
+    if (status == KEY_NO_EXIST || status == VALUE_UNDEFINED) {
+        fits_clear_errmsg();
+        return std::nullopt;
+    }
+    check(status, impl_->place, key);
+    if (!std::isfinite(value)) throw Error("not a finite number", impl_->place, 0, key);
+    return value;
+}
+
+double FitsReader::required_double(const std::string& key) {
+    if (auto value = optional_double(key)) return *value;
+    throw Error("keyword is missing", impl_->place, 0, key);
+}
+
+std::optional<long long> FitsReader::optional_int(const std::string& key) {
+    LONGLONG value = 0;
+    int status = 0;
+    fits_read_key(impl_->f, TLONGLONG, key.c_str(), &value, nullptr, &status);
+    if (status == KEY_NO_EXIST || status == VALUE_UNDEFINED) {
+        fits_clear_errmsg();
+        return std::nullopt;
+    }
+    check(status, impl_->place, key);
+    return value;
+}
+
+long long FitsReader::required_int(const std::string& key) {
+    if (auto value = optional_int(key)) return *value;
+    throw Error("keyword is missing", impl_->place, 0, key);
+}
+
+std::optional<std::string> FitsReader::optional_string(const std::string& key) {
+    std::string value;
+    if (!read_string_key(impl_->f, key, impl_->place, value)) return std::nullopt;
+    return value;
+}
+
+std::string FitsReader::required_string(const std::string& key) {
+    if (auto value = optional_string(key)) return *value;
+    throw Error("keyword is missing", impl_->place, 0, key);
+}
+
+ImageArray read_fits_image(const std::string& path) {
+    FitsReader fits(path, FitsStart::first_image);
+    return fits.read_image();
+}
+
+// ---------------------------------------------------------------------------------- writing
+
+namespace {
+
+// Fewest significant digits (15–17) that read back as the same double, so headers stay
+// readable (0.04, not 0.040000000000000001) and exact.
+int round_trip_digits(double value) {
+    char text[40];
+    for (int digits = 15; digits < 17; ++digits) {
+        std::snprintf(text, sizeof text, "%.*G", digits, value);
+        if (std::strtod(text, nullptr) == value) return digits;
+    }
+    return 17;
+}
+
+void write_keyword(fitsfile* f, const FitsKeyword& key, const std::string& place) {
+    const char* name = key.name.c_str();
+    char* comment = key.comment.empty() ? nullptr : const_cast<char*>(key.comment.c_str());
+    int status = 0;
+    if (const auto* d = std::get_if<double>(&key.value)) {
+        if (!std::isfinite(*d)) throw Error("cannot write a non-finite value", place, 0, key.name);
+        fits_update_key_dbl(f, name, *d, -round_trip_digits(*d), comment, &status);
+    } else if (const auto* i = std::get_if<long long>(&key.value)) {
+        fits_update_key_lng(f, name, *i, comment, &status);
+    } else if (const auto* b = std::get_if<bool>(&key.value)) {
+        fits_update_key_log(f, name, *b ? 1 : 0, comment, &status);
+    } else {
+        const std::string& s = std::get<std::string>(key.value);
+        fits_update_key_longstr(f, name, const_cast<char*>(s.c_str()), comment, &status);
+    }
+    check(status, place, key.name);
+}
+
+void write_history(fitsfile* f, const std::vector<std::string>& lines, const std::string& place) {
+    int status = 0;
+    for (const auto& line : lines) fits_write_history(f, line.c_str(), &status);
+    check(status, place, "HISTORY");
+}
+
+void write_wcs(fitsfile* f, const Wcs& wcs, const std::string& place) {
+    try {
+        wcs.validate();
+    } catch (const Error& e) {
+        throw e.at(place);
+    }
+    const std::vector<FitsKeyword> keys = {
+        {"CTYPE1", wcs.ctype1},
+        {"CTYPE2", wcs.ctype2},
+        {"CUNIT1", "deg"},
+        {"CUNIT2", "deg"},
+        {"CRPIX1", wcs.crpix1, "reference pixel (FITS coordinates)"},
+        {"CRPIX2", wcs.crpix2},
+        {"CRVAL1", wcs.crval1, "RA at the reference pixel, degrees"},
+        {"CRVAL2", wcs.crval2, "Dec at the reference pixel, degrees"},
+        {"CD1_1", wcs.cd1_1, "degrees per pixel"},
+        {"CD1_2", wcs.cd1_2},
+        {"CD2_1", wcs.cd2_1},
+        {"CD2_2", wcs.cd2_2}};
+    for (const auto& key : keys) write_keyword(f, key, place);
+}
+
+bool valid_bitpix(int bitpix) {
+    return bitpix == 8 || bitpix == 16 || bitpix == 32 || bitpix == -32 || bitpix == -64;
+}
+
+}  // namespace
+
+struct FitsWriter::Impl {
+    app::AtomicFile file;  // declared first: destroyed after the cfitsio handle is closed
+    fitsfile* f = nullptr;
+    int images = 0;
+
+    explicit Impl(const std::string& path) : file(path) {}
+    ~Impl() { close_quietly(); }
+    void close_quietly() {
+        int status = 0;
+        if (f) fits_close_file(f, &status);
+        f = nullptr;
+        fits_clear_errmsg();
+    }
+};
+
+FitsWriter::FitsWriter(const std::string& path, const std::string& program,
+                       const std::vector<FitsKeyword>& primary_keywords,
+                       const std::vector<std::string>& primary_history) {
+    if (path == "-") throw Error("writing FITS to stdout is not supported; give a file name");
+    if (path.find('[') != std::string::npos)
+        throw Error("an output path cannot carry [...] specifiers", path);
+    if (path.size() > 3 && path.compare(path.size() - 3, 3, ".gz") == 0)
+        throw Error("compressed (.gz) output is not supported", path);
+    app::check_writable(path);
+    impl_ = std::make_unique<Impl>(path);
+    // "!" lets cfitsio replace a stale temporary of a crashed run with the same pid.
+    int status = 0;
+    fits_create_file(&impl_->f, ("!" + impl_->file.temp_path()).c_str(), &status);
+    if (status != 0) impl_->f = nullptr;
+    check(status, path);
+    fits_create_img(impl_->f, BYTE_IMG, 0, nullptr, &status);
+    check(status, path);
+    const std::string cfitsio = std::to_string(CFITSIO_MAJOR) + "." +
+                                std::to_string(CFITSIO_MINOR) + "." + std::to_string(CFITSIO_MICRO);
+    write_keyword(impl_->f, {"PROGRAM", program, "program that wrote this file"}, path);
+    write_keyword(impl_->f, {"VERSION", SHAPESIM_VERSION, "shapesim version (git describe)"}, path);
+    fits_write_date(impl_->f, &status);
+    check(status, path, "DATE");
+    write_keyword(impl_->f, {"CFITSIO", cfitsio, "cfitsio version"}, path);
+    for (const auto& key : primary_keywords) write_keyword(impl_->f, key, path);
+    write_history(impl_->f, primary_history, path);
+}
+
+FitsWriter::~FitsWriter() = default;
+FitsWriter::FitsWriter(FitsWriter&&) noexcept = default;
+FitsWriter& FitsWriter::operator=(FitsWriter&&) noexcept = default;
+
+const std::string& FitsWriter::path() const { return impl_->file.target(); }
+
+void FitsWriter::write_image(const ImageArray& image, const FitsImageSpec& spec) {
+    require(impl_ && impl_->f, "FitsWriter: write_image after commit");
+    const std::string place =
+        path() + "[" + (spec.extname.empty() ? std::to_string(impl_->images + 1) : spec.extname) +
+        "]";
+    if (!valid_bitpix(spec.bitpix))
+        throw Error("BITPIX must be 8, 16, 32, -32 or -64, got " + std::to_string(spec.bitpix),
+                    place, 0, "BITPIX");
+    if (image.size() == 0) throw Error("cannot write an empty image", place, 0, "NAXIS");
+    if (spec.bitpix > 0 && !image.isFinite().all())
+        throw Error("integer BITPIX cannot hold NaN or infinite pixels", place, 0, "BITPIX");
+    int status = 0;
+    long naxes[2] = {long(image.cols()), long(image.rows())};
+    fits_create_img(impl_->f, spec.bitpix, 2, naxes, &status);
+    check(status, place);
+    ++impl_->images;
+    if (!spec.extname.empty()) write_keyword(impl_->f, {"EXTNAME", spec.extname}, place);
+    if (!spec.bunit.empty()) write_keyword(impl_->f, {"BUNIT", spec.bunit, "pixel unit"}, place);
+    if (spec.wcs) write_wcs(impl_->f, *spec.wcs, place);
+    for (const auto& key : spec.keywords) write_keyword(impl_->f, key, place);
+    write_history(impl_->f, spec.history, place);
+    // Row-major ImageArray = FITS order; cfitsio converts doubles to BITPIX and reports
+    // NUM_OVERFLOW for integer pixels out of range.
+    fits_write_img(impl_->f, TDOUBLE, 1, LONGLONG(image.size()), const_cast<double*>(image.data()),
+                   &status);
+    check(status, place);
+}
+
+void FitsWriter::commit() {
+    require(impl_ && impl_->f, "FitsWriter: commit twice");
+    int status = 0;
+    fits_close_file(impl_->f, &status);  // flushes: write errors (disk full) surface here
+    impl_->f = nullptr;
+    check(status, path());
+    impl_->file.commit();
+}
+
+// ----------------------------------------------------------------------------------- stamps
+
+std::string stamp_image_extname(const std::string& id) { return id + ".image"; }
+std::string stamp_weight_extname(const std::string& id) { return id + ".weight"; }
+std::string stamp_mask_extname(const std::string& id) { return id + ".mask"; }
+
+Stamp read_stamp(FitsReader& fits, const std::string& id) {
+    Stamp stamp;
+    stamp.id = id;
+    fits.move_to(stamp_image_extname(id));
+    stamp.image = fits.read_image();
+    // LTVi = 1 − (parent pixel of stamp pixel 1): IRAF's physical = logical − LTV.
+    stamp.x0 = int(1 - fits.optional_int("LTV1").value_or(0));
+    stamp.y0 = int(1 - fits.optional_int("LTV2").value_or(0));
+    fits.move_to(stamp_weight_extname(id));
+    stamp.weight = fits.read_image();
+    if (stamp.weight.rows() != stamp.image.rows() || stamp.weight.cols() != stamp.image.cols())
+        throw Error("weight size differs from the image's", fits.place(), 0, "NAXIS1");
+    fits.move_to(stamp_mask_extname(id));
+    stamp.mask = fits.read_image();
+    if (stamp.mask.rows() != stamp.image.rows() || stamp.mask.cols() != stamp.image.cols())
+        throw Error("mask size differs from the image's", fits.place(), 0, "NAXIS1");
+    return stamp;
+}
+
+void write_stamp(FitsWriter& out, const Stamp& stamp) {
+    const std::vector<FitsKeyword> origin = {{"LTV1", 1 - stamp.x0, "parent x = stamp x - LTV1"},
+                                             {"LTV2", 1 - stamp.y0, "parent y = stamp y - LTV2"},
+                                             {"LTM1_1", 1, "no rebinning"},
+                                             {"LTM2_2", 1, "no rebinning"}};
+    out.write_image(stamp.image, {stamp_image_extname(stamp.id), -32, "", {}, origin, {}});
+    out.write_image(stamp.weight, {stamp_weight_extname(stamp.id), -32, "", {}, origin, {}});
+    out.write_image(stamp.mask, {stamp_mask_extname(stamp.id), 8, "", {}, origin, {}});
+}
+
+}  // namespace shapesim

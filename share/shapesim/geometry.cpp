@@ -1,0 +1,145 @@
+#include "shapesim/geometry.hpp"
+
+#include "shapesim/error.hpp"
+#include "shapesim/fits_io.hpp"
+
+#include <cmath>
+#include <optional>
+
+namespace shapesim {
+
+namespace {
+constexpr double deg = M_PI / 180.0;
+
+double det_cd(const Wcs& w) { return w.cd1_1 * w.cd2_2 - w.cd1_2 * w.cd2_1; }
+
+std::string trimmed(std::string s) {
+    while (!s.empty() && s.back() == ' ') s.pop_back();
+    return s;
+}
+
+// The CD matrix of the current HDU, by the three FITS conventions in order of precedence
+// (Calabretta & Greisen 2002 §2.1.2; CROTA2 as in the AIPS convention).
+void read_cd(FitsReader& fits, Wcs& w) {
+    if (fits.optional_double("CD1_1") || fits.optional_double("CD2_2")) {
+        w.cd1_1 = fits.optional_double("CD1_1").value_or(0.0);
+        w.cd1_2 = fits.optional_double("CD1_2").value_or(0.0);
+        w.cd2_1 = fits.optional_double("CD2_1").value_or(0.0);
+        w.cd2_2 = fits.optional_double("CD2_2").value_or(0.0);
+        return;
+    }
+    const double cdelt1 = fits.required_double("CDELT1");
+    const double cdelt2 = fits.required_double("CDELT2");
+    if (fits.optional_double("PC1_1") || fits.optional_double("PC2_2")) {
+        w.cd1_1 = cdelt1 * fits.optional_double("PC1_1").value_or(1.0);
+        w.cd1_2 = cdelt1 * fits.optional_double("PC1_2").value_or(0.0);
+        w.cd2_1 = cdelt2 * fits.optional_double("PC2_1").value_or(0.0);
+        w.cd2_2 = cdelt2 * fits.optional_double("PC2_2").value_or(1.0);
+        return;
+    }
+    const double rho = fits.optional_double("CROTA2").value_or(0.0) * deg;
+    w.cd1_1 = cdelt1 * std::cos(rho);
+    w.cd1_2 = -cdelt2 * std::sin(rho);
+    w.cd2_1 = cdelt1 * std::sin(rho);
+    w.cd2_2 = cdelt2 * std::cos(rho);
+}
+}  // namespace
+
+SkyPosition Wcs::pixel_to_sky(double x, double y) const {
+    const double dx = x - crpix1, dy = y - crpix2;
+    const double xi = (cd1_1 * dx + cd1_2 * dy) * deg;
+    const double eta = (cd2_1 * dx + cd2_2 * dy) * deg;
+    const double dec0 = crval2 * deg;
+    const double denom = std::cos(dec0) - eta * std::sin(dec0);
+    double ra = crval1 + std::atan2(xi, denom) / deg;
+    const double dec = std::atan2(eta * std::cos(dec0) + std::sin(dec0), std::hypot(xi, denom));
+    ra = std::fmod(ra, 360.0);
+    if (ra < 0.0) ra += 360.0;
+    return {ra, dec / deg};
+}
+
+PixelPosition Wcs::sky_to_pixel(double ra, double dec) const {
+    const double dra = (ra - crval1) * deg, d = dec * deg, d0 = crval2 * deg;
+    const double cos_c = std::sin(d) * std::sin(d0) + std::cos(d) * std::cos(d0) * std::cos(dra);
+    if (!(cos_c > 0.0))
+        throw Error("(" + std::to_string(ra) + ", " + std::to_string(dec) +
+                    ") is 90 degrees or more from the WCS reference point");
+    const double xi = std::cos(d) * std::sin(dra) / cos_c / deg;
+    const double eta =
+        (std::cos(d0) * std::sin(d) - std::sin(d0) * std::cos(d) * std::cos(dra)) / cos_c / deg;
+    // Invert the 2×2 CD matrix (validated non-singular).
+    const double det = det_cd(*this);
+    return {crpix1 + (cd2_2 * xi - cd1_2 * eta) / det, crpix2 + (-cd2_1 * xi + cd1_1 * eta) / det};
+}
+
+double Wcs::pixel_scale_arcsec() const { return std::sqrt(std::abs(det_cd(*this))) * 3600.0; }
+
+void Wcs::validate() const {
+    if (trimmed(ctype1) != "RA---TAN")
+        throw Error("expected 'RA---TAN', got '" + ctype1 + "'", {}, 0, "CTYPE1");
+    if (trimmed(ctype2) != "DEC--TAN")
+        throw Error("expected 'DEC--TAN', got '" + ctype2 + "'", {}, 0, "CTYPE2");
+    for (double v : {crpix1, crpix2, crval1, crval2, cd1_1, cd1_2, cd2_1, cd2_2})
+        if (!std::isfinite(v)) throw Error("WCS value is not finite", {}, 0, "CD1_1");
+    if (!(std::abs(crval2) <= 90.0))
+        throw Error("must be within [-90, 90] degrees", {}, 0, "CRVAL2");
+    if (det_cd(*this) == 0.0) throw Error("CD matrix is singular", {}, 0, "CD1_1");
+}
+
+Wcs tan_wcs(double ra, double dec, double pixel_scale_arcsec, double crpix1, double crpix2,
+            double rotation_deg) {
+    require(pixel_scale_arcsec > 0.0, "tan_wcs: pixel scale must be > 0");
+    Wcs w;
+    w.crval1 = ra;
+    w.crval2 = dec;
+    w.crpix1 = crpix1;
+    w.crpix2 = crpix2;
+    // CDELT1 = −s (east left), CDELT2 = s (north up), rotated as FITS CROTA2 (read_cd).
+    const double s = pixel_scale_arcsec / 3600.0, rho = rotation_deg * deg;
+    w.cd1_1 = -s * std::cos(rho);
+    w.cd1_2 = -s * std::sin(rho);
+    w.cd2_1 = -s * std::sin(rho);
+    w.cd2_2 = s * std::cos(rho);
+    w.validate();
+    return w;
+}
+
+bool has_wcs(FitsReader& fits) { return fits.has_key("CTYPE1"); }
+
+Wcs read_wcs(FitsReader& fits) {
+    Wcs w;
+    w.ctype1 = fits.required_string("CTYPE1");
+    w.ctype2 = fits.required_string("CTYPE2");
+    w.crpix1 = fits.required_double("CRPIX1");
+    w.crpix2 = fits.required_double("CRPIX2");
+    w.crval1 = fits.required_double("CRVAL1");
+    w.crval2 = fits.required_double("CRVAL2");
+    read_cd(fits, w);
+    // A non-default LONPOLE would change the formulas: refuse it rather than ignore it.
+    // (Distortions come with other CTYPEs, e.g. RA---TAN-SIP, which validate() refuses.)
+    if (auto lonpole = fits.optional_double("LONPOLE"); lonpole && *lonpole != 180.0)
+        throw Error("only LONPOLE = 180 is supported", fits.place(), 0, "LONPOLE");
+    try {
+        w.validate();
+    } catch (const Error& e) {
+        throw e.at(fits.place());
+    }
+    return w;
+}
+
+double FieldGeometry::area_arcmin2() const {
+    return double(nx) * double(ny) * pixel_scale * pixel_scale / 3600.0;
+}
+
+FieldGeometry read_field_geometry(const std::string& path) {
+    FitsReader fits(path, FitsStart::first_image);
+    FieldGeometry g;
+    const auto [nx, ny] = fits.image_size();
+    g.nx = nx;
+    g.ny = ny;
+    g.wcs = read_wcs(fits);
+    g.pixel_scale = g.wcs.pixel_scale_arcsec();
+    return g;
+}
+
+}  // namespace shapesim

@@ -1,0 +1,77 @@
+// Field geometry: the gnomonic (TAN) world coordinate system and `--like IMAGE`.
+//
+// Pixel positions are FITS pixel coordinates (first pixel centred at (1, 1)); sky positions
+// are (RA, Dec) in degrees; the CD matrix is in degrees per pixel. The projection is the
+// FITS "TAN" of Calabretta & Greisen (2002, A&A 395, 1077) with the reference point at the
+// native pole (LONPOLE = 180°), in closed form:
+//   (ξ, η) = CD · (x − CRPIX1, y − CRPIX2)                      (intermediate, radians)
+//   α = α₀ + atan2(ξ, cos δ₀ − η sin δ₀)
+//   δ = atan2(η cos δ₀ + sin δ₀, √(ξ² + (cos δ₀ − η sin δ₀)²))
+// and its exact inverse, with cos c = sin δ sin δ₀ + cos δ cos δ₀ cos(α − α₀) > 0:
+//   ξ = cos δ sin(α − α₀) / cos c,  η = (cos δ₀ sin δ − sin δ₀ cos δ cos(α − α₀)) / cos c.
+// No distortion terms: CTYPEs other than RA---TAN/DEC--TAN (e.g. -SIP) are refused.
+// The pixel scale of a field is √|det CD| in arcsec.
+#pragma once
+
+#include <string>
+
+namespace shapesim {
+
+class FitsReader;
+
+/// A sky position in degrees.
+struct SkyPosition {
+    double ra = 0.0, dec = 0.0;
+};
+
+/// A position in FITS pixel coordinates (first pixel centred at (1, 1)).
+struct PixelPosition {
+    double x = 0.0, y = 0.0;
+};
+
+/// A TAN world coordinate system; fields are named after their FITS keywords.
+struct Wcs {
+    double crpix1 = 0.0, crpix2 = 0.0;  ///< reference pixel (FITS coordinates)
+    double crval1 = 0.0, crval2 = 0.0;  ///< reference point (RA, Dec), degrees
+    double cd1_1 = 1.0, cd1_2 = 0.0;    ///< CD matrix, degrees per pixel: CDi_j
+    double cd2_1 = 0.0, cd2_2 = 1.0;
+    std::string ctype1 = "RA---TAN", ctype2 = "DEC--TAN";
+
+    /// Sky position of a pixel position (exact TAN formulas above).
+    SkyPosition pixel_to_sky(double x, double y) const;
+    /// Pixel position of a sky position; throws Error when it lies 90° or more from CRVAL
+    /// (the TAN projection does not reach it).
+    PixelPosition sky_to_pixel(double ra, double dec) const;
+    /// Pixel scale √|det CD|, arcsec per pixel.
+    double pixel_scale_arcsec() const;
+    /// Throws Error (field = keyword) unless finite, CTYPE is RA---TAN/DEC--TAN and det CD ≠ 0.
+    void validate() const;
+};
+
+/// A north-up, east-left TAN WCS with square pixels: `pixel_scale_arcsec` per pixel, the sky
+/// position (`ra`, `dec`) (degrees) at pixel (`crpix1`, `crpix2`), rotated by
+/// `rotation_deg` degrees as FITS CROTA2 does.
+Wcs tan_wcs(double ra, double dec, double pixel_scale_arcsec, double crpix1, double crpix2,
+            double rotation_deg = 0.0);
+
+/// Read the WCS of the current HDU: CRPIXi, CRVALi, CTYPEi and the CD matrix (else
+/// PCi_j × CDELTi, else CDELTi with CROTA2). Throws Error naming the file/HDU and keyword.
+Wcs read_wcs(FitsReader& fits);
+/// True when the current HDU declares a celestial WCS (CTYPE1 present).
+bool has_wcs(FitsReader& fits);
+
+/// The geometry of a field, as taken by `--like IMAGE` (DESIGN §1).
+struct FieldGeometry {
+    int nx = 0, ny = 0;        ///< size in pixels (NAXIS1, NAXIS2)
+    double pixel_scale = 0.0;  ///< arcsec per pixel (√|det CD|)
+    Wcs wcs;
+
+    /// Area of the field in arcmin².
+    double area_arcmin2() const;
+};
+
+/// The geometry of the first image HDU of `path` (cfitsio syntax `file.fits[EXT]` allowed);
+/// the image must have a TAN WCS. Pixels are not read.
+FieldGeometry read_field_geometry(const std::string& path);
+
+}  // namespace shapesim

@@ -1,0 +1,233 @@
+#include "shapesim/jsonl.hpp"
+
+#include <cerrno>
+#include <cmath>
+#include <cstring>
+#include <fstream>
+#include <iostream>
+#include <limits>
+
+namespace shapesim {
+
+namespace {
+
+// nlohmann's what() is "[json.exception.parse_error.101] parse error at line 1, column 7:
+// syntax error while parsing value - invalid literal; last read: '...'". Keep "column 7: …":
+// the line number is ours, the tag is noise.
+std::string parse_message(const nlohmann::json::exception& e) {
+    std::string text = e.what();
+    if (const auto column = text.find("column "); column != std::string::npos)
+        return "invalid JSON at " + text.substr(column);
+    if (const auto tag_end = text.find("] "); tag_end != std::string::npos)
+        text = text.substr(tag_end + 2);
+    return "invalid JSON: " + text;
+}
+
+bool is_blank(const std::string& s) { return s.find_first_not_of(" \t\r\n") == std::string::npos; }
+
+// A short rendering of a value for messages: `string "abc"`, `null`, `array`.
+std::string describe(const Json& value) {
+    std::string text = value.dump();
+    if (text.size() > 40) text = text.substr(0, 37) + "...";
+    return std::string(value.type_name()) + (value.is_structured() ? "" : " " + text);
+}
+
+std::string join(const std::vector<std::string>& items) {
+    std::string out;
+    for (const auto& s : items) out += (out.empty() ? "\"" : " or \"") + s + "\"";
+    return out;
+}
+
+// The dotted path of the first non-finite number in `value`, or "" when there is none.
+std::string non_finite_path(const Json& value, const std::string& path) {
+    if (value.is_number_float()) return std::isfinite(value.get<double>()) ? "" : path;
+    if (value.is_object()) {
+        for (const auto& [key, item] : value.items()) {
+            auto found = non_finite_path(item, path.empty() ? key : path + "." + key);
+            if (!found.empty()) return found;
+        }
+    } else if (value.is_array()) {
+        for (std::size_t k = 0; k < value.size(); ++k) {
+            auto found = non_finite_path(value[k], path + "[" + std::to_string(k) + "]");
+            if (!found.empty()) return found;
+        }
+    }
+    return "";
+}
+
+}  // namespace
+
+// ---------------------------------------------------------------------------------- reader
+
+JsonlReader::JsonlReader(const std::string& name, std::vector<std::string> schemas)
+    : in_(&std::cin), name_(name), schemas_(std::move(schemas)) {
+    if (name == "-") return;
+    auto file = std::make_unique<std::ifstream>(name, std::ios::in | std::ios::binary);
+    if (!*file) throw Error(std::string("cannot open: ") + std::strerror(errno), name);
+    owned_ = std::move(file);
+    in_ = owned_.get();
+}
+
+JsonlReader::JsonlReader(std::istream& in, std::string name, std::vector<std::string> schemas)
+    : in_(&in), name_(std::move(name)), schemas_(std::move(schemas)) {}
+
+JsonlReader::~JsonlReader() = default;
+
+bool JsonlReader::next(Json& record) {
+    // Skip blank lines; every line, blank or not, counts for the line number.
+    do {
+        if (!std::getline(*in_, text_)) {
+            if (in_->bad()) throw Error(std::string("read failed: ") + std::strerror(errno), name_);
+            return false;
+        }
+        ++line_;
+    } while (is_blank(text_));
+
+    try {
+        record = Json::parse(text_);
+    } catch (const nlohmann::json::exception& e) {
+        throw Error(parse_message(e), name_, line_);
+    }
+    if (!record.is_object())
+        throw Error("expected a JSON object, got " + describe(record), name_, line_);
+
+    // The schema gate: a program refuses the wrong stream on its first line.
+    const auto schema = record.find("schema");
+    if (schema == record.end())
+        throw Error("missing" + (schemas_.empty() ? "" : " (expected " + join(schemas_) + ")"),
+                    name_, line_, "schema");
+    if (!schema->is_string())
+        throw Error("expected a string, got " + describe(*schema), name_, line_, "schema");
+    if (!schemas_.empty()) {
+        const std::string& s = schema->get_ref<const std::string&>();
+        bool ok = false;
+        for (const auto& accepted : schemas_) ok = ok || s == accepted;
+        if (!ok)
+            throw Error("expected " + join(schemas_) + ", got \"" + s + "\"", name_, line_,
+                        "schema");
+    }
+    return true;
+}
+
+// ---------------------------------------------------------------------------------- writer
+
+JsonlWriter::JsonlWriter(std::ostream& out, std::string name) : out_(out), name_(std::move(name)) {}
+
+void JsonlWriter::write(const Json& record) {
+    const long line = count_ + 1;
+    if (!record.is_object())
+        throw Error("a JSON-lines record must be an object, got " + describe(record), name_, line);
+    if (const auto path = non_finite_path(record, ""); !path.empty())
+        throw Error("is NaN or infinite, which JSON cannot hold", name_, line, path);
+    std::string text;
+    try {
+        text = record.dump();  // strict UTF-8: invalid bytes throw rather than pass through
+    } catch (const nlohmann::json::exception& e) {
+        throw Error(std::string("cannot write: ") + e.what(), name_, line);
+    }
+    text += '\n';
+    errno = 0;
+    out_.write(text.data(), std::streamsize(text.size()));
+    out_.flush();  // stream: the next program in the pipe sees each record at once
+    if (!out_) {
+        const int err = errno;
+        throw Error(
+            std::string("write failed") + (err ? ": " + std::string(std::strerror(err)) : ""),
+            name_);
+    }
+    ++count_;
+}
+
+// -------------------------------------------------------------------------------- accessors
+
+double as_double(const Json& value, const std::string& field) {
+    if (!value.is_number()) throw Error("expected a number, got " + describe(value), {}, 0, field);
+    const double x = value.get<double>();
+    if (!std::isfinite(x)) throw Error("must be finite", {}, 0, field);
+    return x;
+}
+
+int as_int(const Json& value, const std::string& field) {
+    if (value.is_number_integer()) {
+        if (value.is_number_unsigned()) {
+            const auto u = value.get<std::uint64_t>();
+            if (u <= std::uint64_t(std::numeric_limits<int>::max())) return int(u);
+        } else {
+            const auto i = value.get<std::int64_t>();
+            if (i >= std::numeric_limits<int>::min() && i <= std::numeric_limits<int>::max())
+                return int(i);
+        }
+        throw Error("integer out of range, got " + value.dump(), {}, 0, field);
+    }
+    if (value.is_number_float()) {
+        const double x = value.get<double>();
+        if (std::isfinite(x) && x == std::floor(x) && std::abs(x) <= 2147483647.0) return int(x);
+    }
+    throw Error("expected an integer, got " + describe(value), {}, 0, field);
+}
+
+std::string as_string(const Json& value, const std::string& field) {
+    if (!value.is_string()) throw Error("expected a string, got " + describe(value), {}, 0, field);
+    return value.get<std::string>();
+}
+
+namespace {
+// The member `field` of `object`; nullptr when absent or null.
+const Json* member(const Json& object, const std::string& field) {
+    if (!object.is_object()) throw Error("expected a JSON object, got " + describe(object));
+    const auto it = object.find(field);
+    return it == object.end() || it->is_null() ? nullptr : &*it;
+}
+const Json& required_member(const Json& object, const std::string& field) {
+    const Json* value = member(object, field);
+    if (!value) throw Error("missing", {}, 0, field);
+    return *value;
+}
+}  // namespace
+
+double required_double(const Json& object, const std::string& field) {
+    return as_double(required_member(object, field), field);
+}
+std::optional<double> optional_double(const Json& object, const std::string& field) {
+    const Json* value = member(object, field);
+    return value ? std::optional<double>(as_double(*value, field)) : std::nullopt;
+}
+int required_int(const Json& object, const std::string& field) {
+    return as_int(required_member(object, field), field);
+}
+std::optional<int> optional_int(const Json& object, const std::string& field) {
+    const Json* value = member(object, field);
+    return value ? std::optional<int>(as_int(*value, field)) : std::nullopt;
+}
+std::string required_string(const Json& object, const std::string& field) {
+    return as_string(required_member(object, field), field);
+}
+std::optional<std::string> optional_string(const Json& object, const std::string& field) {
+    const Json* value = member(object, field);
+    return value ? std::optional<std::string>(as_string(*value, field)) : std::nullopt;
+}
+const Json& required_array(const Json& object, const std::string& field) {
+    const Json& value = required_member(object, field);
+    if (!value.is_array()) throw Error("expected an array, got " + describe(value), {}, 0, field);
+    return value;
+}
+const Json* optional_array(const Json& object, const std::string& field) {
+    const Json* value = member(object, field);
+    if (value && !value->is_array())
+        throw Error("expected an array, got " + describe(*value), {}, 0, field);
+    return value;
+}
+const Json& required_object(const Json& object, const std::string& field) {
+    const Json& value = required_member(object, field);
+    if (!value.is_object()) throw Error("expected an object, got " + describe(value), {}, 0, field);
+    return value;
+}
+std::vector<std::string> optional_strings(const Json& object, const std::string& field) {
+    std::vector<std::string> out;
+    if (const Json* list = optional_array(object, field))
+        for (std::size_t k = 0; k < list->size(); ++k)
+            out.push_back(as_string((*list)[k], field + "[" + std::to_string(k) + "]"));
+    return out;
+}
+
+}  // namespace shapesim

@@ -1,0 +1,126 @@
+// JSON-lines catalogues (DESIGN §2): one JSON object per line, UTF-8, no header line, every
+// record carrying a "schema" string such as "shapesim.source/1".
+//
+// Reading: JsonlReader reads a stream line by line ("-" is stdin), counts lines, skips blank
+// ones, parses each line alone and checks its schema. nlohmann's errors speak of "line 1"
+// (each line is its own document), so they are rewrapped as Error(file, line, field). Fields
+// are read through the typed accessors below, which throw Error(message, field); the reader's
+// `next_record` (or `locate`) adds the file and line, giving
+//   shapelets.jsonl:42: beta: must be > 0, got -0.3
+//
+// Writing: JsonlWriter writes one record per line with nlohmann's shortest round-trip doubles
+// and flushes each line so pipes stream. JSON has no NaN/Inf (nlohmann would quietly write
+// null): the writer refuses them with an Error naming the field. A failed stream — a closed
+// pipe (SIGPIPE is ignored by app::run_main, so write() fails with EPIPE), a full disk — is
+// an Error too, never silent.
+//
+// Records are nlohmann::ordered_json (`Json`), so fields keep their order: "schema" and "id"
+// lead each line, and unknown fields are carried through in the order they came.
+#pragma once
+
+#include "shapesim/error.hpp"
+
+#include <nlohmann/json.hpp>
+
+#include <iosfwd>
+#include <memory>
+#include <optional>
+#include <string>
+#include <vector>
+
+namespace shapesim {
+
+/// A JSON value with insertion-ordered objects.
+using Json = nlohmann::ordered_json;
+
+/// Reads a JSON-lines stream, one object per line, checking each record's schema.
+class JsonlReader {
+public:
+    /// Open `name` ("-" = stdin). `schemas` lists the accepted values of "schema"; empty
+    /// accepts any string. Throws Error when the file cannot be opened.
+    JsonlReader(const std::string& name, std::vector<std::string> schemas);
+    /// Read from an existing stream; `name` is used in messages.
+    JsonlReader(std::istream& in, std::string name, std::vector<std::string> schemas);
+    ~JsonlReader();
+
+    /// The next record into `record`; false at the end of input. Throws Error(file, line)
+    /// for malformed JSON, a non-object line, a missing or unexpected schema, a read error.
+    bool next(Json& record);
+
+    /// The next record converted by `Record::from_json(const Json&)`; errors it throws get
+    /// this reader's file and line.
+    template <class Record>
+    bool next_record(Record& out) {
+        Json record;
+        if (!next(record)) return false;
+        try {
+            out = Record::from_json(record);
+        } catch (const Error& e) {
+            throw locate(e);
+        }
+        return true;
+    }
+
+    /// `e` placed at the current record (file and line; its field is kept).
+    Error locate(const Error& e) const { return e.at(name_, line_); }
+    /// File name for messages ("-" for stdin).
+    const std::string& name() const { return name_; }
+    /// 1-based line of the last record returned (0 before the first).
+    long line() const { return line_; }
+
+private:
+    std::unique_ptr<std::istream> owned_;
+    std::istream* in_;
+    std::string name_;
+    std::vector<std::string> schemas_;
+    long line_ = 0;
+    std::string text_;
+};
+
+/// Writes records as JSON lines, one per line, flushed per record.
+class JsonlWriter {
+public:
+    /// @param out  stream to write to (stdout, a file, an AtomicTextFile's stream)
+    /// @param name the output's name for messages ("-" for stdout)
+    JsonlWriter(std::ostream& out, std::string name);
+
+    /// Write `record` (a JSON object) as one line and flush. Throws Error naming the field
+    /// when a number is NaN or infinite (nothing is written), or when the stream fails.
+    void write(const Json& record);
+    /// Records written so far.
+    long count() const { return count_; }
+
+private:
+    std::ostream& out_;
+    std::string name_;
+    long count_ = 0;
+};
+
+// Typed field accessors. Each throws Error(message, {}, 0, field) — wrong type, missing,
+// non-finite, out of range — for the reader to place (JsonlReader::next_record / locate).
+// An optional field that is absent or null reads as nullopt (null is how a schema documents
+// "not measured").
+
+/// `value` as a finite number; `field` names it in errors.
+double as_double(const Json& value, const std::string& field);
+/// `value` as an int (an integral number in int range; 4.0 is accepted as 4).
+int as_int(const Json& value, const std::string& field);
+/// `value` as a string.
+std::string as_string(const Json& value, const std::string& field);
+
+double required_double(const Json& object, const std::string& field);
+std::optional<double> optional_double(const Json& object, const std::string& field);
+int required_int(const Json& object, const std::string& field);
+std::optional<int> optional_int(const Json& object, const std::string& field);
+std::string required_string(const Json& object, const std::string& field);
+std::optional<std::string> optional_string(const Json& object, const std::string& field);
+/// The array at `field`; Error when missing or not an array.
+const Json& required_array(const Json& object, const std::string& field);
+/// The array at `field`, or nullptr when absent or null.
+const Json* optional_array(const Json& object, const std::string& field);
+/// The object at `field`; Error when missing or not an object.
+const Json& required_object(const Json& object, const std::string& field);
+/// A list of strings (e.g. `flags`); empty when absent or null.
+std::vector<std::string> optional_strings(const Json& object, const std::string& field);
+
+}  // namespace shapesim

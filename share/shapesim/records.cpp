@@ -1,0 +1,453 @@
+#include "shapesim/records.hpp"
+
+#include <cmath>
+#include <sstream>
+
+namespace shapesim {
+
+namespace {
+
+using Names = std::vector<std::string>;
+
+std::string number(double v) {
+    std::ostringstream s;
+    s.precision(17);
+    s << v;
+    return s.str();
+}
+
+// Every record names its schema; nested records (a PSF inside another line) are checked here,
+// top-level lines already by JsonlReader.
+void check_schema(const Json& j, const char* expected) {
+    const std::string s = required_string(j, "schema");
+    if (s != expected)
+        throw Error(std::string("expected \"") + expected + "\", got \"" + s + "\"", {}, 0,
+                    "schema");
+}
+
+// Ids are strings; an integer id (e.g. from a SExtractor-numbered catalogue) is read as its
+// decimal text.
+std::string read_id(const Json& j, const std::string& field = "id") {
+    const auto it = j.find(field);
+    if (it != j.end() && it->is_number_integer()) return it->dump();
+    std::string id = required_string(j, field);
+    if (id.empty()) throw Error("must not be empty", {}, 0, field);
+    return id;
+}
+
+// The fields of `j` no record member reads, in their order.
+Json extra_fields(const Json& j, const Names& known) {
+    Json extra = Json::object();
+    for (const auto& [key, value] : j.items()) {
+        bool is_known = key == "schema";
+        for (const auto& k : known) is_known = is_known || key == k;
+        if (!is_known) extra[key] = value;
+    }
+    return extra;
+}
+
+void put_extra(Json& j, const Json& extra, const Names& known) {
+    for (const auto& [key, value] : extra.items()) {
+        bool is_known = key == "schema";
+        for (const auto& k : known) is_known = is_known || key == k;
+        if (!is_known) j[key] = value;
+    }
+}
+
+void put(Json& j, const char* field, const std::optional<double>& value) {
+    if (value) j[field] = *value;
+}
+
+int read_n_max(const Json& j) {
+    const int n_max = required_int(j, "n_max");
+    if (n_max < 0 || n_max > record_n_max_limit)
+        throw Error("must be in [0, " + std::to_string(record_n_max_limit) + "], got " +
+                        std::to_string(n_max),
+                    {}, 0, "n_max");
+    return n_max;
+}
+
+// [[re, im], …] with exactly polar_count(n_max) pairs.
+std::vector<Complex> read_coeffs(const Json& j, int n_max) {
+    const Json& list = required_array(j, "coeffs");
+    if (list.size() != std::size_t(polar_count(n_max)))
+        throw Error("expected " + std::to_string(polar_count(n_max)) +
+                        " [re, im] pairs for n_max " + std::to_string(n_max) + ", got " +
+                        std::to_string(list.size()),
+                    {}, 0, "coeffs");
+    std::vector<Complex> coeffs;
+    coeffs.reserve(list.size());
+    for (std::size_t k = 0; k < list.size(); ++k) {
+        const std::string field = "coeffs[" + std::to_string(k) + "]";
+        const Json& pair = list[k];
+        if (!pair.is_array() || pair.size() != 2)
+            throw Error("expected a [re, im] pair, got " + pair.dump(), {}, 0, field);
+        coeffs.emplace_back(as_double(pair[0], field), as_double(pair[1], field));
+    }
+    return coeffs;
+}
+
+Json write_coeffs(const std::vector<Complex>& coeffs) {
+    Json list = Json::array();
+    for (const auto& c : coeffs) list.push_back(Json::array({c.real(), c.imag()}));
+    return list;
+}
+
+// The checks every shape shares (DESIGN §2; model.hpp's packed order).
+void check_shape(double beta, double pixel_scale, int n_max, const std::vector<Complex>& coeffs) {
+    if (!(beta > 0.0) || !std::isfinite(beta))
+        throw Error("must be finite and > 0, got " + number(beta), {}, 0, "beta");
+    if (!(pixel_scale > 0.0) || !std::isfinite(pixel_scale))
+        throw Error("must be finite and > 0, got " + number(pixel_scale), {}, 0, "pixel_scale");
+    if (n_max < 0 || n_max > record_n_max_limit)
+        throw Error("must be in [0, " + std::to_string(record_n_max_limit) + "]", {}, 0, "n_max");
+    if (coeffs.size() != std::size_t(polar_count(n_max)))
+        throw Error("expected " + std::to_string(polar_count(n_max)) + " coefficients for n_max " +
+                        std::to_string(n_max) + ", got " + std::to_string(coeffs.size()),
+                    {}, 0, "coeffs");
+    std::size_t k = 0;
+    for (const auto& [n, m] : polar_indices(n_max)) {
+        const std::string field = "coeffs[" + std::to_string(k) + "]";
+        const Complex c = coeffs[k++];
+        if (!std::isfinite(c.real()) || !std::isfinite(c.imag()))
+            throw Error("must be finite", {}, 0, field);
+        // Real images: a_{n,0} = conj a_{n,0}, so its imaginary part is exactly zero.
+        if (m == 0 && c.imag() != 0.0)
+            throw Error(
+                "a_{" + std::to_string(n) + ",0} must be real, got im = " + number(c.imag()), {}, 0,
+                field);
+    }
+}
+
+void check_finite(const char* field, double v) {
+    if (!std::isfinite(v)) throw Error("must be finite", {}, 0, field);
+}
+void check_non_negative(const char* field, const std::optional<double>& v) {
+    if (v && !(*v >= 0.0)) throw Error("must be >= 0, got " + number(*v), {}, 0, field);
+}
+void check_dec(const char* field, const std::optional<double>& v) {
+    if (v && !(std::abs(*v) <= 90.0))
+        throw Error("must be within [-90, 90] degrees, got " + number(*v), {}, 0, field);
+}
+
+// A nested record (`psf`, `result`): its errors name the path, e.g. `psf.beta`.
+ShapeletRecord nested_shapelet(const Json& j, const std::string& field) {
+    try {
+        return ShapeletRecord::from_json(required_object(j, field));
+    } catch (const Error& e) {
+        if (e.field() == field) throw;
+        throw Error(e.message(), e.file(), e.line(),
+                    field + (e.field().empty() ? "" : ".") + e.field());
+    }
+}
+
+// 2√π β_pix Σ_{n even} Re a_{n,0} (DESIGN §2, §3).
+double model_flux(const ShapeletModel& model) {
+    double sum = 0.0;
+    for (int n = 0; n <= model.n_max; n += 2) sum += model.at(n, 0).real();
+    return 2.0 * std::sqrt(M_PI) * model.beta_pix * sum;
+}
+
+const Names source_fields = {"id",  "x", "y", "ra",    "dec",  "flux",       "flux_err",
+                             "mag", "a", "b", "theta", "fwhm", "stellarity", "flags"};
+const Names shapelet_fields = {"id",    "x",    "y",   "beta",  "pixel_scale", "n_max",
+                               "chi2r", "flux", "mag", "flags", "coeffs"};
+const Names object_fields = {"id",   "kind",        "ra",   "dec",   "x",      "y",     "mag",
+                             "flux", "pixel_scale", "beta", "n_max", "parent", "flags", "coeffs"};
+const Names morph_fields = {"id", "x",       "y", "mag",   "fwhm", "a",    "b",   "theta", "e1",
+                            "e2", "r_petro", "c", "a_sym", "s",    "gini", "m20", "flags"};
+const Names convolution_fields = {"galaxy_id", "psf", "hdu",  "x",     "y",
+                                  "nx",        "ny",  "flux", "result"};
+
+}  // namespace
+
+// ---------------------------------------------------------------------------- SourceRecord
+
+SourceRecord SourceRecord::from_json(const Json& j) {
+    check_schema(j, schema);
+    SourceRecord r;
+    r.id = read_id(j);
+    r.x = required_double(j, "x");
+    r.y = required_double(j, "y");
+    r.ra = optional_double(j, "ra");
+    r.dec = optional_double(j, "dec");
+    r.flux = required_double(j, "flux");
+    r.flux_err = optional_double(j, "flux_err");
+    r.mag = optional_double(j, "mag");
+    r.a = optional_double(j, "a");
+    r.b = optional_double(j, "b");
+    r.theta = optional_double(j, "theta");
+    r.fwhm = optional_double(j, "fwhm");
+    r.stellarity = optional_double(j, "stellarity");
+    r.flags = optional_strings(j, "flags");
+    r.extra = extra_fields(j, source_fields);
+    r.validate();
+    return r;
+}
+
+void SourceRecord::validate() const {
+    if (id.empty()) throw Error("must not be empty", {}, 0, "id");
+    check_finite("x", x);
+    check_finite("y", y);
+    check_finite("flux", flux);
+    check_dec("dec", dec);
+    check_non_negative("flux_err", flux_err);
+    check_non_negative("a", a);
+    check_non_negative("b", b);
+    check_non_negative("fwhm", fwhm);
+    if (stellarity && !(*stellarity >= 0.0 && *stellarity <= 1.0))
+        throw Error("must be within [0, 1], got " + number(*stellarity), {}, 0, "stellarity");
+}
+
+Json SourceRecord::to_json() const {
+    validate();
+    Json j;
+    j["schema"] = schema;
+    j["id"] = id;
+    j["x"] = x;
+    j["y"] = y;
+    put(j, "ra", ra);
+    put(j, "dec", dec);
+    j["flux"] = flux;
+    put(j, "flux_err", flux_err);
+    put(j, "mag", mag);
+    put(j, "a", a);
+    put(j, "b", b);
+    put(j, "theta", theta);
+    put(j, "fwhm", fwhm);
+    put(j, "stellarity", stellarity);
+    j["flags"] = flags;
+    put_extra(j, extra, source_fields);
+    return j;
+}
+
+// -------------------------------------------------------------------------- ShapeletRecord
+
+ShapeletRecord ShapeletRecord::from_json(const Json& j) {
+    check_schema(j, schema);
+    ShapeletRecord r;
+    r.id = read_id(j);
+    r.x = required_double(j, "x");
+    r.y = required_double(j, "y");
+    r.beta = required_double(j, "beta");
+    r.pixel_scale = required_double(j, "pixel_scale");
+    r.n_max = read_n_max(j);
+    r.coeffs = read_coeffs(j, r.n_max);
+    r.chi2r = optional_double(j, "chi2r");
+    r.flux = optional_double(j, "flux");
+    r.mag = optional_double(j, "mag");
+    r.flags = optional_strings(j, "flags");
+    r.extra = extra_fields(j, shapelet_fields);
+    r.validate();
+    return r;
+}
+
+void ShapeletRecord::validate() const {
+    if (id.empty()) throw Error("must not be empty", {}, 0, "id");
+    check_finite("x", x);
+    check_finite("y", y);
+    check_shape(beta, pixel_scale, n_max, coeffs);
+    check_non_negative("chi2r", chi2r);
+}
+
+Json ShapeletRecord::to_json() const {
+    validate();
+    Json j;
+    j["schema"] = schema;
+    j["id"] = id;
+    j["x"] = x;
+    j["y"] = y;
+    j["beta"] = beta;
+    j["pixel_scale"] = pixel_scale;
+    j["n_max"] = n_max;
+    put(j, "flux", flux);
+    put(j, "mag", mag);
+    put(j, "chi2r", chi2r);
+    j["flags"] = flags;
+    put_extra(j, extra, shapelet_fields);
+    j["coeffs"] = write_coeffs(coeffs);
+    return j;
+}
+
+ShapeletModel ShapeletRecord::to_model() const {
+    ShapeletModel model(x, y, beta / pixel_scale, n_max);
+    model.coeffs = coeffs;
+    return model;
+}
+
+ShapeletRecord ShapeletRecord::from_model(const ShapeletModel& model, double pixel_scale,
+                                          std::string id) {
+    model.validate();
+    ShapeletRecord r;
+    r.id = std::move(id);
+    r.x = model.x;
+    r.y = model.y;
+    r.beta = model.beta_pix * pixel_scale;
+    r.pixel_scale = pixel_scale;
+    r.n_max = model.n_max;
+    r.coeffs = model.coeffs;
+    r.flux = model_flux(model);
+    r.validate();
+    return r;
+}
+
+// ---------------------------------------------------------------------------- ObjectRecord
+
+ObjectRecord ObjectRecord::from_json(const Json& j) {
+    check_schema(j, schema);
+    ObjectRecord r;
+    r.id = read_id(j);
+    r.kind = required_string(j, "kind");
+    r.ra = required_double(j, "ra");
+    r.dec = required_double(j, "dec");
+    r.x = optional_double(j, "x");
+    r.y = optional_double(j, "y");
+    r.mag = optional_double(j, "mag");
+    r.flux = required_double(j, "flux");
+    // A galaxy must carry its shape; a star may (it is otherwise drawn as the PSF).
+    if (r.kind == "galaxy" || j.contains("coeffs")) {
+        r.beta = required_double(j, "beta");
+        r.pixel_scale = required_double(j, "pixel_scale");
+        r.n_max = read_n_max(j);
+        r.coeffs = read_coeffs(j, r.n_max);
+    }
+    r.parent = optional_string(j, "parent");
+    r.flags = optional_strings(j, "flags");
+    r.extra = extra_fields(j, object_fields);
+    r.validate();
+    return r;
+}
+
+void ObjectRecord::validate() const {
+    if (id.empty()) throw Error("must not be empty", {}, 0, "id");
+    if (kind != "galaxy" && kind != "star")
+        throw Error("must be \"galaxy\" or \"star\", got \"" + kind + "\"", {}, 0, "kind");
+    check_finite("ra", ra);
+    check_dec("dec", dec);
+    check_finite("flux", flux);
+    if (kind == "galaxy" && !has_shape()) throw Error("a galaxy needs its shape", {}, 0, "coeffs");
+    if (has_shape()) check_shape(beta, pixel_scale, n_max, coeffs);
+}
+
+Json ObjectRecord::to_json() const {
+    validate();
+    Json j;
+    j["schema"] = schema;
+    j["id"] = id;
+    j["kind"] = kind;
+    j["ra"] = ra;
+    j["dec"] = dec;
+    put(j, "x", x);
+    put(j, "y", y);
+    put(j, "mag", mag);
+    j["flux"] = flux;
+    if (has_shape()) {
+        j["beta"] = beta;
+        j["pixel_scale"] = pixel_scale;
+        j["n_max"] = n_max;
+    }
+    if (parent) j["parent"] = *parent;
+    j["flags"] = flags;
+    put_extra(j, extra, object_fields);
+    if (has_shape()) j["coeffs"] = write_coeffs(coeffs);
+    return j;
+}
+
+ShapeletModel ObjectRecord::to_model(double x_pix, double y_pix) const {
+    if (!has_shape()) throw Error("object " + id + " has no shape", {}, 0, "coeffs");
+    ShapeletModel model(x_pix, y_pix, beta / pixel_scale, n_max);
+    model.coeffs = coeffs;
+    return model;
+}
+
+// ----------------------------------------------------------------------------- MorphRecord
+
+MorphRecord MorphRecord::from_json(const Json& j) {
+    check_schema(j, schema);
+    MorphRecord r;
+    r.id = read_id(j);
+    r.x = required_double(j, "x");
+    r.y = required_double(j, "y");
+    r.mag = optional_double(j, "mag");
+    r.fwhm = optional_double(j, "fwhm");
+    r.a = optional_double(j, "a");
+    r.b = optional_double(j, "b");
+    r.theta = optional_double(j, "theta");
+    r.e1 = optional_double(j, "e1");
+    r.e2 = optional_double(j, "e2");
+    r.r_petro = optional_double(j, "r_petro");
+    r.c = optional_double(j, "c");
+    r.a_sym = optional_double(j, "a_sym");
+    r.s = optional_double(j, "s");
+    r.gini = optional_double(j, "gini");
+    r.m20 = optional_double(j, "m20");
+    r.flags = optional_strings(j, "flags");
+    r.extra = extra_fields(j, morph_fields);
+    r.validate();
+    return r;
+}
+
+void MorphRecord::validate() const {
+    if (id.empty()) throw Error("must not be empty", {}, 0, "id");
+    check_finite("x", x);
+    check_finite("y", y);
+    check_non_negative("fwhm", fwhm);
+    check_non_negative("a", a);
+    check_non_negative("b", b);
+    check_non_negative("r_petro", r_petro);
+}
+
+Json MorphRecord::to_json() const {
+    validate();
+    Json j;
+    j["schema"] = schema;
+    j["id"] = id;
+    j["x"] = x;
+    j["y"] = y;
+    const std::pair<const char*, const std::optional<double>*> values[] = {
+        {"mag", &mag},     {"fwhm", &fwhm},   {"a", &a},   {"b", &b},
+        {"theta", &theta}, {"e1", &e1},       {"e2", &e2}, {"r_petro", &r_petro},
+        {"c", &c},         {"a_sym", &a_sym}, {"s", &s},   {"gini", &gini},
+        {"m20", &m20}};
+    for (const auto& [field, value] : values) put(j, field, *value);
+    j["flags"] = flags;
+    put_extra(j, extra, morph_fields);
+    return j;
+}
+
+// -------------------------------------------------------------- ReferenceConvolutionRecord
+
+ReferenceConvolutionRecord ReferenceConvolutionRecord::from_json(const Json& j) {
+    check_schema(j, schema);
+    ReferenceConvolutionRecord r;
+    r.galaxy_id = read_id(j, "galaxy_id");
+    r.psf = nested_shapelet(j, "psf");
+    r.hdu = required_string(j, "hdu");
+    r.x = required_double(j, "x");
+    r.y = required_double(j, "y");
+    r.nx = required_int(j, "nx");
+    r.ny = required_int(j, "ny");
+    if (r.nx <= 0 || r.ny <= 0) throw Error("stamp size must be positive", {}, 0, "nx");
+    r.flux = required_double(j, "flux");
+    r.result = nested_shapelet(j, "result");
+    r.extra = extra_fields(j, convolution_fields);
+    return r;
+}
+
+Json ReferenceConvolutionRecord::to_json() const {
+    Json j;
+    j["schema"] = schema;
+    j["galaxy_id"] = galaxy_id;
+    j["psf"] = psf.to_json();
+    j["hdu"] = hdu;
+    j["x"] = x;
+    j["y"] = y;
+    j["nx"] = nx;
+    j["ny"] = ny;
+    j["flux"] = flux;
+    j["result"] = result.to_json();
+    put_extra(j, extra, convolution_fields);
+    return j;
+}
+
+}  // namespace shapesim

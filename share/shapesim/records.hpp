@@ -1,0 +1,149 @@
+// Catalogue records: one struct per JSON-lines schema of DESIGN §2.
+//
+//   SourceRecord    shapesim.source/1    detect     what was found, where, how bright
+//   ShapeletRecord  shapesim.shapelet/1  decompose  a shapelet model (galaxies and the PSF)
+//   ObjectRecord    shapesim.object/1    sample     a simulated object placed on the sky
+//   MorphRecord     shapesim.morph/1     measure    morphology diagnostics
+//   ReferenceConvolutionRecord           the exact convolution fixtures (tests/data/reference)
+//
+// Conventions (DESIGN §2): x, y are FITS pixel coordinates (first pixel centred at (1, 1));
+// ra, dec, theta in degrees (theta counter-clockwise from +x); a, b, fwhm in pixels; beta in
+// arcsec with `pixel_scale` (arcsec per pixel) alongside, so beta_pix = beta / pixel_scale;
+// coefficients as [[re, im], …] in the packed order of model.hpp (a_{n,m}, m ≥ 0), in image
+// units per pixel; `flags` a list of strings (a good fit has "converged").
+//
+// Each struct reads with `from_json` (typed accessors: errors name the field, the reader
+// adds file and line) and writes with `to_json` ("schema" and "id" first, then the known
+// fields, then `extra`, then long coefficient arrays). Fields a record does not know are kept
+// in `extra`, in their order, and written back: a program passes on what it does not read.
+// Optional fields absent (or null) on input are nullopt and are not written.
+#pragma once
+
+#include "shapesim/jsonl.hpp"
+#include "shapesim/model.hpp"
+
+#include <optional>
+#include <string>
+#include <vector>
+
+namespace shapesim {
+
+/// Largest n_max a record may declare (guards allocation against a corrupt line; the
+/// stress tests go past 100).
+constexpr int record_n_max_limit = 1000;
+
+/// A detection (`shapesim.source/1`, from shapesim-detect).
+struct SourceRecord {
+    static constexpr const char* schema = "shapesim.source/1";
+    std::string id;                    ///< string (an integer id on input is accepted)
+    double x = 0.0, y = 0.0;           ///< centroid, FITS pixels
+    std::optional<double> ra, dec;     ///< degrees, when the image has a WCS
+    double flux = 0.0;                 ///< image units
+    std::optional<double> flux_err;    ///< image units, ≥ 0
+    std::optional<double> mag;         ///< absent when flux ≤ 0 or no zero point
+    std::optional<double> a, b;        ///< semi-axes, pixels, ≥ 0
+    std::optional<double> theta;       ///< degrees CCW from +x
+    std::optional<double> fwhm;        ///< pixels, ≥ 0
+    std::optional<double> stellarity;  ///< 0 (galaxy) … 1 (star)
+    std::vector<std::string> flags;
+    Json extra = Json::object();  ///< unknown fields, carried through
+
+    static SourceRecord from_json(const Json& record);
+    Json to_json() const;
+    /// Throws Error (field set) unless every value is in range.
+    void validate() const;
+};
+
+/// A shapelet model (`shapesim.shapelet/1`, from shapesim-decompose; also the PSF).
+struct ShapeletRecord {
+    static constexpr const char* schema = "shapesim.shapelet/1";
+    std::string id;
+    double x = 0.0, y = 0.0;   ///< model centre, FITS pixels
+    double beta = 0.0;         ///< arcsec, > 0
+    double pixel_scale = 0.0;  ///< arcsec per pixel, > 0
+    int n_max = 0;
+    std::vector<Complex> coeffs;  ///< packed a_{n,m}, size polar_count(n_max)
+    std::optional<double> chi2r;  ///< reduced χ² of the fit
+    std::optional<double> flux;   ///< 2√π β_pix Σ_{n even} a_{n,0}, image units
+    std::optional<double> mag;
+    std::vector<std::string> flags;
+    Json extra = Json::object();
+
+    static ShapeletRecord from_json(const Json& record);
+    Json to_json() const;
+    /// Throws Error unless beta, pixel_scale > 0, the coefficient count fits n_max, every
+    /// a_{n,0} is real and all values are finite.
+    void validate() const;
+
+    /// The model in pixel units: beta_pix = beta / pixel_scale (exactly that double).
+    ShapeletModel to_model() const;
+    /// A record of `model` at `pixel_scale` (beta = beta_pix · pixel_scale); flux is
+    /// recomputed from the coefficients; chi2r, mag, flags left for the caller.
+    static ShapeletRecord from_model(const ShapeletModel& model, double pixel_scale,
+                                     std::string id);
+};
+
+/// A simulated object (`shapesim.object/1`, from shapesim-sample).
+struct ObjectRecord {
+    static constexpr const char* schema = "shapesim.object/1";
+    std::string id;
+    std::string kind = "galaxy";  ///< "galaxy" or "star"
+    double ra = 0.0, dec = 0.0;   ///< degrees
+    std::optional<double> x, y;   ///< FITS pixels in the `--like` field, when known
+    std::optional<double> mag;
+    double flux = 0.0;  ///< image units
+    // The shape: required for galaxies; a star is drawn as the PSF and may omit it.
+    double beta = 0.0;         ///< arcsec
+    double pixel_scale = 0.0;  ///< arcsec per pixel of the coefficients' units
+    int n_max = 0;
+    std::vector<Complex> coeffs;        ///< packed a_{n,m}; empty = no shape
+    std::optional<std::string> parent;  ///< id of the real galaxy it was drawn from
+    std::vector<std::string> flags;
+    Json extra = Json::object();
+
+    static ObjectRecord from_json(const Json& record);
+    Json to_json() const;
+    void validate() const;
+    /// True when the record carries a shapelet shape.
+    bool has_shape() const { return !coeffs.empty(); }
+    /// The shape as a model centred at (`x`, `y`) (FITS pixels), beta_pix = beta/pixel_scale.
+    ShapeletModel to_model(double x, double y) const;
+};
+
+/// Morphology of one object (`shapesim.morph/1`, from shapesim-measure). Statistics that
+/// could not be measured are absent.
+struct MorphRecord {
+    static constexpr const char* schema = "shapesim.morph/1";
+    std::string id;
+    double x = 0.0, y = 0.0;  ///< FITS pixels
+    std::optional<double> mag;
+    std::optional<double> fwhm, a, b;   ///< pixels
+    std::optional<double> theta;        ///< degrees CCW from +x
+    std::optional<double> e1, e2;       ///< ellipticity (paper eqs. 6–7)
+    std::optional<double> r_petro;      ///< Petrosian radius (η = 0.2), pixels
+    std::optional<double> c, a_sym, s;  ///< concentration, asymmetry, clumpiness
+    std::optional<double> gini, m20;
+    std::vector<std::string> flags;
+    Json extra = Json::object();
+
+    static MorphRecord from_json(const Json& record);
+    Json to_json() const;
+    void validate() const;
+};
+
+/// A line of tests/data/reference/convolved.jsonl: galaxy ⊗ PSF and the exact result.
+struct ReferenceConvolutionRecord {
+    static constexpr const char* schema = "shapesim.reference_convolution/1";
+    std::string galaxy_id;       ///< a model of models.jsonl
+    ShapeletRecord psf, result;  ///< full shapelet records
+    std::string hdu;             ///< EXTNAME of the image in convolved.fits
+    double x = 0.0, y = 0.0;     ///< centre of the convolved image, FITS pixels
+    int nx = 0, ny = 0;          ///< stamp size
+    double flux = 0.0;           ///< flux_gal × flux_psf
+    Json extra = Json::object();
+
+    static ReferenceConvolutionRecord from_json(const Json& record);
+    Json to_json() const;
+};
+
+}  // namespace shapesim

@@ -1,0 +1,231 @@
+// Program plumbing: app/options (common options, --config, --print-params, range checks),
+// app/run_main (exceptions → one stderr line and an exit code) and app/log.
+#include "shapesim/app/log.hpp"
+#include "shapesim/app/options.hpp"
+#include "shapesim/app/run_main.hpp"
+#include "shapesim/error.hpp"
+
+#include <gtest/gtest.h>
+
+#include <cstdio>
+#include <cstdlib>
+#include <filesystem>
+#include <fstream>
+#include <unistd.h>
+
+using namespace shapesim;
+namespace po = boost::program_options;
+
+namespace {
+// A small program's option table: one Algorithm option with a range, one input positional.
+struct Table {
+    double thresh = 0.0;
+    app::ProgramOptions options{"shapesim-test", "[OPTION]... IMAGE", "Test the option plumbing.",
+                                app::Common::all};
+    Table() {
+        options.group("Algorithm")
+            .add_options()("detect-thresh",
+                           po::value<double>(&thresh)->default_value(1.3)->notifier(
+                               app::in_range("detect-thresh", 0.0, 100.0)),
+                           "detection threshold, sigma (paper: 1.3)");
+        options.group("Input").add_options()("weight", po::value<std::string>(), "weight map");
+        options.hidden().add_options()("image", po::value<std::string>()->required());
+        options.positional("image", 1);
+    }
+    bool parse(std::vector<const char*> args) {
+        args.insert(args.begin(), "shapesim-test");
+        return options.parse(int(args.size()), args.data());
+    }
+};
+
+std::string usage_error(std::vector<const char*> args) {
+    Table t;
+    try {
+        t.parse(std::move(args));
+    } catch (const po::error& e) {
+        return e.what();
+    }
+    return "no error";
+}
+
+std::string temp_file(const std::string& text) {
+    char pattern[] = "/tmp/shapesim-app-XXXXXX";
+    const int fd = mkstemp(pattern);
+    close(fd);
+    std::ofstream(pattern) << text;
+    return pattern;
+}
+}  // namespace
+
+TEST(ProgramOptions, CommonAndProgramOptions) {
+    Table t;
+    ASSERT_TRUE(t.parse({"hdf.fits", "--detect-thresh", "2.5", "-o", "out.fits", "-j", "3",
+                         "--seed", "18446744073709551615", "--like", "hdf.fits", "-q"}));
+    EXPECT_EQ(t.thresh, 2.5);
+    EXPECT_EQ(t.options.values()["image"].as<std::string>(), "hdf.fits");
+    const app::CommonValues& c = t.options.common();
+    EXPECT_EQ(c.output, "out.fits");
+    EXPECT_EQ(c.threads, 3);
+    EXPECT_EQ(c.seed, 18446744073709551615ull);
+    EXPECT_TRUE(c.seed_given);
+    EXPECT_EQ(c.like, "hdf.fits");
+    EXPECT_EQ(c.verbosity, app::Verbosity::quiet);
+    EXPECT_TRUE(t.options.given("detect-thresh"));
+    EXPECT_FALSE(t.options.given("weight"));
+
+    Table defaults;
+    ASSERT_TRUE(defaults.parse({"hdf.fits", "-j0"}));
+    EXPECT_EQ(defaults.thresh, 1.3);
+    EXPECT_GE(defaults.options.common().threads, 1);  // 0 = one per hardware thread
+    EXPECT_EQ(defaults.options.common().seed, 0u);
+    EXPECT_FALSE(defaults.options.common().seed_given);
+    EXPECT_EQ(defaults.options.common().verbosity, app::Verbosity::normal);
+    EXPECT_FALSE(defaults.options.given("detect-thresh"));
+}
+
+TEST(ProgramOptions, UsageErrors) {
+    EXPECT_EQ(usage_error({"hdf.fits", "--detect-thresh", "-1"}),
+              "--detect-thresh: must be in [0, 100], got -1");
+    EXPECT_EQ(usage_error({"hdf.fits", "--seed", "-1"}),
+              "--seed: must be an integer in [0, 2^64 - 1], got '-1'");
+    EXPECT_EQ(usage_error({"hdf.fits", "--seed", "18446744073709551616"}),
+              "--seed: must be an integer in [0, 2^64 - 1], got '18446744073709551616'");
+    EXPECT_EQ(usage_error({"hdf.fits", "-q", "-v"}), "--quiet and --verbose exclude each other");
+    EXPECT_EQ(usage_error({"hdf.fits", "-j", "-2"}), "--threads: must be in [0, 4096], got -2");
+    EXPECT_EQ(usage_error({"hdf.fits", "--no-such-option"}),
+              "unrecognised option '--no-such-option'");
+    EXPECT_EQ(usage_error({"a.fits", "b.fits"}),
+              "too many positional options have been specified on the command line");
+    EXPECT_NE(usage_error({}).find("image"), std::string::npos);  // the required input
+    EXPECT_NE(usage_error({"hdf.fits", "--detect-thresh", "high"}).find("detect-thresh"),
+              std::string::npos);
+}
+
+TEST(ProgramOptions, HelpAndVersionStopTheProgram) {
+    Table t;
+    testing::internal::CaptureStdout();
+    EXPECT_FALSE(t.parse({"--help"}));  // even without the required IMAGE
+    const std::string help = testing::internal::GetCapturedStdout();
+    EXPECT_EQ(help.rfind("Usage: shapesim-test [OPTION]... IMAGE\nTest the option plumbing.", 0),
+              0u);
+    EXPECT_LT(help.find("Algorithm:"), help.find("Input:"));  // groups in declaration order
+    EXPECT_LT(help.find("Input:"), help.find("Common options:"));
+    EXPECT_NE(help.find("(=1.3)"), std::string::npos);
+    EXPECT_NE(help.find("--print-params"), std::string::npos);
+    EXPECT_EQ(help.find("--image"), std::string::npos);  // hidden
+
+    Table v;
+    testing::internal::CaptureStdout();
+    EXPECT_FALSE(v.parse({"--version"}));
+    EXPECT_EQ(testing::internal::GetCapturedStdout(),
+              std::string("shapesim-test (shapesim) ") + SHAPESIM_VERSION + "\n");
+}
+
+TEST(ProgramOptions, ConfigFileAndPrintParamsReplay) {
+    const std::string config = temp_file(
+        "# stored by a pipeline\n"
+        "detect-thresh = 2.0\n"
+        "seed = 7\n"
+        "weight = w.fits\n");
+    Table t;
+    testing::internal::CaptureStdout();
+    EXPECT_FALSE(
+        t.parse({"hdf.fits", "--config", config.c_str(), "--seed", "9", "--print-params"}));
+    const std::string params = testing::internal::GetCapturedStdout();
+    EXPECT_EQ(t.thresh, 2.0);                // from the file
+    EXPECT_EQ(t.options.common().seed, 9u);  // the command line wins
+    EXPECT_NE(params.find("detect-thresh = 2\n"), std::string::npos) << params;
+    EXPECT_NE(params.find("seed = 9\n"), std::string::npos);
+    EXPECT_NE(params.find("weight = w.fits\n"), std::string::npos);
+    EXPECT_NE(params.find("image = hdf.fits\n"), std::string::npos);
+    EXPECT_NE(params.find("threads = 1\n"), std::string::npos);
+    EXPECT_EQ(params.find("config ="), std::string::npos);  // the run, not a setting
+
+    // The printed parameters are a config file that reproduces the run.
+    const std::string replay = temp_file(params);
+    Table again;
+    ASSERT_TRUE(again.parse({"--config", replay.c_str()}));
+    EXPECT_EQ(again.thresh, 2.0);
+    EXPECT_EQ(again.options.common().seed, 9u);
+    EXPECT_EQ(again.options.values()["image"].as<std::string>(), "hdf.fits");
+
+    const std::string bad = temp_file("no-such-option = 1\n");
+    EXPECT_EQ(usage_error({"hdf.fits", "--config", bad.c_str()}),
+              bad + ": unrecognised option 'no-such-option'");
+    Table missing;
+    EXPECT_THROW(missing.parse({"hdf.fits", "--config", "/nonexistent.conf"}), Error);
+    for (const auto& f : {config, replay, bad}) std::remove(f.c_str());
+}
+
+TEST(RunMain, ExceptionsBecomeOneLineAndAnExitCode) {
+    const char* argv[] = {"prog"};
+    const auto run = [&](app::ProgramBody body, std::string& err) {
+        testing::internal::CaptureStderr();
+        const int code = app::run_main(1, argv, "shapesim-x", body);
+        err = testing::internal::GetCapturedStderr();
+        return code;
+    };
+    std::string err;
+    EXPECT_EQ(run([](int, const char* const*) { return 0; }, err), 0);
+    EXPECT_EQ(err, "");
+    EXPECT_EQ(run([](int, const char* const*) { return 3; }, err), 3);
+    EXPECT_EQ(run(
+                  [](int, const char* const*) -> int {
+                      throw Error("must be > 0, got -0.3", "shapelets.jsonl", 42, "beta");
+                  },
+                  err),
+              1);
+    EXPECT_EQ(err, "shapesim-x: shapelets.jsonl:42: beta: must be > 0, got -0.3\n");
+    EXPECT_EQ(run([](int, const char* const*) -> int { throw po::error("bad usage"); }, err), 2);
+    EXPECT_EQ(err, "shapesim-x: bad usage (see --help)\n");
+    EXPECT_EQ(run([](int, const char* const*) -> int { throw std::logic_error("oops"); }, err), 1);
+    EXPECT_EQ(err, "shapesim-x: internal error: oops\n");
+    EXPECT_EQ(run([](int, const char* const*) -> int { throw std::bad_alloc(); }, err), 1);
+    EXPECT_EQ(err, "shapesim-x: out of memory\n");
+    EXPECT_EQ(run([](int, const char* const*) -> int { throw 7; }, err), 1);
+    EXPECT_EQ(err, "shapesim-x: internal error: unknown exception\n");
+}
+
+TEST(RunMain, Placeholder) {
+    const auto run = [](std::vector<const char*> args, std::string& out, std::string& err) {
+        args.insert(args.begin(), "shapesim-x");
+        testing::internal::CaptureStdout();
+        testing::internal::CaptureStderr();
+        const int code = app::run_placeholder(int(args.size()), args.data(), "shapesim-x",
+                                              "Do something useful.");
+        out = testing::internal::GetCapturedStdout();
+        err = testing::internal::GetCapturedStderr();
+        return code;
+    };
+    std::string out, err;
+    EXPECT_EQ(run({"--help"}, out, err), 0);
+    EXPECT_NE(out.find("Do something useful."), std::string::npos);
+    EXPECT_NE(out.find("NOT IMPLEMENTED YET"), std::string::npos);
+    EXPECT_EQ(run({"--version"}, out, err), 0);
+    EXPECT_EQ(out.rfind("shapesim-x (shapesim) ", 0), 0u);
+    for (auto args : std::vector<std::vector<const char*>>{
+             {}, {"in.fits"}, {"--weight", "w.fits", "x"}, {"-o", "out.fits"}}) {
+        EXPECT_EQ(run(args, out, err), 2);
+        EXPECT_EQ(out, "");
+        EXPECT_EQ(err, "shapesim-x: not implemented yet (see --help)\n");
+    }
+}
+
+TEST(Log, VerbosityLevels) {
+    std::ostringstream normal, quiet, verbose;
+    const app::Log n("shapesim-x", app::Verbosity::normal, normal);
+    const app::Log q("shapesim-x", app::Verbosity::quiet, quiet);
+    const app::Log v("shapesim-x", app::Verbosity::verbose, verbose);
+    for (const app::Log* log : {&n, &q, &v}) {
+        log->info(163, " sources in ", 0.5, " s");
+        log->verbose("object ", 7);
+        log->warn("3 stamps touch the edge");
+    }
+    EXPECT_EQ(normal.str(),
+              "shapesim-x: 163 sources in 0.5 s\nshapesim-x: warning: 3 stamps touch the edge\n");
+    EXPECT_EQ(quiet.str(), "");
+    EXPECT_EQ(verbose.str(),
+              "shapesim-x: 163 sources in 0.5 s\nshapesim-x: object 7\n"
+              "shapesim-x: warning: 3 stamps touch the edge\n");
+    EXPECT_GE(n.elapsed(), 0.0);
+}

@@ -1,0 +1,117 @@
+// app/atomic_file: outputs appear whole or not at all; unwritable outputs fail before work.
+#include "shapesim/app/atomic_file.hpp"
+#include "shapesim/error.hpp"
+
+#include <gtest/gtest.h>
+
+#include <filesystem>
+#include <fstream>
+#include <sstream>
+#include <unistd.h>
+
+using namespace shapesim;
+namespace fs = std::filesystem;
+
+namespace {
+class AtomicFileTest : public ::testing::Test {
+protected:
+    void SetUp() override {
+        char pattern[] = "/tmp/shapesim-atomic-XXXXXX";
+        ASSERT_NE(mkdtemp(pattern), nullptr);
+        dir_ = pattern;
+    }
+    void TearDown() override { fs::remove_all(dir_); }
+    std::string path(const std::string& name) const { return dir_ + "/" + name; }
+    static std::string slurp(const std::string& p) {
+        std::ifstream in(p);
+        std::stringstream s;
+        s << in.rdbuf();
+        return s.str();
+    }
+    std::string dir_;
+};
+}  // namespace
+
+TEST_F(AtomicFileTest, TempNameIsBesideTheTarget) {
+    app::AtomicFile file(path("out.fits"));
+    EXPECT_EQ(file.temp_path(), path("out.fits") + ".tmp." + std::to_string(getpid()));
+    EXPECT_FALSE(file.committed());
+}
+
+TEST_F(AtomicFileTest, CommitRenamesOntoTarget) {
+    {
+        app::AtomicFile file(path("out.txt"));
+        std::ofstream(file.temp_path()) << "complete\n";
+        EXPECT_FALSE(fs::exists(path("out.txt")));  // nothing at the target before commit
+        file.commit();
+        EXPECT_TRUE(file.committed());
+    }
+    EXPECT_EQ(slurp(path("out.txt")), "complete\n");
+    EXPECT_EQ(std::distance(fs::directory_iterator(dir_), fs::directory_iterator()), 1);
+}
+
+TEST_F(AtomicFileTest, UncommittedTemporaryIsRemovedAndTargetKept) {
+    std::ofstream(path("out.txt")) << "old\n";
+    try {
+        app::AtomicFile file(path("out.txt"));
+        std::ofstream(file.temp_path()) << "half";
+        throw std::runtime_error("failure mid-write");
+    } catch (const std::runtime_error&) {
+    }
+    EXPECT_EQ(slurp(path("out.txt")), "old\n");
+    EXPECT_EQ(std::distance(fs::directory_iterator(dir_), fs::directory_iterator()), 1);
+}
+
+TEST_F(AtomicFileTest, CommitWithoutTemporaryThrowsNamingTarget) {
+    app::AtomicFile file(path("never.txt"));
+    try {
+        file.commit();
+        FAIL() << "expected Error";
+    } catch (const Error& e) {
+        EXPECT_EQ(e.file(), path("never.txt"));
+    }
+}
+
+TEST_F(AtomicFileTest, TextFileCommitsAndDiscards) {
+    {
+        app::AtomicTextFile out(path("a.jsonl"));
+        out.stream() << "{}\n";
+        out.commit();
+    }
+    EXPECT_EQ(slurp(path("a.jsonl")), "{}\n");
+    {
+        app::AtomicTextFile out(path("b.jsonl"));
+        out.stream() << "{\"half\":";
+    }  // no commit: as if an exception had unwound the program
+    EXPECT_FALSE(fs::exists(path("b.jsonl")));
+    EXPECT_EQ(std::distance(fs::directory_iterator(dir_), fs::directory_iterator()), 1);
+}
+
+TEST_F(AtomicFileTest, TextFileDashIsStdout) {
+    app::AtomicTextFile out("-");
+    EXPECT_EQ(&out.stream(), &std::cout);
+    EXPECT_EQ(out.name(), "-");
+    EXPECT_NO_THROW(out.commit());
+}
+
+TEST_F(AtomicFileTest, CheckWritable) {
+    EXPECT_NO_THROW(app::check_writable(path("new.fits")));
+    EXPECT_FALSE(fs::exists(path("new.fits")));  // checking creates nothing
+    std::ofstream(path("old.fits")) << "x";
+    EXPECT_NO_THROW(app::check_writable(path("old.fits")));
+    EXPECT_NO_THROW(app::check_writable("relative-name-in-cwd.fits"));
+    EXPECT_THROW(app::check_writable(dir_), Error);  // a directory
+    EXPECT_THROW(app::check_writable(""), Error);
+    try {
+        app::check_writable(path("missing/out.fits"));
+        FAIL() << "expected Error";
+    } catch (const Error& e) {
+        EXPECT_EQ(e.file(), path("missing/out.fits"));
+        EXPECT_NE(e.message().find("No such file or directory"), std::string::npos) << e.what();
+    }
+    if (geteuid() != 0) {  // root may write anywhere
+        fs::permissions(dir_, fs::perms::owner_read | fs::perms::owner_exec);
+        EXPECT_THROW(app::check_writable(path("new.fits")), Error);
+        fs::permissions(dir_, fs::perms::owner_all);
+    }
+}

@@ -1,0 +1,231 @@
+// geometry: the TAN WCS against two independent routes (Calabretta & Greisen's native
+// spherical coordinates, and cfitsio's AIPS-convention fits_pix_to_world), exact inversion,
+// header reading (CD, PC/CDELT, CDELT/CROTA2) and `--like` on the real HDF-N image.
+#include "shapesim/geometry.hpp"
+
+#include "shapesim/error.hpp"
+#include "shapesim/fits_io.hpp"
+
+#include <fitsio.h>
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <cstdlib>
+#include <filesystem>
+
+using namespace shapesim;
+namespace fs = std::filesystem;
+
+namespace {
+constexpr double deg = M_PI / 180.0;
+
+std::string hdfn_dir() {
+    if (const char* env = std::getenv("SHAPESIM_DATA"))
+        if (fs::is_directory(std::string(env) + "/hdfn")) return std::string(env) + "/hdfn";
+    return fs::path(__FILE__).parent_path().parent_path().parent_path() / "share/data/hdfn";
+}
+
+// Calabretta & Greisen (2002): intermediate → native (φ, θ) (eqs. 14, 54) → celestial (eq. 2)
+// with (α_p, δ_p) = CRVAL and φ_p = 180°. A different route from the library's closed form.
+SkyPosition native_route(const Wcs& w, double x, double y) {
+    const double dx = x - w.crpix1, dy = y - w.crpix2;
+    const double xi = w.cd1_1 * dx + w.cd1_2 * dy, eta = w.cd2_1 * dx + w.cd2_2 * dy;  // deg
+    const double r = std::hypot(xi, eta);
+    const double phi = std::atan2(xi, -eta);
+    const double theta = std::atan2(1.0, r * deg);  // tan θ = (180/π) / R_θ
+    const double dp = w.crval2 * deg, dphi = phi - M_PI;
+    const double ra = w.crval1 + std::atan2(-std::cos(theta) * std::sin(dphi),
+                                            std::sin(theta) * std::cos(dp) -
+                                                std::cos(theta) * std::sin(dp) * std::cos(dphi)) /
+                                     deg;
+    // δ by atan2, not asin: asin loses digits near the poles.
+    const double sin_dec =
+        std::sin(theta) * std::sin(dp) + std::cos(theta) * std::cos(dp) * std::cos(dphi);
+    const double cos_dec = std::hypot(
+        std::cos(theta) * std::sin(dphi),
+        std::sin(theta) * std::cos(dp) - std::cos(theta) * std::sin(dp) * std::cos(dphi));
+    const double dec = std::atan2(sin_dec, cos_dec);
+    return {std::fmod(ra + 720.0, 360.0), dec / deg};
+}
+
+// Angular distance between two sky positions, arcsec.
+double separation_arcsec(SkyPosition a, SkyPosition b) {
+    const double c = std::sin(a.dec * deg) * std::sin(b.dec * deg) +
+                     std::cos(a.dec * deg) * std::cos(b.dec * deg) * std::cos((a.ra - b.ra) * deg);
+    const double s = std::hypot(
+        std::cos(b.dec * deg) * std::sin((a.ra - b.ra) * deg),
+        std::cos(a.dec * deg) * std::sin(b.dec * deg) -
+            std::sin(a.dec * deg) * std::cos(b.dec * deg) * std::cos((a.ra - b.ra) * deg));
+    return std::atan2(s, c) / deg * 3600.0;
+}
+
+class GeometryTest : public ::testing::Test {
+protected:
+    void SetUp() override {
+        char pattern[] = "/tmp/shapesim-geometry-XXXXXX";
+        ASSERT_NE(mkdtemp(pattern), nullptr);
+        dir_ = pattern;
+    }
+    void TearDown() override { fs::remove_all(dir_); }
+    // A 4×4 image whose header holds `keywords` and nothing else of the WCS.
+    std::string image_with(const std::vector<FitsKeyword>& keywords) {
+        const std::string path = dir_ + "/wcs.fits";
+        FitsWriter out(path, "test");
+        out.write_image(ImageArray::Zero(4, 4), {"SCI", -32, "", {}, keywords, {}});
+        out.commit();
+        return path;
+    }
+    std::string dir_;
+};
+}  // namespace
+
+TEST(Wcs, ReferencePixelMapsToReferencePoint) {
+    const Wcs w = tan_wcs(189.2, 62.2, 0.04, 256.5, 256.5, 30.0);
+    const SkyPosition s = w.pixel_to_sky(256.5, 256.5);
+    EXPECT_EQ(s.ra, 189.2);
+    EXPECT_NEAR(s.dec, 62.2, 1e-13);  // degrees → radians → degrees: an ulp or two
+    const PixelPosition p = w.sky_to_pixel(189.2, 62.2);
+    EXPECT_EQ(p.x, 256.5);
+    EXPECT_EQ(p.y, 256.5);
+    EXPECT_NEAR(w.pixel_scale_arcsec(), 0.04, 1e-17);
+}
+
+TEST(Wcs, MatchesTheNativeSphericalRoute) {
+    // Over a large field and far out (up to 30° off-axis), at several declinations, with
+    // rotation and skew: agreement to 1e-9 arcsec (double rounding of a few ulp).
+    for (double dec0 : {-89.5, -45.0, 0.0, 62.2036751382, 89.9}) {
+        Wcs w = tan_wcs(189.18661365727, dec0, 0.03985, 89.903, -24.759, 23.5);
+        w.cd1_2 *= 1.01;  // a little skew, as in the HDF header
+        for (double x : {-1e6, -500.0, 1.0, 300.25, 2e5})
+            for (double y : {-7e5, 0.5, 512.0, 9e5}) {
+                const SkyPosition a = w.pixel_to_sky(x, y), b = native_route(w, x, y);
+                EXPECT_LT(separation_arcsec(a, b), 1e-9) << dec0 << " " << x << " " << y;
+                EXPECT_GE(a.ra, 0.0);
+                EXPECT_LT(a.ra, 360.0);
+            }
+    }
+}
+
+TEST(Wcs, MatchesCfitsioWorldCoordinates) {
+    // cfitsio's fits_pix_to_world (AIPS TAN with CDELT and CROTA2): an independent code path.
+    const double scale = 0.03985, rotation = -17.25;
+    const Wcs w = tan_wcs(10.5, -33.25, scale, 100.0, 200.0, rotation);
+    for (double x : {-3000.0, 1.0, 100.0, 777.7})
+        for (double y : {-1000.0, 50.5, 4000.0}) {
+            double ra = 0, dec = 0;
+            int status = 0;
+            fits_pix_to_world(x, y, 10.5, -33.25, 100.0, 200.0, -scale / 3600, scale / 3600,
+                              rotation, const_cast<char*>("-TAN"), &ra, &dec, &status);
+            ASSERT_EQ(status, 0);
+            EXPECT_LT(separation_arcsec(w.pixel_to_sky(x, y), {ra, dec}), 1e-8);
+        }
+}
+
+TEST(Wcs, SkyToPixelInvertsPixelToSky) {
+    Wcs w = tan_wcs(359.999, 62.2, 0.03985, 89.903, -24.759, 41.0);  // RA wraps through 0
+    w.cd2_1 *= 0.99;
+    for (double x : {-2e4, -100.0, 1.0, 256.5, 512.0, 3e4})
+        for (double y : {-2e4, 1.0, 333.3, 3e4}) {
+            const SkyPosition s = w.pixel_to_sky(x, y);
+            const PixelPosition p = w.sky_to_pixel(s.ra, s.dec);
+            EXPECT_NEAR(p.x, x, 1e-8 * (1 + std::abs(x)));
+            EXPECT_NEAR(p.y, y, 1e-8 * (1 + std::abs(y)));
+        }
+}
+
+TEST(Wcs, GnomonicClosedForms) {
+    // On the equator with a 1″ pixel, a pixel offset of u along −x is ξ = u″ and the RA
+    // offset is atan(ξ) exactly; along +y, δ = atan(η).
+    const Wcs w = tan_wcs(100.0, 0.0, 1.0, 0.0, 0.0);
+    const double u = 36000.0;  // 10 degrees of ξ
+    EXPECT_NEAR(w.pixel_to_sky(-u, 0).ra, 100.0 + std::atan(10 * deg) / deg, 1e-12);
+    EXPECT_NEAR(w.pixel_to_sky(0, u).dec, std::atan(10 * deg) / deg, 1e-12);
+    EXPECT_NEAR(w.pixel_to_sky(0, u).ra, 100.0, 1e-12);
+}
+
+TEST(Wcs, FarSideAndInvalidWcsAreErrors) {
+    const Wcs w = tan_wcs(0.0, 0.0, 1.0, 0.0, 0.0);
+    EXPECT_THROW(w.sky_to_pixel(90.5, 0.0), Error);  // beyond the projection's horizon
+    EXPECT_THROW(w.sky_to_pixel(180.0, 10.0), Error);
+    EXPECT_NO_THROW(w.sky_to_pixel(89.0, 0.0));
+    Wcs bad = w;
+    bad.cd1_1 = bad.cd1_2 = 0.0;
+    EXPECT_THROW(bad.validate(), Error);
+    bad = w;
+    bad.ctype1 = "RA---TAN-SIP";
+    try {
+        bad.validate();
+        FAIL() << "expected Error";
+    } catch (const Error& e) {
+        EXPECT_EQ(e.field(), "CTYPE1");
+    }
+    EXPECT_THROW(tan_wcs(0, 0, 0.0, 1, 1), Error);
+}
+
+TEST(FieldGeometry, LikeTheHdfnImage) {
+    const std::string file = hdfn_dir() + "/hdfn_f814w_v2.fits";
+    const FieldGeometry g = read_field_geometry(file);
+    EXPECT_EQ(g.nx, 512);
+    EXPECT_EQ(g.ny, 512);
+    // The header's CD matrix: √|det CD| = 0.03985″ (data README).
+    EXPECT_NEAR(g.pixel_scale, 0.03985, 5e-6);
+    EXPECT_EQ(g.wcs.crpix1, 89.9030000000002);
+    EXPECT_EQ(g.wcs.crval2, 62.2036751382);
+    EXPECT_EQ(g.wcs.cd2_1, -4.466669e-6);
+    EXPECT_NEAR(g.area_arcmin2(), 512.0 * 512 * g.pixel_scale * g.pixel_scale / 3600, 1e-12);
+    // Pixel (1, 1) and (512, 512) are the diagonal of the field.
+    const double diagonal =
+        separation_arcsec(g.wcs.pixel_to_sky(1, 1), g.wcs.pixel_to_sky(512, 512));
+    EXPECT_NEAR(diagonal, std::sqrt(2.0) * 511 * g.pixel_scale, 1e-3);
+    EXPECT_THROW(read_field_geometry("/nonexistent/like.fits"), Error);
+}
+
+TEST_F(GeometryTest, HeaderConventionsAgree) {
+    const Wcs ref = tan_wcs(150.0, 2.2, 0.05, 10.5, 20.5, 33.0);
+    const double cdelt1 = -0.05 / 3600, cdelt2 = 0.05 / 3600;
+    const std::vector<FitsKeyword> common = {{"CTYPE1", "RA---TAN"}, {"CTYPE2", "DEC--TAN"},
+                                             {"CRPIX1", 10.5},       {"CRPIX2", 20.5},
+                                             {"CRVAL1", 150.0},      {"CRVAL2", 2.2}};
+    auto with = [&](std::vector<FitsKeyword> extra) {
+        extra.insert(extra.begin(), common.begin(), common.end());
+        FitsReader fits(image_with(extra), FitsStart::first_image);
+        return read_wcs(fits);
+    };
+    const double r = 33.0 * deg;
+    const Wcs crota = with({{"CDELT1", cdelt1}, {"CDELT2", cdelt2}, {"CROTA2", 33.0}});
+    const Wcs pc = with({{"CDELT1", cdelt1},
+                         {"CDELT2", cdelt2},
+                         {"PC1_1", std::cos(r)},
+                         {"PC1_2", -std::sin(r) * cdelt2 / cdelt1},
+                         {"PC2_1", std::sin(r) * cdelt1 / cdelt2},
+                         {"PC2_2", std::cos(r)}});
+    for (const Wcs& w : {crota, pc}) {
+        EXPECT_NEAR(w.cd1_1, ref.cd1_1, 1e-20);
+        EXPECT_NEAR(w.cd1_2, ref.cd1_2, 1e-20);
+        EXPECT_NEAR(w.cd2_1, ref.cd2_1, 1e-20);
+        EXPECT_NEAR(w.cd2_2, ref.cd2_2, 1e-20);
+    }
+    try {
+        with({{"CDELT1", cdelt1}});  // no CDELT2, no CD
+        FAIL() << "expected Error";
+    } catch (const Error& e) {
+        EXPECT_EQ(std::string(e.what()), dir_ + "/wcs.fits[SCI]: CDELT2: keyword is missing");
+    }
+    try {
+        with({{"CD1_1", cdelt1}, {"CD2_2", cdelt2}, {"LONPOLE", 0.0}});
+        FAIL() << "expected Error";
+    } catch (const Error& e) {
+        EXPECT_EQ(e.field(), "LONPOLE");
+    }
+    FitsReader none(image_with({}), FitsStart::first_image);
+    EXPECT_FALSE(has_wcs(none));
+    EXPECT_EQ(std::string([&] {
+                  try {
+                      read_wcs(none);
+                  } catch (const Error& e) {
+                      return std::string(e.what());
+                  }
+                  return std::string("no error");
+              }()),
+              dir_ + "/wcs.fits[SCI]: CTYPE1: keyword is missing");
+}

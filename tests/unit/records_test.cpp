@@ -1,0 +1,309 @@
+// records: the four schemas of DESIGN §2 against the real reference fixtures, round trips,
+// carried-through unknown fields and every validation error with its field.
+#include "shapesim/records.hpp"
+
+#include "test_support.hpp"
+
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <map>
+#include <sstream>
+
+using namespace shapesim;
+
+namespace {
+std::vector<Json> read_lines(const std::string& path, const char* schema) {
+    JsonlReader reader(path, {schema});
+    std::vector<Json> out;
+    Json j;
+    while (reader.next(j)) out.push_back(j);
+    return out;
+}
+
+// The same JSON values, whatever the key order (nlohmann::json sorts its objects).
+nlohmann::json unordered(const Json& j) { return nlohmann::json::parse(j.dump()); }
+
+std::string error_of(const Json& j) {
+    try {
+        ShapeletRecord::from_json(j);
+    } catch (const Error& e) {
+        return e.what();
+    }
+    return "no error";
+}
+
+Json m03() {
+    return Json::parse(
+        R"({"schema": "shapesim.shapelet/1", "id": "M03", "family": "galaxy", "x": 8.980915,
+        "y": 9.544113, "beta": 0.062257, "pixel_scale": 0.04, "n_max": 2,
+        "flux": 4.314323785712176, "flags": ["converged"], "coeffs": [[1.2028, 0.0],
+        [0.447001796079, -0.370684576335], [-0.420848881266, 0.0],
+        [-0.129068982392, -0.0919279312142]]})");
+}
+}  // namespace
+
+TEST(ShapeletRecord, ReadsTheReferenceModels) {
+    const auto lines = read_lines(test::reference_dir() + "/models.jsonl", ShapeletRecord::schema);
+    ASSERT_EQ(lines.size(), 24u);
+    std::map<std::string, int> families;
+    for (const auto& line : lines) {
+        const ShapeletRecord r = ShapeletRecord::from_json(line);
+        ASSERT_EQ(int(r.coeffs.size()), polar_count(r.n_max)) << r.id;
+        EXPECT_EQ(r.pixel_scale, 0.04);
+        EXPECT_FALSE(r.chi2r);  // optional fields the fixtures omit
+        EXPECT_FALSE(r.mag);
+        ASSERT_TRUE(r.flux);
+        EXPECT_EQ(r.flags, std::vector<std::string>{"converged"});
+        ++families[r.extra.at("family").get<std::string>()];
+        // Carried through: written back, the record holds the same values.
+        EXPECT_EQ(unordered(r.to_json()), unordered(line)) << r.id;
+        EXPECT_EQ(r.to_json().begin().key(), "schema");
+        EXPECT_EQ(std::next(r.to_json().begin()).key(), "id");
+    }
+    EXPECT_EQ(families, (std::map<std::string, int>{{"galaxy", 18}, {"random", 4}, {"round", 2}}));
+}
+
+TEST(ShapeletRecord, ModelConversionMatchesTheFixtureConventions) {
+    const auto lines = read_lines(test::reference_dir() + "/models.jsonl", ShapeletRecord::schema);
+    for (const auto& line : lines) {
+        const ShapeletRecord r = ShapeletRecord::from_json(line);
+        const ShapeletModel model = r.to_model();
+        // beta_pix = beta / pixel_scale in double, bit for bit (the fixture README's rule).
+        EXPECT_EQ(model.beta_pix, line["beta"].get<double>() / line["pixel_scale"].get<double>());
+        EXPECT_EQ(model.x, r.x);
+        EXPECT_EQ(model.coeffs, r.coeffs);
+        // Flux recomputed from the coefficients equals the stored flux to rounding
+        // (a few ulp of the terms: the sum has up to 11 terms of either sign).
+        const ShapeletRecord back = ShapeletRecord::from_model(model, r.pixel_scale, r.id);
+        double scale = 0.0;
+        for (int n = 0; n <= r.n_max; n += 2) scale += std::abs(model.at(n, 0).real());
+        scale *= 2.0 * std::sqrt(M_PI) * model.beta_pix;
+        EXPECT_NEAR(*back.flux, *r.flux, 1e-15 * scale) << r.id;
+        EXPECT_NEAR(back.beta, r.beta, 2.3e-16 * r.beta);  // (β/s)·s: within 1 ulp
+        EXPECT_EQ(back.coeffs, r.coeffs);
+    }
+}
+
+TEST(ReferenceConvolutionRecord, ReadsTheConvolutionFixtures) {
+    std::map<std::string, ShapeletRecord> galaxies;
+    for (const auto& line :
+         read_lines(test::reference_dir() + "/models.jsonl", ShapeletRecord::schema)) {
+        const auto r = ShapeletRecord::from_json(line);
+        galaxies.emplace(r.id, r);
+    }
+    const auto lines =
+        read_lines(test::reference_dir() + "/convolved.jsonl", ReferenceConvolutionRecord::schema);
+    ASSERT_EQ(lines.size(), 8u);
+    for (const auto& line : lines) {
+        const auto c = ReferenceConvolutionRecord::from_json(line);
+        ASSERT_TRUE(galaxies.count(c.galaxy_id)) << c.galaxy_id;
+        const ShapeletRecord& g = galaxies.at(c.galaxy_id);
+        EXPECT_EQ(c.result.n_max, g.n_max + c.psf.n_max) << c.hdu;
+        EXPECT_EQ(c.hdu, c.galaxy_id + "_" + c.psf.id);
+        EXPECT_EQ(c.psf.extra.at("family"), "psf");
+        EXPECT_EQ(c.result.extra.at("family"), "convolved");
+        EXPECT_EQ(c.result.x, c.x);
+        EXPECT_NEAR(*c.result.flux, c.flux, 4e-15 * std::abs(c.flux));  // README: ≤ 4e-15
+        EXPECT_NEAR(c.flux, *g.flux * *c.psf.flux, 1e-14 * std::abs(c.flux));
+        EXPECT_EQ(unordered(c.to_json()), unordered(line));
+    }
+}
+
+TEST(ReferenceConvolutionRecord, NestedErrorsNameTheirPath) {
+    const auto lines =
+        read_lines(test::reference_dir() + "/convolved.jsonl", ReferenceConvolutionRecord::schema);
+    Json bad = lines.at(0);
+    bad["psf"]["beta"] = -1.0;
+    try {
+        ReferenceConvolutionRecord::from_json(bad);
+        FAIL() << "expected Error";
+    } catch (const Error& e) {
+        EXPECT_EQ(e.field(), "psf.beta");
+    }
+    bad = lines.at(0);
+    bad["result"]["schema"] = "shapesim.source/1";
+    try {
+        ReferenceConvolutionRecord::from_json(bad);
+        FAIL() << "expected Error";
+    } catch (const Error& e) {
+        EXPECT_EQ(std::string(e.what()),
+                  "result.schema: expected \"shapesim.shapelet/1\", got \"shapesim.source/1\"");
+    }
+}
+
+TEST(ShapeletRecord, ValidationErrorsNameTheField) {
+    Json j = m03();
+    ASSERT_EQ(error_of(j), "no error");
+    j["coeffs"].erase(3);
+    EXPECT_EQ(error_of(j), "coeffs: expected 4 [re, im] pairs for n_max 2, got 3");
+    j = m03();
+    j["coeffs"][2][1] = 0.1;
+    EXPECT_EQ(error_of(j), "coeffs[2]: a_{2,0} must be real, got im = 0.10000000000000001");
+    j = m03();
+    j["coeffs"][1] = Json::array({1.0});
+    EXPECT_EQ(error_of(j), "coeffs[1]: expected a [re, im] pair, got [1.0]");
+    j = m03();
+    j["coeffs"][1][0] = "a";
+    EXPECT_EQ(error_of(j), "coeffs[1]: expected a number, got string \"a\"");
+    j = m03();
+    j["beta"] = -0.3;
+    EXPECT_EQ(error_of(j), "beta: must be finite and > 0, got -0.29999999999999999");
+    j = m03();
+    j["pixel_scale"] = 0;
+    EXPECT_EQ(error_of(j), "pixel_scale: must be finite and > 0, got 0");
+    j = m03();
+    j["n_max"] = -1;
+    EXPECT_EQ(error_of(j), "n_max: must be in [0, 1000], got -1");
+    j = m03();
+    j["n_max"] = 2.5;
+    EXPECT_EQ(error_of(j), "n_max: expected an integer, got number 2.5");
+    j = m03();
+    j.erase("beta");
+    EXPECT_EQ(error_of(j), "beta: missing");
+    j = m03();
+    j["x"] = "8.9";
+    EXPECT_EQ(error_of(j), "x: expected a number, got string \"8.9\"");
+    j = m03();
+    j["flags"] = "converged";
+    EXPECT_EQ(error_of(j), "flags: expected an array, got string \"converged\"");
+    j = m03();
+    j["id"] = "";
+    EXPECT_EQ(error_of(j), "id: must not be empty");
+}
+
+TEST(ShapeletRecord, ReaderPlacesRecordErrors) {
+    Json bad = m03();
+    bad["beta"] = -0.3;
+    std::istringstream in(m03().dump() + "\n\n" + bad.dump() + "\n");
+    JsonlReader reader(in, "shapelets.jsonl", {ShapeletRecord::schema});
+    ShapeletRecord r;
+    ASSERT_TRUE(reader.next_record(r));
+    try {
+        reader.next_record(r);
+        FAIL() << "expected Error";
+    } catch (const Error& e) {
+        EXPECT_EQ(std::string(e.what()),
+                  "shapelets.jsonl:3: beta: must be finite and > 0, got -0.29999999999999999");
+    }
+}
+
+TEST(ShapeletRecord, ToJsonOrderAndOptionalFields) {
+    ShapeletRecord r = ShapeletRecord::from_json(m03());
+    r.chi2r = 1.02;
+    r.mag = 24.5;
+    const std::string text = r.to_json().dump();
+    EXPECT_EQ(text.rfind(R"({"schema":"shapesim.shapelet/1","id":"M03","x":8.980915,"y":9.544113,)"
+                         R"("beta":0.062257,"pixel_scale":0.04,"n_max":2,"flux":4.314323785712176,)"
+                         R"("mag":24.5,"chi2r":1.02,"flags":["converged"],"family":"galaxy",)"
+                         R"("coeffs":[[1.2028,0.0],)",
+                         0),
+              0u)
+        << text;
+    r.coeffs.pop_back();
+    EXPECT_THROW(r.to_json(), Error);  // an inconsistent record is never written
+}
+
+TEST(SourceRecord, RoundTripWithExtraAndIntegerId) {
+    const Json j = Json::parse(
+        R"({"schema": "shapesim.source/1", "id": 17, "x": 101.5, "y": 33.25, "ra": 189.2,
+        "dec": 62.21, "flux": 0.0123, "flux_err": 0.0004, "mag": 26.85, "a": 2.5, "b": 1.25,
+        "theta": -30.0, "fwhm": 3.1, "stellarity": 0.03, "flags": ["edge"], "area": 41})");
+    const SourceRecord r = SourceRecord::from_json(j);
+    EXPECT_EQ(r.id, "17");
+    EXPECT_EQ(*r.theta, -30.0);
+    EXPECT_EQ(r.extra, Json({{"area", 41}}));
+    Json expected = j;
+    expected["id"] = "17";
+    EXPECT_EQ(unordered(r.to_json()), unordered(expected));
+
+    const SourceRecord minimal = SourceRecord::from_json(
+        Json::parse(R"({"schema": "shapesim.source/1", "id": "a", "x": 1, "y": 2, "flux": -1})"));
+    EXPECT_FALSE(minimal.mag);
+    EXPECT_FALSE(minimal.to_json().contains("mag"));  // absent stays absent, never null
+
+    Json bad = j;
+    bad["stellarity"] = 1.5;
+    EXPECT_THROW(SourceRecord::from_json(bad), Error);
+    bad = j;
+    bad["dec"] = 91;
+    EXPECT_THROW(SourceRecord::from_json(bad), Error);
+    bad = j;
+    bad["schema"] = "shapesim.object/1";
+    EXPECT_THROW(SourceRecord::from_json(bad), Error);
+}
+
+TEST(ObjectRecord, GalaxiesNeedAShapeStarsDoNot) {
+    const Json galaxy = Json::parse(
+        R"({"schema": "shapesim.object/1", "id": "g1", "kind": "galaxy", "ra": 189.2,
+        "dec": 62.2, "mag": 27.1, "flux": 0.01, "beta": 0.1, "pixel_scale": 0.04,
+        "n_max": 1, "parent": "M02", "tile": [0, 3],
+        "coeffs": [[0.5, 0.0], [0.01, -0.02]]})");
+    const ObjectRecord g = ObjectRecord::from_json(galaxy);
+    EXPECT_TRUE(g.has_shape());
+    EXPECT_EQ(*g.parent, "M02");
+    const ShapeletModel model = g.to_model(10.5, 20.25);
+    EXPECT_EQ(model.beta_pix, 0.1 / 0.04);
+    EXPECT_EQ(model.x, 10.5);
+    Json expected = galaxy;
+    expected["flags"] = Json::array();  // flags are always written
+    EXPECT_EQ(unordered(g.to_json()), unordered(expected));
+
+    const ObjectRecord star = ObjectRecord::from_json(Json::parse(
+        R"({"schema": "shapesim.object/1", "id": "s1", "kind": "star", "ra": 1, "dec": 2,
+        "flux": 3})"));
+    EXPECT_FALSE(star.has_shape());
+    EXPECT_FALSE(star.to_json().contains("coeffs"));
+    EXPECT_THROW(star.to_model(1, 1), Error);
+
+    Json bad = galaxy;
+    bad.erase("coeffs");
+    try {
+        ObjectRecord::from_json(bad);
+        FAIL() << "expected Error";
+    } catch (const Error& e) {
+        EXPECT_EQ(e.field(), "coeffs");
+    }
+    bad = galaxy;
+    bad["kind"] = "quasar";
+    try {
+        ObjectRecord::from_json(bad);
+        FAIL() << "expected Error";
+    } catch (const Error& e) {
+        EXPECT_EQ(std::string(e.what()), "kind: must be \"galaxy\" or \"star\", got \"quasar\"");
+    }
+}
+
+TEST(MorphRecord, RoundTripAndAbsentStatistics) {
+    const Json j = Json::parse(
+        R"({"schema": "shapesim.morph/1", "id": "5", "x": 10, "y": 11.5, "mag": 25.2,
+        "fwhm": 4.1, "a": 3, "b": 2, "theta": 12.5, "e1": 0.1, "e2": -0.05, "r_petro": 9.5,
+        "c": 3.1, "a_sym": 0.18, "s": 0.23, "gini": 0.5, "m20": -1.7, "flags": [],
+        "sn": 40.2})");
+    const MorphRecord r = MorphRecord::from_json(j);
+    EXPECT_EQ(*r.a_sym, 0.18);
+    EXPECT_EQ(unordered(r.to_json()), unordered(j));
+    const MorphRecord sparse = MorphRecord::from_json(
+        Json::parse(R"({"schema": "shapesim.morph/1", "id": "6", "x": 1, "y": 2, "c": null})"));
+    EXPECT_FALSE(sparse.c);
+    EXPECT_FALSE(sparse.to_json().contains("c"));
+}
+
+TEST(Records, NanIsRefusedWhenWrittenNamingFileLineField) {
+    SourceRecord r = SourceRecord::from_json(
+        Json::parse(R"({"schema": "shapesim.source/1", "id": "a", "x": 1, "y": 2, "flux": 1})"));
+    std::ostringstream out;
+    JsonlWriter writer(out, "sources.jsonl");
+    writer.write(r.to_json());
+    r.mag = std::nan("");
+    try {
+        writer.write(r.to_json());
+        FAIL() << "expected Error";
+    } catch (const Error& e) {
+        EXPECT_EQ(std::string(e.what()),
+                  "sources.jsonl:2: mag: is NaN or infinite, which JSON cannot hold");
+    }
+    r.mag.reset();
+    r.x = INFINITY;
+    EXPECT_THROW(r.to_json(), Error);  // validate() catches required fields first
+}
