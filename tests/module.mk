@@ -20,14 +20,27 @@ $(BENCH_BIN): $(BENCH_SRCS:%.cpp=$(BUILD)/%.o) $(LIB)
 	$(if $(Q),@echo "  LD   $@")
 	$(Q)$(CXX) $(LDFLAGS) $^ -lbenchmark -lbenchmark_main $(LDLIBS) -o $@.tmp && mv $@.tmp $@
 
+# Examples: small programs on the library that the README shows (and program tests run).
+EXAMPLE_SRCS := $(sort $(wildcard tests/examples/*.cpp))
+EXAMPLES     := $(EXAMPLE_SRCS:tests/examples/%.cpp=$(BUILD)/examples/%)
+
+$(BUILD)/examples/%: $(BUILD)/tests/examples/%.o $(LIB)
+	@mkdir -p $(@D)
+	$(if $(Q),@echo "  LD   $@")
+	$(Q)$(CXX) $(LDFLAGS) $^ $(LDLIBS) -o $@.tmp && mv $@.tmp $@
+
+.PHONY: examples
+examples: $(EXAMPLES)
+
 test: unit-test program-test
 
 # GTEST_FILTER=... narrows the unit tests; SHAPESIM_DATA points tests at the shipped data.
 unit-test: $(UNIT_BIN)
 	$(UNIT_BIN) --gtest_brief=1 $(if $(GTEST_FILTER),--gtest_filter=$(GTEST_FILTER))
 
-program-test: all
-	BIN=$(abspath $(BIN)) tests/run-program-tests.sh $(PROGRAM_TESTS)
+program-test: all examples
+	BIN=$(abspath $(BIN)) EXAMPLES=$(abspath $(BUILD)/examples) \
+	  tests/run-program-tests.sh $(PROGRAM_TESTS)
 
 bench: $(BENCH_BIN)
 	$(BENCH_BIN) $(BENCH_ARGS)
