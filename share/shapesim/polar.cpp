@@ -1,6 +1,5 @@
 #include "shapesim/polar.hpp"
 
-#include "shapesim/basis1d.hpp"
 #include "shapesim/error.hpp"
 
 #include <cmath>
@@ -68,27 +67,38 @@ double evaluate(const ShapeletModel& model, double x, double y) {
 }
 
 namespace {
-Eigen::MatrixXcd compute_polar_cartesian(int n) {
-    // T_{m,n1} = ∫∫ χ_{n,m}(x, y; 1) φ_{n1}(x) φ_{n−n1}(y) dx dy, exact with (n+1)² nodes.
-    const GaussHermite& rule = gauss_hermite(n + 1);
-    const int k = n + 1;
-    Eigen::MatrixXd phi(n + 1, k);  // φ_j at each node
-    for (int i = 0; i < k; ++i) hermite_functions(rule.nodes[i], n, phi.col(i).data());
+// T^{(n)} from T^{(n−1)} by the ladder operators of the 2D oscillator. χ_{n,m} is the circular
+// state |n_r, n_l⟩, n_r = (n+m)/2, n_l = (n−m)/2, built by a_r† = (a_x† + i a_y†)/√2 and
+// a_l† = (a_x† − i a_y†)/√2 (phases included: checked against the paper's formula by
+// quadrature in tests/unit/polar_test.cpp). With a_x†|n1,n2⟩ = √(n1+1)|n1+1,n2⟩:
+//   √n_r |n_r, n_l⟩ = (a_x† + i a_y†)/√2 |n_r−1, n_l⟩,  √n_l |n_r, n_l⟩ = (a_x† − i a_y†)/√2 |n_r, n_l−1⟩.
+// The step is taken along the larger of n_r, n_l: its 1/√(2 max(n_r, n_l)) keeps each step's
+// error gain ≤ 1 (stepping along a small n_r amplifies rounding ~√(n/n_r) per order).
+Eigen::MatrixXcd compute_polar_cartesian(int n, const Eigen::MatrixXcd* previous) {
     Eigen::MatrixXcd t = Eigen::MatrixXcd::Zero(n + 1, n + 1);
-    std::vector<Complex> chi(polar_count(n));
-    for (int i = 0; i < k; ++i)
-        for (int j = 0; j < k; ++j) {
-            polar_basis(rule.nodes[i], rule.nodes[j], 1.0, n, chi.data());
-            const double w = rule.weights[i] * rule.weights[j];
-            for (int m = n % 2; m <= n; m += 2) {
-                const Complex c = w * chi[polar_index(n, m)];
-                for (int n1 = 0; n1 <= n; ++n1) {
-                    const double basis = phi(n1, i) * phi(n - n1, j);
-                    t((n + m) / 2, n1) += c * basis;
-                    if (m > 0) t((n - m) / 2, n1) += std::conj(c) * basis;
-                }
-            }
+    if (n == 0) {
+        t(0, 0) = 1.0;
+        return t;
+    }
+    for (int n_r = 0; n_r <= n; ++n_r) {
+        const int n_l = n - n_r;
+        // The parent state at order n−1 (its row index is its n_r) and the ladder used.
+        const bool right = n_r >= n_l;
+        const int parent_row = right ? n_r - 1 : n_r;
+        const Complex phase = right ? Complex(0.0, 1.0) : Complex(0.0, -1.0);
+        const double norm = 1.0 / std::sqrt(2.0 * (right ? n_r : n_l));
+        for (int n1 = 0; n1 <= n; ++n1) {
+            const int n2 = n - n1;
+            Complex v = 0.0;
+            if (n1 > 0) v += std::sqrt(double(n1)) * (*previous)(parent_row, n1 - 1);
+            if (n2 > 0) v += phase * std::sqrt(double(n2)) * (*previous)(parent_row, n1);
+            t(n_r, n1) = norm * v;
         }
+    }
+    // One Newton–Schulz step towards the nearest unitary matrix, T ← T (3 − T†T)/2: removes
+    // the rounding error the step added to T's unitarity, so it cannot compound over orders.
+    const Eigen::MatrixXcd gram = t.adjoint() * t;
+    t = t * (3.0 * Eigen::MatrixXcd::Identity(n + 1, n + 1) - gram) * 0.5;
     return t;
 }
 
@@ -142,7 +152,11 @@ const Eigen::MatrixXcd& polar_cartesian_matrix(int n) {
     require(n >= 0, "polar_cartesian_matrix: negative order");
     static std::mutex mutex;
     static std::map<int, std::unique_ptr<Eigen::MatrixXcd>> cache;
-    return cached(cache, mutex, n, compute_polar_cartesian);
+    // The parent order first (its own lock), so the lock is never held across the recursion.
+    const Eigen::MatrixXcd* previous = n > 0 ? &polar_cartesian_matrix(n - 1) : nullptr;
+    return cached(cache, mutex, n, [previous](int order) {
+        return compute_polar_cartesian(order, previous);
+    });
 }
 
 const Eigen::MatrixXd& change_basis_block(BasisChange direction, int n) {

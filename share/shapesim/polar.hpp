@@ -9,8 +9,9 @@
 // so no factorial or Laguerre polynomial is ever formed.
 //
 // Change of basis: within each order n, χ_{n,m} = Σ_{n1+n2=n} T^{(n)}_{m,n1} B_{n1}(x) B_{n2}(y),
-// T^{(n)} unitary. It is computed exactly by (n+1)²-point Gauss–Hermite quadrature (the
-// integrands are polynomial × Gaussian) and cached per n (thread-safe).
+// T^{(n)} unitary. χ_{n,m} is the circular oscillator state |n_r = (n+m)/2, n_l = (n−m)/2⟩, so
+// T^{(n)} follows exactly from T^{(n−1)} by one ladder step, O(n²) per order (polar.cpp); the
+// unit tests check it against (n+1)²-point Gauss–Hermite quadrature of eq. 2. Cached per n.
 #pragma once
 
 #include "shapesim/model.hpp"
