@@ -13,7 +13,6 @@
 SHELL := bash
 .SHELLFLAGS := -o pipefail -ec
 .DELETE_ON_ERROR:
-.SECONDARY:
 .SUFFIXES:
 .DEFAULT_GOAL := all
 
@@ -28,7 +27,7 @@ BUILD   := build$(if $(SAN),-san)
 BIN     := $(if $(SAN),$(BUILD)/bin,bin)
 VERSION := $(shell git describe --always --dirty 2>/dev/null || echo unknown)
 
-CPPFLAGS += -Ishare -isystem /usr/include/eigen3 -DSHAPESIM_VERSION='"$(VERSION)"'
+CPPFLAGS += -Ishare -isystem /usr/include/eigen3
 CXXFLAGS ?= $(OPT) -g
 CXXFLAGS += -std=c++17 $(WARN) $(SANFLAGS) -pthread
 LDFLAGS  += $(SANFLAGS) -pthread
@@ -68,11 +67,23 @@ $(LIB): $(LIB_OBJS)
 	$(if $(Q),@echo "  AR   $@")
 	$(Q)rm -f $@.tmp && ar rcs $@.tmp $^ && mv $@.tmp $@
 
-# Each program links its one main.cpp against the library.
+# Each program links its one main.cpp against the library. Naming the objects as targets keeps
+# make from treating them as intermediate files (deleting them, or missing their rebuild).
+PROGRAM_OBJS = $(PROGRAMS:shapesim-%=$(BUILD)/%/main.o)
+$(PROGRAM_OBJS):
 $(BIN)/shapesim-%: $(BUILD)/%/main.o $(LIB)
 	@mkdir -p $(@D)
 	$(if $(Q),@echo "  LD   $@")
 	$(Q)$(CXX) $(LDFLAGS) $^ $(LDLIBS) -o $@.tmp && mv $@.tmp $@
+
+# The version string lives in version.o alone; its stamp changes only when `git describe` does.
+$(BUILD)/version.stamp: FORCE
+	@mkdir -p $(@D)
+	@if [ "$$(cat $@ 2>/dev/null)" != "$(VERSION)" ]; then echo "$(VERSION)" > $@; fi
+$(BUILD)/share/shapesim/version.o: $(BUILD)/version.stamp
+$(BUILD)/share/shapesim/version.o: CPPFLAGS += -DSHAPESIM_VERSION='"$(VERSION)"'
+.PHONY: FORCE
+FORCE:
 
 install: all
 	install -d $(DESTDIR)$(PREFIX)/bin $(DESTDIR)$(PREFIX)/lib \

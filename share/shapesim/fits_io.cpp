@@ -1,3 +1,4 @@
+#include "shapesim/version.hpp"
 #include "shapesim/fits_io.hpp"
 
 #include "shapesim/app/atomic_file.hpp"
@@ -13,9 +14,6 @@
 #include <limits>
 #include <sys/stat.h>
 
-#ifndef SHAPESIM_VERSION
-#define SHAPESIM_VERSION "unknown"
-#endif
 
 namespace shapesim {
 
@@ -399,7 +397,7 @@ FitsWriter::FitsWriter(const std::string& path, const std::string& program,
     const std::string cfitsio = std::to_string(CFITSIO_MAJOR) + "." +
                                 std::to_string(CFITSIO_MINOR) + "." + std::to_string(CFITSIO_MICRO);
     write_keyword(impl_->f, {"PROGRAM", program, "program that wrote this file"}, path);
-    write_keyword(impl_->f, {"VERSION", SHAPESIM_VERSION, "shapesim version (git describe)"}, path);
+    write_keyword(impl_->f, {"VERSION", version(), "shapesim version (git describe)"}, path);
     fits_write_date(impl_->f, &status);
     check(status, path, "DATE");
     write_keyword(impl_->f, {"CFITSIO", cfitsio, "cfitsio version"}, path);

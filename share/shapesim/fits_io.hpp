@@ -150,7 +150,7 @@ struct FitsImageSpec {
 class FitsWriter {
 public:
     /// Start `path` (checked writable; `.gz` and `[...]` refused). HDU 0 gets PROGRAM
-    /// (`program`), VERSION (SHAPESIM_VERSION), DATE, CFITSIO, then `primary_keywords` (e.g.
+    /// (`program`), VERSION (version.hpp), DATE, CFITSIO, then `primary_keywords` (e.g.
     /// the options, as HIERARCH) and `primary_history`.
     FitsWriter(const std::string& path, const std::string& program,
                const std::vector<FitsKeyword>& primary_keywords = {},

@@ -1,5 +1,6 @@
 // Program plumbing: app/options (common options, --config, --print-params, range checks),
 // app/run_main (exceptions → one stderr line and an exit code) and app/log.
+#include "shapesim/version.hpp"
 #include "shapesim/app/log.hpp"
 #include "shapesim/app/options.hpp"
 #include "shapesim/app/run_main.hpp"
@@ -118,7 +119,7 @@ TEST(ProgramOptions, HelpAndVersionStopTheProgram) {
     testing::internal::CaptureStdout();
     EXPECT_FALSE(v.parse({"--version"}));
     EXPECT_EQ(testing::internal::GetCapturedStdout(),
-              std::string("shapesim-test (shapesim) ") + SHAPESIM_VERSION + "\n");
+              std::string("shapesim-test (shapesim) ") + shapesim::version() + "\n");
 }
 
 TEST(ProgramOptions, ConfigFileAndPrintParamsReplay) {

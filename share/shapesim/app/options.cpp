@@ -1,3 +1,4 @@
+#include "shapesim/version.hpp"
 #include "shapesim/app/options.hpp"
 
 #include "shapesim/error.hpp"
@@ -9,9 +10,6 @@
 #include <iostream>
 #include <thread>
 
-#ifndef SHAPESIM_VERSION
-#define SHAPESIM_VERSION "unknown"
-#endif
 
 namespace shapesim::app {
 
@@ -68,7 +66,7 @@ std::uint64_t parse_seed(const std::string& text) {
 }  // namespace
 
 std::string version_line(const std::string& program) {
-    return program + " (shapesim) " + SHAPESIM_VERSION;
+    return program + " (shapesim) " + shapesim::version();
 }
 
 ProgramOptions::ProgramOptions(std::string program, std::string synopsis, std::string description,

@@ -129,7 +129,7 @@ private:
     bool allow_unregistered_ = false;
 };
 
-/// The version line printed by --version: "<program> (shapesim) <SHAPESIM_VERSION>".
+/// The version line printed by --version: "<program> (shapesim) <shapesim::version()>".
 std::string version_line(const std::string& program);
 
 }  // namespace shapesim::app
