@@ -4,7 +4,10 @@ UNIT_TESTS += $(sort $(wildcard tests/unit/*.cpp))
 BENCH_SRCS += $(sort $(wildcard tests/bench/*_bench.cpp))
 PROGRAM_TESTS := $(sort $(wildcard tests/programs/*/*.sh))
 
+STRESS_TESTS := $(sort $(wildcard tests/stress/*.cpp))
+
 UNIT_BIN  := $(BUILD)/tests/unit_tests
+STRESS_BIN := $(BUILD)/tests/stress_tests
 
 # Tests find their fixtures from the source tree, wherever the binary runs.
 $(BUILD)/tests/%.o: CPPFLAGS += -DSHAPESIM_SOURCE_DIR='"$(CURDIR)"'
@@ -15,7 +18,15 @@ $(UNIT_BIN): $(UNIT_TESTS:%.cpp=$(BUILD)/%.o) $(LIB)
 	$(if $(Q),@echo "  LD   $@")
 	$(Q)$(CXX) $(LDFLAGS) $^ -lgtest -lgtest_main $(LDLIBS) -o $@.tmp && mv $@.tmp $@
 
-$(BENCH_BIN): $(BENCH_SRCS:%.cpp=$(BUILD)/%.o) $(LIB)
+$(STRESS_BIN): $(STRESS_TESTS:%.cpp=$(BUILD)/%.o) $(BUILD)/tests/unit/test_support.o $(LIB)
+	@mkdir -p $(@D)
+	$(if $(Q),@echo "  LD   $@")
+	$(Q)$(CXX) $(LDFLAGS) $^ -lgtest -lgtest_main $(LDLIBS) -o $@.tmp && mv $@.tmp $@
+
+stress: $(STRESS_BIN)
+	$(STRESS_BIN) --gtest_brief=1
+
+$(BENCH_BIN): $(BENCH_SRCS:%.cpp=$(BUILD)/%.o) $(BUILD)/tests/unit/test_support.o $(LIB)
 	@mkdir -p $(@D)
 	$(if $(Q),@echo "  LD   $@")
 	$(Q)$(CXX) $(LDFLAGS) $^ -lbenchmark -lbenchmark_main $(LDLIBS) -o $@.tmp && mv $@.tmp $@
@@ -24,6 +35,7 @@ $(BENCH_BIN): $(BENCH_SRCS:%.cpp=$(BUILD)/%.o) $(LIB)
 EXAMPLE_SRCS := $(sort $(wildcard tests/examples/*.cpp))
 EXAMPLES     := $(EXAMPLE_SRCS:tests/examples/%.cpp=$(BUILD)/examples/%)
 
+$(EXAMPLE_SRCS:%.cpp=$(BUILD)/%.o):
 $(BUILD)/examples/%: $(BUILD)/tests/examples/%.o $(LIB)
 	@mkdir -p $(@D)
 	$(if $(Q),@echo "  LD   $@")

@@ -9,25 +9,17 @@
 #include "shapesim/lsq.hpp"
 #include "shapesim/polar.hpp"
 #include "shapesim/render.hpp"
+#include "../unit/test_support.hpp"
 
 #include <benchmark/benchmark.h>
 
 #include <cmath>
-#include <random>
 
 using namespace shapesim;
 
 namespace {
 ShapeletModel bench_model(int n_max, double beta_pix, double centre) {
-    std::mt19937_64 engine(42 + n_max);
-    std::normal_distribution<double> normal;
-    ShapeletModel model(centre, centre + 0.37, beta_pix, n_max);
-    int k = 0;
-    for (const auto& [n, m] : polar_indices(n_max))
-        model.coeffs[k++] = Complex(0.35 * std::exp(-n / 5.0) * normal(engine),
-                                    m == 0 ? 0.0 : 0.35 * std::exp(-n / 5.0) * normal(engine));
-    model.coeffs[0] = Complex(1.0, 0.0);
-    return model;
+    return test::random_model(n_max, beta_pix, centre, centre + 0.37, 42 + n_max);
 }
 
 // β so that the model's extent β√(n_max+1) fills ~1/3 of the stamp, but never below a pixel.
@@ -35,17 +27,8 @@ double beta_for(int n_max, int size) { return std::max(1.0, size / (6.0 * std::s
 
 // Brute-force pixel integral of the polar formula (8×8 Gauss–Legendre points) at a pixel.
 double brute_pixel(const ShapeletModel& model, int i, int j) {
-    static const double g[8] = {-0.9602898564975363, -0.7966664774136267, -0.5255324099163290,
-                                -0.1834346424956498, 0.1834346424956498,  0.5255324099163290,
-                                0.7966664774136267,  0.9602898564975363};
-    static const double w[8] = {0.1012285362903763, 0.2223810344533745, 0.3137066458778873,
-                                0.3626837833783620, 0.3626837833783620, 0.3137066458778873,
-                                0.2223810344533745, 0.1012285362903763};
-    double sum = 0.0;
-    for (int a = 0; a < 8; ++a)
-        for (int b = 0; b < 8; ++b)
-            sum += 0.25 * w[a] * w[b] * evaluate(model, i + 1 + 0.5 * g[a], j + 1 + 0.5 * g[b]);
-    return sum;
+    return test::integrate_pixel([&](double x, double y) { return evaluate(model, x, y); },
+                                 i + 1, j + 1, 8);
 }
 
 void RenderArgs(benchmark::internal::Benchmark* b) {

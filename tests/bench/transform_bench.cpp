@@ -7,27 +7,16 @@
 // The workspace is reused across iterations, as a sampler transforming many objects would.
 #include "shapesim/transform.hpp"
 
-#include "shapesim/polar.hpp"
+#include "../unit/test_support.hpp"
 
 #include <benchmark/benchmark.h>
-
-#include <cmath>
-#include <random>
 
 using namespace shapesim;
 
 namespace {
 
 ShapeletModel bench_model(int n_max) {
-    std::mt19937_64 rng(1234 + n_max);
-    std::normal_distribution<double> normal;
-    ShapeletModel model(50.3, 60.7, 2.0, n_max);
-    for (const auto& [n, m] : polar_indices(n_max)) {
-        const double sigma = 0.35 * std::exp(-n / 5.0);
-        model.at(n, m) = Complex(sigma * normal(rng), m == 0 ? 0.0 : sigma * normal(rng));
-    }
-    model.at(0, 0) = 1.0;
-    return model;
+    return test::random_model(n_max, 2.0, 50.3, 60.7, 1234 + n_max);
 }
 
 /// range(0) = n_in, range(1) = n_out − n_in, or −1 for the automatic order.
@@ -37,33 +26,31 @@ ProjectionOptions bench_options(const benchmark::State& state) {
     return options;
 }
 
-void report(benchmark::State& state, const Projection& p) {
+/// Times `project(model, options, workspace)` on bench_model(range(0)) and reports the result.
+template <class Project>
+void run_projection(benchmark::State& state, Project project) {
+    const ShapeletModel model = bench_model(int(state.range(0)));
+    const ProjectionOptions options = bench_options(state);
+    ProjectionWorkspace ws;
+    Projection p;
+    for (auto _ : state) {
+        p = project(model, options, &ws);
+        benchmark::DoNotOptimize(p.model.coeffs.data());
+    }
     state.counters["rel_error"] = p.relative_error;
     state.counters["n_out"] = p.model.n_max;
 }
 
 void BM_Shear(benchmark::State& state) {
-    const ShapeletModel model = bench_model(int(state.range(0)));
-    const ProjectionOptions options = bench_options(state);
-    ProjectionWorkspace ws;
-    Projection p;
-    for (auto _ : state) {
-        p = shear(model, 0.2, 0.1, options, &ws);
-        benchmark::DoNotOptimize(p.model.coeffs.data());
-    }
-    report(state, p);
+    run_projection(state, [](const auto& m, const auto& o, auto* ws) {
+        return shear(m, 0.2, 0.1, o, ws);
+    });
 }
 
 void BM_Translate(benchmark::State& state) {
-    const ShapeletModel model = bench_model(int(state.range(0)));
-    const ProjectionOptions options = bench_options(state);
-    ProjectionWorkspace ws;
-    Projection p;
-    for (auto _ : state) {
-        p = translate(model, 1.0, 0.6, options, &ws);
-        benchmark::DoNotOptimize(p.model.coeffs.data());
-    }
-    report(state, p);
+    run_projection(state, [](const auto& m, const auto& o, auto* ws) {
+        return translate(m, 1.0, 0.6, o, ws);
+    });
 }
 
 // Exact phase rotation, for scale.

@@ -1,109 +1,23 @@
 // Exact shapelet convolution (share/shapesim/convolve.hpp) against GalSim's exact reference
 // series and images, closed forms (two Gaussians), brute-force numerical convolution of the
 // point-sampled models, flux, and the least-squares inverses (deconvolution, difference kernel).
-// The fixtures are read here with nlohmann_json and cfitsio directly.
+// The fixtures come from test_support (reference_convolutions).
 #include "shapesim/convolve.hpp"
 
-#include "shapesim/basis1d.hpp"
 #include "shapesim/error.hpp"
 #include "shapesim/polar.hpp"
 #include "shapesim/render.hpp"
+#include "test_support.hpp"
 
-#include <fitsio.h>
 #include <gtest/gtest.h>
-#include <nlohmann/json.hpp>
 
 #include <cmath>
-#include <cstdlib>
-#include <filesystem>
-#include <fstream>
-#include <map>
-#include <random>
-#include <string>
-#include <vector>
 
 using namespace shapesim;
 
 namespace {
 
 constexpr double kPi = 3.14159265358979323846;
-
-// Fixtures: <repo>/tests/data/reference (from __FILE__), then $SHAPESIM_DATA/reference, then
-// /work/shared/data/reference, then <repo>/../shared/data/reference (CI's layout).
-std::string convolve_reference_dir() {
-    namespace fs = std::filesystem;
-    const fs::path repo = fs::path(__FILE__).parent_path().parent_path().parent_path();
-    std::vector<fs::path> candidates{repo / "tests/data/reference"};
-    if (const char* env = std::getenv("SHAPESIM_DATA"))
-        candidates.push_back(fs::path(env) / "reference");
-    candidates.push_back("/work/shared/data/reference");
-    candidates.push_back(repo / "../shared/data/reference");
-    for (const auto& dir : candidates)
-        if (fs::exists(dir / "convolved.jsonl")) return dir.string();
-    return {};
-}
-
-// A shapesim.shapelet/1 record as a model in pixel units (beta_pix = beta / pixel_scale).
-ShapeletModel model_from_record(const nlohmann::json& j) {
-    ShapeletModel m(j.at("x").get<double>(), j.at("y").get<double>(),
-                    j.at("beta").get<double>() / j.at("pixel_scale").get<double>(),
-                    j.at("n_max").get<int>());
-    int k = 0;
-    for (const auto& c : j.at("coeffs"))
-        m.coeffs.at(k++) = Complex(c.at(0).get<double>(), c.at(1).get<double>());
-    EXPECT_EQ(k, polar_count(m.n_max));
-    return m;
-}
-
-// An image HDU by EXTNAME (cfitsio's `file[EXTNAME]` syntax), rows along y.
-ImageArray read_fits_extension(const std::string& path, const std::string& extname) {
-    fitsfile* f = nullptr;
-    int status = 0;
-    long naxes[2] = {0, 0}, first[2] = {1, 1};
-    fits_open_file(&f, (path + "[" + extname + "]").c_str(), READONLY, &status);
-    fits_get_img_size(f, 2, naxes, &status);
-    ImageArray image(naxes[1], naxes[0]);
-    fits_read_pix(f, TDOUBLE, first, naxes[0] * naxes[1], nullptr, image.data(), nullptr,
-                  &status);
-    int close_status = 0;
-    if (f) fits_close_file(f, &close_status);
-    EXPECT_EQ(status, 0) << path << "[" << extname << "]";
-    return image;
-}
-
-struct ReferenceLine {
-    std::string hdu;
-    ShapeletModel galaxy, psf, result;
-    int nx = 0, ny = 0;
-    double flux = 0.0;
-};
-
-// The 8 lines of convolved.jsonl with their galaxies from models.jsonl.
-std::vector<ReferenceLine> read_reference_lines(const std::string& dir) {
-    std::map<std::string, ShapeletModel> galaxies;
-    std::ifstream models(dir + "/models.jsonl");
-    for (std::string line; std::getline(models, line);) {
-        const auto j = nlohmann::json::parse(line);
-        galaxies[j.at("id").get<std::string>()] = model_from_record(j);
-    }
-    std::vector<ReferenceLine> out;
-    std::ifstream in(dir + "/convolved.jsonl");
-    for (std::string line; std::getline(in, line);) {
-        const auto j = nlohmann::json::parse(line);
-        ReferenceLine r;
-        r.hdu = j.at("hdu").get<std::string>();
-        r.galaxy = galaxies.at(j.at("galaxy_id").get<std::string>());
-        r.galaxy.x = j.at("x").get<double>();  // the convolved stamp's centre (README)
-        r.galaxy.y = j.at("y").get<double>();
-        r.psf = model_from_record(j.at("psf"));
-        r.result = model_from_record(j.at("result"));
-        r.nx = j.at("nx").get<int>();
-        r.ny = j.at("ny").get<int>();
-        r.flux = j.at("flux").get<double>();
-        out.push_back(std::move(r));
-    }
-    return out;
-}
 
 // F = 2√π β Σ_{n even} a_{n,0} (DESIGN §2) and its scale 2√π β Σ |a_{n,0}|.
 double flux_of(const ShapeletModel& m, bool absolute = false) {
@@ -121,17 +35,9 @@ double max_abs_difference(const ShapeletModel& a, const ShapeletModel& b) {
 }
 double max_abs(const ShapeletModel& a) { return real_parameters(a).cwiseAbs().maxCoeff(); }
 
-// A deterministic random model: galaxy-like (a_00 dominant, decaying with n) or fully random.
+// A deterministic random model (test_support): galaxy-like or fully random, off-centre.
 ShapeletModel random_model(int n_max, double beta, unsigned seed, bool galaxy = true) {
-    std::mt19937_64 engine(seed);
-    std::uniform_real_distribution<double> u(-1.0, 1.0);
-    ShapeletModel m(10.0 + u(engine), 12.0 + u(engine), beta, n_max);
-    for (const auto& [n, mm] : polar_indices(n_max)) {
-        const double scale = galaxy ? 0.35 * std::exp(-n / 5.0) : 1.0;
-        m.at(n, mm) = Complex(scale * u(engine), mm == 0 ? 0.0 : scale * u(engine));
-    }
-    if (galaxy) m.at(0, 0) = 1.0 + 0.2 * u(engine);
-    return m;
+    return test::random_model(n_max, beta, 10.3, 11.6, seed, galaxy);
 }
 
 }  // namespace
@@ -153,58 +59,35 @@ TEST(Convolve, TensorOfTwoGaussiansIsClosedForm) {
 // Σ_l C_nml B_l(x; γ) equals ∫ B_n(x′; α) B_m(x − x′; b) dx′ by the trapezoid rule on a fine
 // grid (spectrally accurate for these entire, Gaussian-decaying integrands): 1e-13 absolute.
 TEST(Convolve, TensorMatchesBruteForce1D) {
-    const double alpha = 1.3, b = 0.8;
-    const int n_f = 7, n_g = 5;
-    const ConvolutionTensor c(alpha, b, n_f, n_g);
-    const double step = 0.01, half_width = 25.0;
-    const int points = int(2 * half_width / step) + 1;
-    std::vector<double> fa(n_f + 1), gb(n_g + 1), hl(c.n_out() + 1);
-    double worst = 0.0;
-    for (const double x : {-2.3, -0.7, 0.0, 0.45, 1.9, 3.6}) {
-        Eigen::MatrixXd brute = Eigen::MatrixXd::Zero(n_f + 1, n_g + 1);
-        for (int p = 0; p < points; ++p) {
-            const double xp = -half_width + p * step;
-            hermite_functions(xp / alpha, n_f, fa.data());
-            hermite_functions((x - xp) / b, n_g, gb.data());
-            for (int n = 0; n <= n_f; ++n)
-                for (int m = 0; m <= n_g; ++m)
-                    brute(n, m) += step * fa[n] * gb[m] / std::sqrt(alpha * b);
-        }
-        hermite_functions(x / c.gamma(), c.n_out(), hl.data());
-        for (int n = 0; n <= n_f; ++n)
-            for (int m = 0; m <= n_g; ++m) {
-                double series = 0.0;
-                for (int l = 0; l <= c.n_out(); ++l)
-                    series += c(n, m, l) * hl[l] / std::sqrt(c.gamma());
-                worst = std::max(worst, std::abs(series - brute(n, m)));
-            }
-    }
-    EXPECT_LT(worst, 1e-13);
+    const ConvolutionTensor c(1.3, 0.8, 7, 5);
+    EXPECT_LT(test::tensor_brute_force_error(c, {-2.3, -0.7, 0.0, 0.45, 1.9, 3.6}, 0.01, 25.0),
+              1e-13);
 }
 
 // (a) The 8 exact `result` series of convolved.jsonl, coefficient by coefficient, to
 // 1e-10 · max|a| (README's tolerance), and their scale γ; then the images of convolved.fits
 // to 1e-9 of the peak (README; the DFT images themselves carry ~6e-13).
 TEST(Convolve, ReproducesReferenceSeriesAndImages) {
-    const std::string dir = convolve_reference_dir();
-    if (dir.empty()) GTEST_SKIP() << "reference fixtures not found";
-    const auto lines = read_reference_lines(dir);
+    const auto& lines = test::reference_convolutions();
     ASSERT_EQ(lines.size(), 8u);
     for (const auto& r : lines) {
+        const std::string& hdu = r.record.hdu;
+        for (const ShapeletModel* m : {&r.galaxy, &r.psf, &r.result})
+            EXPECT_EQ(int(m->coeffs.size()), polar_count(m->n_max)) << hdu;
         const ShapeletModel h = convolve(r.galaxy, r.psf);
-        ASSERT_EQ(h.n_max, r.result.n_max) << r.hdu;
-        EXPECT_NEAR(h.beta_pix, r.result.beta_pix, 1e-14 * h.beta_pix) << r.hdu;
+        ASSERT_EQ(h.n_max, r.result.n_max) << hdu;
+        EXPECT_NEAR(h.beta_pix, r.result.beta_pix, 1e-14 * h.beta_pix) << hdu;
         EXPECT_EQ(h.x, r.result.x);
         EXPECT_EQ(h.y, r.result.y);
-        EXPECT_LE(max_abs_difference(h, r.result), 1e-10 * max_abs(r.result)) << r.hdu;
-        EXPECT_NEAR(flux_of(h), r.flux, 1e-12 * flux_of(h, true)) << r.hdu;
+        EXPECT_LE(max_abs_difference(h, r.result), 1e-10 * max_abs(r.result)) << hdu;
+        EXPECT_NEAR(flux_of(h), r.record.flux, 1e-12 * flux_of(h, true)) << hdu;
 
-        const ImageArray truth = read_fits_extension(dir + "/convolved.fits", r.hdu);
-        ASSERT_EQ(truth.cols(), r.nx);
-        ASSERT_EQ(truth.rows(), r.ny);
-        const ImageArray image = render_stamp(h, r.nx, r.ny);
+        const ImageArray& truth = r.image;
+        ASSERT_EQ(truth.cols(), r.record.nx);
+        ASSERT_EQ(truth.rows(), r.record.ny);
+        const ImageArray image = render_stamp(h, r.record.nx, r.record.ny);
         const double peak = truth.abs().maxCoeff();
-        EXPECT_LT((image - truth).abs().maxCoeff(), 1e-9 * peak) << r.hdu;
+        EXPECT_LT((image - truth).abs().maxCoeff(), 1e-9 * peak) << hdu;
     }
 }
 
@@ -225,29 +108,10 @@ TEST(Convolve, MatchesBruteForceConvolution2D) {
         ShapeletModel g = random_model(k.n_g, k.b, k.seed + 100, true);
         g.x = 1e3;  // the PSF's own position plays no part
         const ShapeletModel h = convolve(f, g);
-        const double step = 0.25;  // ≥ 4 samples per β: the lattice sum reaches ~5e-15
-        const int rf = int(k.alpha * (std::sqrt(2.0 * k.n_f + 1) + 9) / step);
-        const int rg = int(k.b * (std::sqrt(2.0 * k.n_g + 1) + 9) / step);
-        Eigen::MatrixXd fs(2 * rf + 1, 2 * rf + 1), gs(2 * rg + 1, 2 * rg + 1);
-        for (int i = -rf; i <= rf; ++i)
-            for (int j = -rf; j <= rf; ++j)
-                fs(i + rf, j + rf) = evaluate(f, f.x + i * step, f.y + j * step);
-        for (int i = -rg; i <= rg; ++i)
-            for (int j = -rg; j <= rg; ++j)
-                gs(i + rg, j + rg) = evaluate(g, g.x + i * step, g.y + j * step);
-        double worst = 0.0, peak = 0.0;
-        for (int p = -24; p <= 24; p += 3)
-            for (int q = -21; q <= 21; q += 3) {  // points (p, q) lattice steps off the centre
-                double sum = 0.0;
-                for (int i = std::max(-rf, p - rg); i <= std::min(rf, p + rg); ++i)
-                    for (int j = std::max(-rf, q - rg); j <= std::min(rf, q + rg); ++j)
-                        sum += fs(i + rf, j + rf) * gs(p - i + rg, q - j + rg);
-                sum *= step * step;
-                const double value = evaluate(h, h.x + p * step, h.y + q * step);
-                worst = std::max(worst, std::abs(value - sum));
-                peak = std::max(peak, std::abs(value));
-            }
-        EXPECT_LT(worst, 1e-8 * peak) << "n_f " << k.n_f << " n_g " << k.n_g;
+        // Step 0.25 (≥ 4 samples per β): the lattice sum reaches ~5e-15. Points (p, q) lattice
+        // steps off the centre, |p| ≤ 24, |q| ≤ 21, every third.
+        const double relative = test::lattice_convolution_error(f, g, h, 0.25, 24, 21, 3);
+        EXPECT_LT(relative, 1e-8) << "n_f " << k.n_f << " n_g " << k.n_g;
     }
 }
 

@@ -11,15 +11,11 @@
 
 #include "shapesim/polar.hpp"
 #include "shapesim/render.hpp"
+#include "test_support.hpp"
 
 #include <gtest/gtest.h>
-#include <nlohmann/json.hpp>
 
 #include <cmath>
-#include <cstdlib>
-#include <filesystem>
-#include <fstream>
-#include <limits>
 #include <random>
 #include <string>
 #include <vector>
@@ -27,66 +23,6 @@
 using namespace shapesim;
 
 namespace {
-
-namespace fs = std::filesystem;
-
-/// tests/data/reference beside this file, else $SHAPESIM_DATA/reference, else the shared copy.
-fs::path moments_reference_dir() {
-    const fs::path here = fs::path(__FILE__).parent_path();
-    std::vector<fs::path> candidates = {here / ".." / "data" / "reference"};
-    if (const char* env = std::getenv("SHAPESIM_DATA"))
-        candidates.push_back(fs::path(env) / "reference");
-    candidates.push_back("/work/shared/data/reference");
-    for (const auto& dir : candidates)
-        if (fs::exists(dir / "models.jsonl")) return dir;
-    return {};
-}
-
-struct NamedModel {
-    std::string id, family;
-    double flux_field = 0.0;
-    ShapeletModel model;
-};
-
-std::vector<NamedModel> read_reference_models() {
-    std::vector<NamedModel> out;
-    const fs::path dir = moments_reference_dir();
-    if (dir.empty()) return out;
-    std::ifstream in(dir / "models.jsonl");
-    std::string line;
-    while (std::getline(in, line)) {
-        const auto j = nlohmann::json::parse(line);
-        NamedModel m;
-        m.id = j.at("id").get<std::string>();
-        m.family = j.at("family").get<std::string>();
-        m.flux_field = j.at("flux").get<double>();
-        const double beta_pix = j.at("beta").get<double>() / j.at("pixel_scale").get<double>();
-        m.model = ShapeletModel(j.at("x").get<double>(), j.at("y").get<double>(), beta_pix,
-                                j.at("n_max").get<int>());
-        const auto& c = j.at("coeffs");
-        for (size_t k = 0; k < c.size(); ++k)
-            m.model.coeffs[k] = Complex(c[k][0].get<double>(), c[k][1].get<double>());
-        out.push_back(m);
-    }
-    return out;
-}
-
-/// Galaxy-like (a00 = 1, the others ~amplitude·e^{−n/5}, random phases) or fully random
-/// coefficients. With the reference file's amplitude 0.35 the weights (n+1) of Σ(n+1)a_{n,0}
-/// often drive the second moment negative: such models are no images of positive things.
-ShapeletModel make_model(std::mt19937_64& rng, int n_max, double beta, double x, double y,
-                         bool galaxy, double amplitude = 0.35) {
-    std::normal_distribution<double> normal;
-    ShapeletModel model(x, y, beta, n_max);
-    int k = 0;
-    for (const auto& [n, m] : polar_indices(n_max)) {
-        const double sigma = galaxy ? amplitude * std::exp(-n / 5.0) : 1.0;
-        Complex a(sigma * normal(rng), m == 0 ? 0.0 : sigma * normal(rng));
-        if (galaxy && n == 0) a = 1.0;
-        model.coeffs[k++] = a;
-    }
-    return model;
-}
 
 /// Raw moments of a finely rendered stamp (file comment), plus Σ|P|·(1, |x|, |x|²) as scales.
 struct ImageMoments {
@@ -131,22 +67,28 @@ ImageMoments rendered_moments(const ShapeletModel& model) {
     return out;
 }
 
+struct NamedModel {
+    std::string id;
+    ShapeletModel model;
+};
+
 /// Models covering n_max 0..15 (and 20), β 0.7–6 px, sub-pixel centres: the reference file
-/// plus seeded random ones.
+/// plus seeded random ones. With the reference file's amplitude 0.35 the weights (n+1) of
+/// Σ(n+1)a_{n,0} often drive the second moment negative: such models are no images of
+/// positive things.
 std::vector<NamedModel> test_models() {
-    std::vector<NamedModel> out = read_reference_models();
+    std::vector<NamedModel> out;
+    for (const auto& r : test::reference_models()) out.push_back({r.id, r.model});
     std::mt19937_64 rng(20240611);
     std::uniform_real_distribution<double> unit(0.0, 1.0);
     const int orders[] = {0, 1, 2, 3, 5, 8, 11, 15, 4, 6, 9, 12, 15};
     for (int i = 0; i < 13; ++i) {
         const double beta = 0.8 * std::pow(5.0, unit(rng));  // 0.8 .. 4 px
-        NamedModel m;
-        m.id = "random" + std::to_string(i);
-        m.family = (i < 8 && i % 3 == 2) ? "random" : "galaxy";
+        const bool galaxy = !(i < 8 && i % 3 == 2);
         // The last five are smooth (amplitude 0.1), so that their second moments are positive.
-        m.model = make_model(rng, orders[i], beta, 30 + unit(rng), 40 + unit(rng),
-                             m.family == "galaxy", i < 8 ? 0.35 : 0.1);
-        out.push_back(m);
+        const ShapeletModel model = test::random_model(
+            rng, orders[i], beta, 30 + unit(rng), 40 + unit(rng), galaxy, i < 8 ? 0.35 : 0.1);
+        out.push_back({"random" + std::to_string(i), model});
     }
     return out;
 }
@@ -160,14 +102,14 @@ double coefficient_scale(const ShapeletModel& model) {
 }  // namespace
 
 TEST(Moments, ReferenceModelsAreFound) {
-    const auto models = read_reference_models();
+    const auto& models = test::reference_models();
     ASSERT_EQ(models.size(), 24u) << "reference/models.jsonl not found or incomplete";
 }
 
 // The record's `flux` field is 2√π β Σ a_{n,0} of the stored coefficients (README).
 TEST(Moments, FluxMatchesReferenceField) {
-    for (const auto& m : read_reference_models())
-        EXPECT_NEAR(flux(m.model), m.flux_field, 1e-13 * std::abs(m.flux_field)) << m.id;
+    for (const auto& m : test::reference_models())
+        EXPECT_NEAR(flux(m.model), m.flux, 1e-13 * std::abs(m.flux)) << m.id;
 }
 
 // A lone a_{0,0}: the Gaussian π^{-1/2} β^{-1} e^{−r²/2β²} a_00 — F = 2√π β a00, centroid at
@@ -192,8 +134,8 @@ TEST(Moments, PolarClosedFormsMatchCartesianRoute) {
     std::mt19937_64 rng(7);
     for (int n_max = 0; n_max <= 20; ++n_max)
         for (bool galaxy : {true, false}) {
-            const ShapeletModel model = make_model(rng, n_max, 1.3 + 0.1 * n_max, 5.5, 6.25,
-                                                   galaxy);
+            const ShapeletModel model =
+                test::random_model(rng, n_max, 1.3 + 0.1 * n_max, 5.5, 6.25, galaxy);
             const RawMoments p = raw_moments(model);
             const RawMoments c = raw_moments(to_cartesian(model));
             const double beta = model.beta_pix, scale = coefficient_scale(model) * (n_max + 1);
@@ -272,11 +214,11 @@ TEST(Moments, DerivedMomentsMatchRenderedImages) {
 // Flux ≤ 0: flux and raw moments are kept, every derived quantity is NaN (documented rule).
 TEST(Moments, NonPositiveFluxGivesNaN) {
     int negative = 0;
-    for (const auto& m : read_reference_models()) {
-        if (m.flux_field > 0) continue;
+    for (const auto& m : test::reference_models()) {
+        if (m.flux > 0) continue;
         ++negative;
         const Moments mo = moments(m.model);
-        EXPECT_NEAR(mo.flux, m.flux_field, 1e-12 * std::abs(m.flux_field)) << m.id;
+        EXPECT_NEAR(mo.flux, m.flux, 1e-12 * std::abs(m.flux)) << m.id;
         EXPECT_TRUE(std::isnan(mo.x) && std::isnan(mo.y) && std::isnan(mo.q11)) << m.id;
         EXPECT_TRUE(std::isnan(mo.rms_radius) && std::isnan(mo.chi.real())) << m.id;
         EXPECT_TRUE(std::isnan(mo.epsilon.imag())) << m.id;
@@ -293,7 +235,7 @@ TEST(Moments, NonPositiveFluxGivesNaN) {
 // and its ellipticities by e^{2iρ}; mirroring in x conjugates them.
 TEST(Moments, FollowRotationAndReflection) {
     std::mt19937_64 rng(11);
-    const ShapeletModel model = make_model(rng, 10, 2.2, 9.0, 8.0, true, 0.03);
+    const ShapeletModel model = test::random_model(rng, 10, 2.2, 9.0, 8.0, true, 0.03);
     ASSERT_GT(moments(model).rms_radius, 0.0);
     const Moments m0 = moments(model);
     for (double rho : {0.3, 1.9, -2.6}) {
@@ -323,7 +265,7 @@ TEST(Moments, FollowRotationAndReflection) {
 // square roots of the eigenvalues of Q.
 TEST(Moments, EllipticityConventions) {
     std::mt19937_64 rng(5);
-    const ShapeletModel model = make_model(rng, 6, 1.9, 0.0, 0.0, true, 0.05);
+    const ShapeletModel model = test::random_model(rng, 6, 1.9, 0.0, 0.0, true, 0.05);
     ASSERT_GT(moments(model).rms_radius, 0.0);
     const Moments mo = moments(model);
     Eigen::Matrix2d q;

@@ -1,13 +1,17 @@
 #include "test_support.hpp"
 
-#include <fitsio.h>
-#include <nlohmann/json.hpp>
+#include "shapesim/basis1d.hpp"
+#include "shapesim/fits_io.hpp"
+#include "shapesim/jsonl.hpp"
+#include "shapesim/polar.hpp"
 
+#include <fitsio.h>
+
+#include <algorithm>
 #include <cmath>
 #include <cstdlib>
-#include <fstream>
+#include <map>
 #include <mutex>
-#include <random>
 #include <stdexcept>
 #include <sys/stat.h>
 
@@ -26,7 +30,7 @@ std::string reference_dir() {
     if (is_dir(in_repo)) return in_repo;
     if (const char* env = std::getenv("SHAPESIM_DATA"))
         if (is_dir(std::string(env) + "/reference")) return std::string(env) + "/reference";
-    return repo_root() + "/../shared/data/reference";
+    return in_repo;  // missing: the readers fail naming it
 }
 
 ImageArray read_fits_image(const std::string& path, int hdu) {
@@ -49,19 +53,13 @@ const std::vector<ReferenceModel>& reference_models() {
     static std::once_flag once;
     static std::vector<ReferenceModel> models;
     std::call_once(once, [] {
-        std::ifstream in(reference_dir() + "/models.jsonl");
-        if (!in) throw std::runtime_error("no reference models in " + reference_dir());
-        std::string line;
+        JsonlReader in(reference_dir() + "/models.jsonl", {ShapeletRecord::schema});
         int hdu = 2;  // stamps.fits: empty primary, then one HDU per model in file order
-        while (std::getline(in, line)) {
-            const auto j = nlohmann::json::parse(line);
+        for (ShapeletRecord record; in.next_record(record);) {
             ReferenceModel r;
-            r.id = j.at("id");
-            r.model = ShapeletModel(j.at("x"), j.at("y"),
-                                    double(j.at("beta")) / double(j.at("pixel_scale")),
-                                    j.at("n_max"));
-            int k = 0;
-            for (const auto& c : j.at("coeffs")) r.model.coeffs[k++] = Complex(c[0], c[1]);
+            r.id = record.id;
+            r.model = record.to_model();
+            r.flux = record.flux.value();
             r.stamp = read_fits_image(reference_dir() + "/stamps.fits", hdu++);
             r.nx = int(r.stamp.cols());
             r.ny = int(r.stamp.rows());
@@ -69,6 +67,29 @@ const std::vector<ReferenceModel>& reference_models() {
         }
     });
     return models;
+}
+
+const std::vector<ReferenceConvolution>& reference_convolutions() {
+    static std::once_flag once;
+    static std::vector<ReferenceConvolution> lines;
+    std::call_once(once, [] {
+        std::map<std::string, const ShapeletModel*> galaxies;
+        for (const auto& m : reference_models()) galaxies[m.id] = &m.model;
+        const std::string dir = reference_dir();
+        JsonlReader in(dir + "/convolved.jsonl", {ReferenceConvolutionRecord::schema});
+        for (ReferenceConvolutionRecord record; in.next_record(record);) {
+            ReferenceConvolution r;
+            r.galaxy = *galaxies.at(record.galaxy_id);
+            r.galaxy.x = record.x;  // the convolved stamp's centre (README)
+            r.galaxy.y = record.y;
+            r.psf = record.psf.to_model();
+            r.result = record.result.to_model();
+            r.image = shapesim::read_fits_image(dir + "/convolved.fits[" + record.hdu + "]");
+            r.record = std::move(record);
+            lines.push_back(std::move(r));
+        }
+    });
+    return lines;
 }
 
 void gauss_legendre(int n, std::vector<double>& nodes, std::vector<double>& weights) {
@@ -106,18 +127,89 @@ double integrate(const std::function<double(double)>& f, double a, double b, int
     return 0.5 * h * sum;
 }
 
-ShapeletModel random_model(int n_max, double beta_pix, double x, double y, unsigned seed,
-                           bool galaxy) {
-    std::mt19937_64 engine(seed);
+double integrate_pixel(const std::function<double(double, double)>& f, double x, double y,
+                       int order) {
+    std::vector<double> nodes, weights;
+    gauss_legendre(order, nodes, weights);
+    double sum = 0.0;
+    for (int a = 0; a < order; ++a)
+        for (int b = 0; b < order; ++b)
+            sum += 0.25 * weights[a] * weights[b] * f(x + 0.5 * nodes[a], y + 0.5 * nodes[b]);
+    return sum;
+}
+
+double tensor_brute_force_error(const ConvolutionTensor& c, const std::vector<double>& xs,
+                                double step, double half_width) {
+    const int n_f = c.n_f(), n_g = c.n_g(), points = int(2 * half_width / step) + 1;
+    std::vector<double> fa(n_f + 1), gb(n_g + 1), hl(c.n_out() + 1);
+    double worst = 0.0;
+    for (const double x : xs) {
+        Eigen::MatrixXd brute = Eigen::MatrixXd::Zero(n_f + 1, n_g + 1);
+        for (int p = 0; p < points; ++p) {
+            const double xp = -half_width + p * step;
+            hermite_functions(xp / c.alpha(), n_f, fa.data());
+            hermite_functions((x - xp) / c.b(), n_g, gb.data());
+            for (int n = 0; n <= n_f; ++n)
+                for (int m = 0; m <= n_g; ++m)
+                    brute(n, m) += step * fa[n] * gb[m] / std::sqrt(c.alpha() * c.b());
+        }
+        hermite_functions(x / c.gamma(), c.n_out(), hl.data());
+        for (int n = 0; n <= n_f; ++n)
+            for (int m = 0; m <= n_g; ++m) {
+                double series = 0.0;
+                for (int l = 0; l <= c.n_out(); ++l)
+                    series += c(n, m, l) * hl[l] / std::sqrt(c.gamma());
+                worst = std::max(worst, std::abs(series - brute(n, m)));
+            }
+    }
+    return worst;
+}
+
+double lattice_convolution_error(const ShapeletModel& f, const ShapeletModel& g,
+                                 const ShapeletModel& h, double step, int p_max, int q_max,
+                                 int stride) {
+    // Each model sampled out to β(√(2n+1) + 9), far past its last oscillation.
+    const auto sample = [step](const ShapeletModel& model, int& r) {
+        r = int(model.beta_pix * (std::sqrt(2.0 * model.n_max + 1) + 9) / step);
+        Eigen::MatrixXd s(2 * r + 1, 2 * r + 1);
+        for (int i = -r; i <= r; ++i)
+            for (int j = -r; j <= r; ++j)
+                s(i + r, j + r) = evaluate(model, model.x + i * step, model.y + j * step);
+        return s;
+    };
+    int rf = 0, rg = 0;
+    const Eigen::MatrixXd fs = sample(f, rf), gs = sample(g, rg);
+    double worst = 0.0, peak = 0.0;
+    for (int p = -p_max; p <= p_max; p += stride)
+        for (int q = -q_max; q <= q_max; q += stride) {
+            double sum = 0.0;
+            for (int i = std::max(-rf, p - rg); i <= std::min(rf, p + rg); ++i)
+                for (int j = std::max(-rf, q - rg); j <= std::min(rf, q + rg); ++j)
+                    sum += fs(i + rf, j + rf) * gs(p - i + rg, q - j + rg);
+            const double value = evaluate(h, h.x + p * step, h.y + q * step);
+            worst = std::max(worst, std::abs(value - sum * step * step));
+            peak = std::max(peak, std::abs(value));
+        }
+    return worst / peak;
+}
+
+ShapeletModel random_model(std::mt19937_64& engine, int n_max, double beta_pix, double x,
+                           double y, bool galaxy, double amplitude) {
     std::normal_distribution<double> normal;
     ShapeletModel model(x, y, beta_pix, n_max);
     int k = 0;
     for (const auto& [n, m] : polar_indices(n_max)) {
-        const double scale = galaxy ? 0.35 * std::exp(-n / 5.0) : 1.0;
+        const double scale = galaxy ? amplitude * std::exp(-n / 5.0) : 1.0;
         model.coeffs[k++] = Complex(scale * normal(engine), m == 0 ? 0.0 : scale * normal(engine));
     }
     if (galaxy) model.coeffs[0] = Complex(1.0, 0.0);
     return model;
+}
+
+ShapeletModel random_model(int n_max, double beta_pix, double x, double y, unsigned seed,
+                           bool galaxy, double amplitude) {
+    std::mt19937_64 engine(seed);
+    return random_model(engine, n_max, beta_pix, x, y, galaxy, amplitude);
 }
 
 }  // namespace shapesim::test

@@ -1,29 +1,44 @@
-// Shared helpers for the unit tests: where the fixtures are, reading the GalSim reference
-// models and stamps, and an independent quadrature (composite Gauss–Legendre) for brute force.
+// Shared helpers for the unit tests and benchmarks (the one home for them): where the
+// fixtures are, reading the GalSim reference models, stamps and exact convolutions, an
+// independent quadrature (composite Gauss–Legendre) for brute force, and random models.
 #pragma once
 
+#include "shapesim/convolve.hpp"
 #include "shapesim/image.hpp"
 #include "shapesim/model.hpp"
+#include "shapesim/records.hpp"
 
 #include <functional>
+#include <random>
 #include <string>
 #include <vector>
 
 namespace shapesim::test {
 
-/// Folder of the exact reference fixtures (tests/data/reference in the repository; else
-/// $SHAPESIM_DATA/reference; else ../shared/data/reference).
+/// Folder of the exact reference fixtures: tests/data/reference in the repository, else
+/// $SHAPESIM_DATA/reference. (The readers below throw, naming it, when files are missing.)
 std::string reference_dir();
 
 /// One model of reference/models.jsonl with its id and stamp size.
 struct ReferenceModel {
     std::string id;
-    ShapeletModel model;
+    ShapeletModel model;  ///< in pixel units (ShapeletRecord::to_model)
+    double flux = 0.0;    ///< the record's `flux` field, as written with the fixtures
     int nx = 0, ny = 0;
     ImageArray stamp;  ///< the GalSim-rendered stamp from stamps.fits
 };
 /// All 24 reference models with their stamps (read once, cached).
 const std::vector<ReferenceModel>& reference_models();
+
+/// One line of reference/convolved.jsonl: galaxy ⊗ PSF, the exact result and its image.
+struct ReferenceConvolution {
+    ReferenceConvolutionRecord record;  ///< the line as read
+    ShapeletModel galaxy;  ///< models.jsonl's `galaxy_id`, centred at (record.x, record.y)
+    ShapeletModel psf, result;  ///< record.psf, record.result in pixel units
+    ImageArray image;           ///< convolved.fits[record.hdu], record.ny × record.nx
+};
+/// All 8 reference convolutions with their images (read once, cached).
+const std::vector<ReferenceConvolution>& reference_convolutions();
 
 /// The HDU (1-based, primary = 1) of a FITS file as an image, read with cfitsio directly.
 ImageArray read_fits_image(const std::string& path, int hdu);
@@ -36,8 +51,31 @@ void gauss_legendre(int n, std::vector<double>& nodes, std::vector<double>& weig
 double integrate(const std::function<double(double)>& f, double a, double b, int panels = 1,
                  int order = 20);
 
-/// A model with random coefficients (galaxy-like when `galaxy`), deterministic in `seed`.
+/// ∫ f over the unit pixel centred at (x, y) by an order × order Gauss–Legendre product rule
+/// (FITS pixel (i, j), 0-based, is centred at (i + 1, j + 1)).
+double integrate_pixel(const std::function<double(double, double)>& f, double x, double y,
+                       int order = 10);
+
+/// The convolution tensor against brute force: max over x in `xs`, n ≤ n_f, m ≤ n_g of
+/// |Σ_l C_nml B_l(x; γ) − ∫ B_n(x′; α) B_m(x − x′; b) dx′|, the integral by the trapezoid rule
+/// of step `step` on [−half_width, half_width] (spectrally accurate for these entire,
+/// Gaussian-decaying integrands).
+double tensor_brute_force_error(const ConvolutionTensor& c, const std::vector<double>& xs,
+                                double step, double half_width);
+
+/// h = f ∗ g against the lattice sum δ² Σ_i f(x_i) g(x − x_i) of the point-sampled models
+/// (`evaluate`) on a lattice of step δ = `step`: max |h − sum| / max |h| over the points
+/// (p, q)·δ off h's centre, |p| ≤ p_max and |q| ≤ q_max in strides of `stride`.
+double lattice_convolution_error(const ShapeletModel& f, const ShapeletModel& g,
+                                 const ShapeletModel& h, double step, int p_max, int q_max,
+                                 int stride);
+
+/// A model with normal random coefficients drawn from `engine` in packed order: galaxy-like
+/// (a_00 = 1, the others ~amplitude·e^{−n/5}) when `galaxy`, else all of scale 1.
+ShapeletModel random_model(std::mt19937_64& engine, int n_max, double beta_pix, double x,
+                           double y, bool galaxy = true, double amplitude = 0.35);
+/// The same from a fresh engine seeded with `seed` (deterministic in `seed`).
 ShapeletModel random_model(int n_max, double beta_pix, double x, double y, unsigned seed,
-                           bool galaxy = true);
+                           bool galaxy = true, double amplitude = 0.35);
 
 }  // namespace shapesim::test

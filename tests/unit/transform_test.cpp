@@ -16,6 +16,7 @@
 #include "shapesim/moments.hpp"
 #include "shapesim/polar.hpp"
 #include "shapesim/render.hpp"
+#include "test_support.hpp"
 
 #include <gtest/gtest.h>
 
@@ -28,21 +29,6 @@
 using namespace shapesim;
 
 namespace {
-
-/// Galaxy-like coefficients: a00 = 1, the others ~amplitude·e^{−n/5} with random phases.
-ShapeletModel galaxy_model(unsigned seed, int n_max, double beta, double x, double y,
-                           double amplitude = 0.35) {
-    std::mt19937_64 rng(seed);
-    std::normal_distribution<double> normal;
-    ShapeletModel model(x, y, beta, n_max);
-    int k = 0;
-    for (const auto& [n, m] : polar_indices(n_max)) {
-        const double sigma = amplitude * std::exp(-n / 5.0);
-        Complex a(sigma * normal(rng), m == 0 ? 0.0 : sigma * normal(rng));
-        model.coeffs[k++] = (n == 0) ? Complex(1.0) : a;
-    }
-    return model;
-}
 
 /// b(n1, n2) order by order from the public unitary T^{(n)} (no dense n_max cache).
 Eigen::MatrixXd cartesian_of(const ShapeletModel& model) {
@@ -106,34 +92,15 @@ double grid_l2_error(const std::function<double(double, double)>& g, const Shape
     return sum * h * h;
 }
 
-/// Gauss–Legendre on [−1, 1] by Golub–Welsch (independent of the library's Hermite code).
-void gauss_legendre(int n, std::vector<double>& nodes, std::vector<double>& weights) {
-    Eigen::MatrixXd jacobi = Eigen::MatrixXd::Zero(n, n);
-    for (int k = 1; k < n; ++k)
-        jacobi(k, k - 1) = jacobi(k - 1, k) = k / std::sqrt(4.0 * k * k - 1);
-    Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd> eig(jacobi);
-    nodes.resize(n);
-    weights.resize(n);
-    for (int i = 0; i < n; ++i) {
-        nodes[i] = eig.eigenvalues()(i);
-        weights[i] = 2.0 * eig.eigenvectors()(0, i) * eig.eigenvectors()(0, i);
-    }
-}
-
 /// Σ_pixels (render_stamp(P) − ∫_pixel g)² on an nx × ny stamp (FITS coordinates).
 double pixel_error2(const std::function<double(double, double)>& g, const ShapeletModel& p,
                     int nx, int ny, double* peak) {
-    std::vector<double> t, w;
-    gauss_legendre(10, t, w);
     const ImageArray rendered = render_stamp(p, nx, ny);
     double sum = 0.0;
     *peak = 0.0;
     for (int j = 0; j < ny; ++j)
         for (int i = 0; i < nx; ++i) {
-            double integral = 0.0;
-            for (size_t a = 0; a < t.size(); ++a)
-                for (size_t b = 0; b < t.size(); ++b)
-                    integral += 0.25 * w[a] * w[b] * g(i + 1 + 0.5 * t[a], j + 1 + 0.5 * t[b]);
+            const double integral = test::integrate_pixel(g, i + 1, j + 1, 10);
             const double diff = rendered(j, i) - integral;
             sum += diff * diff;
             *peak = std::max(*peak, std::abs(integral));
@@ -178,7 +145,7 @@ double max_pointwise_error(const ShapeletModel& model,
 
 TEST(Transform, RotationMatchesRotatedCoordinates) {
     for (int n_max : {1, 4, 9, 15}) {
-        const ShapeletModel model = galaxy_model(100 + n_max, n_max, 2.3, 20.3, 18.7);
+        const ShapeletModel model = test::random_model(n_max, 2.3, 20.3, 18.7, 100 + n_max);
         for (double rho : {0.4, 2.0, -1.3}) {
             const ShapeletModel rotated = rotate(model, rho);
             const double err = max_pointwise_error(
@@ -191,7 +158,7 @@ TEST(Transform, RotationMatchesRotatedCoordinates) {
 // A quarter turn about a pixel centre maps pixels onto pixels, so even the pixel-integrated
 // stamps must agree: G(j, i) = F(2c − i, j) with c the centre's 0-based index.
 TEST(Transform, QuarterTurnPermutesRenderedPixels) {
-    const ShapeletModel model = galaxy_model(3, 12, 2.1, 17.0, 17.0);
+    const ShapeletModel model = test::random_model(12, 2.1, 17.0, 17.0, 3);
     const ImageArray f = render_stamp(model, 33, 33);
     const ImageArray g = render_stamp(rotate(model, M_PI / 2), 33, 33);
     const int c = 16;
@@ -202,7 +169,7 @@ TEST(Transform, QuarterTurnPermutesRenderedPixels) {
 }
 
 TEST(Transform, RotateAboutAPointMovesTheCentre) {
-    const ShapeletModel model = galaxy_model(5, 8, 1.8, 30.0, 12.0);
+    const ShapeletModel model = test::random_model(8, 1.8, 30.0, 12.0, 5);
     const double rho = 0.7, x0 = 25.0, y0 = 20.0;
     const ShapeletModel r = rotate_about(model, rho, x0, y0);
     // g(X) = f(p + R(−ρ)(X − p)) = f(c + R(−ρ)(X − c − d)) with d = R(ρ)(c − p) − (c − p).
@@ -212,7 +179,7 @@ TEST(Transform, RotateAboutAPointMovesTheCentre) {
 }
 
 TEST(Transform, ReflectionsMatchMirroredCoordinates) {
-    const ShapeletModel model = galaxy_model(7, 11, 2.6, 10.4, 11.9);
+    const ShapeletModel model = test::random_model(11, 2.6, 10.4, 11.9, 7);
     Eigen::Matrix2d mirror_x;
     mirror_x << 1, 0, 0, -1;
     EXPECT_LT(max_pointwise_error(reflect_x(model),
@@ -231,7 +198,7 @@ TEST(Transform, ReflectionsMatchMirroredCoordinates) {
 }
 
 TEST(Transform, DilationIsExact) {
-    const ShapeletModel model = galaxy_model(9, 10, 1.7, 8.2, 9.1);
+    const ShapeletModel model = test::random_model(10, 1.7, 8.2, 9.1, 9);
     for (double s : {0.6, 1.0, 2.5}) {
         const Eigen::Matrix2d a = s * Eigen::Matrix2d::Identity();
         EXPECT_LT(max_pointwise_error(dilate(model, s),
@@ -252,7 +219,7 @@ TEST(Transform, DilationIsExact) {
 
 TEST(Transform, AffineRotationReproducesPhaseRotation) {
     for (int n_max : {0, 3, 8, 15}) {
-        const ShapeletModel model = galaxy_model(20 + n_max, n_max, 1.9, 4.4, 5.5);
+        const ShapeletModel model = test::random_model(n_max, 1.9, 4.4, 5.5, 20 + n_max);
         for (double rho : {0.3, 2.8}) {
             const Projection p = affine_transform(model, rotation(rho), Eigen::Vector2d::Zero());
             EXPECT_EQ(p.model.n_max, n_max);
@@ -264,7 +231,7 @@ TEST(Transform, AffineRotationReproducesPhaseRotation) {
 }
 
 TEST(Transform, AffineReflectionAndScalingReproduceExactTransforms) {
-    const ShapeletModel model = galaxy_model(31, 9, 2.2, 0.0, 0.0);
+    const ShapeletModel model = test::random_model(9, 2.2, 0.0, 0.0, 31);
     const double psi = 0.8;
     Eigen::Matrix2d mirror_x;
     mirror_x << 1, 0, 0, -1;
@@ -280,7 +247,7 @@ TEST(Transform, AffineReflectionAndScalingReproduceExactTransforms) {
 }
 
 TEST(Transform, IdentityReturnsTheModelExactly) {
-    const ShapeletModel model = galaxy_model(41, 12, 2.0, 7.25, 3.5);
+    const ShapeletModel model = test::random_model(12, 2.0, 7.25, 3.5, 41);
     const OutputBasis same{model.x, model.y, model.beta_pix};
     ProjectionOptions fixed;
     fixed.n_out = 12;
@@ -343,7 +310,7 @@ double moment_tolerance(const Projection& p) {
 
 TEST(Transform, TranslationMatchesShiftedModel) {
     for (int n_max : {4, 10}) {
-        ShapeletModel model = galaxy_model(50 + n_max, n_max, 2.5, 20.4, 19.8);
+        ShapeletModel model = test::random_model(n_max, 2.5, 20.4, 19.8, 50 + n_max);
         const Eigen::Vector2d d(1.3, -0.9);
         for (int n_out : {n_max, n_max + 6, n_max + 14, n_max + 24}) {
             ProjectionOptions options;
@@ -357,7 +324,7 @@ TEST(Transform, TranslationMatchesShiftedModel) {
 }
 
 TEST(Transform, ShearMatchesShearedCoordinates) {
-    const ShapeletModel model = galaxy_model(61, 8, 2.4, 20.2, 20.6);
+    const ShapeletModel model = test::random_model(8, 2.4, 20.2, 20.6, 61);
     const double g1 = 0.25, g2 = -0.15;
     const Eigen::Matrix2d s = shear_matrix(g1, g2);
     for (int n_out : {8, 14, 22, 32}) {
@@ -371,7 +338,7 @@ TEST(Transform, ShearMatchesShearedCoordinates) {
 }
 
 TEST(Transform, LensingMatchesLensedCoordinatesAndKeepsFlux) {
-    const ShapeletModel model = galaxy_model(71, 6, 2.0, 20.0, 21.0, 0.1);
+    const ShapeletModel model = test::random_model(6, 2.0, 20.0, 21.0, 71, true, 0.1);
     Lensing lensing;
     lensing.g1 = -0.1;
     lensing.g2 = 0.2;
@@ -398,7 +365,7 @@ TEST(Transform, LensingMatchesLensedCoordinatesAndKeepsFlux) {
 }
 
 TEST(Transform, ChangeBetaAndRecentreKeepTheImage) {
-    const ShapeletModel model = galaxy_model(81, 9, 2.2, 20.1, 20.3);
+    const ShapeletModel model = test::random_model(9, 2.2, 20.1, 20.3, 81);
     const auto same = transformed(model, Eigen::Matrix2d::Identity(), Eigen::Vector2d::Zero());
     for (double beta : {1.6, 3.0}) {
         ProjectionOptions options;
@@ -418,7 +385,7 @@ TEST(Transform, ChangeBetaAndRecentreKeepTheImage) {
 
 // A general (non-symmetric, orientation-reversing) A with a shift, onto an unrelated basis.
 TEST(Transform, GeneralAffineMatchesBruteForce) {
-    const ShapeletModel model = galaxy_model(85, 7, 2.1, 19.6, 20.2);
+    const ShapeletModel model = test::random_model(7, 2.1, 19.6, 20.2, 85);
     Eigen::Matrix2d a;
     a << 1.1, 0.3, 0.4, -0.8;
     const Eigen::Vector2d d(0.7, -1.2);
@@ -436,7 +403,7 @@ TEST(Transform, GeneralAffineMatchesBruteForce) {
 
 // The error falls monotonically to the rounding floor as n_out grows.
 TEST(Transform, TruncationErrorVanishesAsOrderGrows) {
-    const ShapeletModel model = galaxy_model(91, 8, 2.0, 0.0, 0.0);
+    const ShapeletModel model = test::random_model(8, 2.0, 0.0, 0.0, 91);
     const Eigen::Matrix2d a = shear_matrix(0.3, 0.1);
     double previous = 1.0;
     for (int n_out = 0; n_out <= 60; n_out += 4) {
@@ -451,7 +418,7 @@ TEST(Transform, TruncationErrorVanishesAsOrderGrows) {
 
 // Automatic order: the smallest N that meets the tolerance.
 TEST(Transform, AutomaticOrderIsTheSmallestMeetingTolerance) {
-    const ShapeletModel model = galaxy_model(95, 10, 2.3, 5.0, 5.0);
+    const ShapeletModel model = test::random_model(10, 2.3, 5.0, 5.0, 95);
     for (double tol : {1e-4, 1e-8, 1e-12}) {
         ProjectionOptions options;
         options.tolerance = tol;
@@ -508,7 +475,8 @@ TEST(Transform, ShearedRoundGaussianHasEllipticityG) {
 }
 
 TEST(Transform, WorkspaceReuseGivesIdenticalResults) {
-    const ShapeletModel a = galaxy_model(97, 15, 2.0, 0, 0), b = galaxy_model(98, 5, 1.5, 0, 0);
+    const ShapeletModel a = test::random_model(15, 2.0, 0, 0, 97);
+    const ShapeletModel b = test::random_model(5, 1.5, 0, 0, 98);
     ProjectionWorkspace ws;
     const Projection pa1 = shear(a, 0.1, 0.2, {}, &ws);
     const Projection pb = shear(b, -0.3, 0.0, {}, &ws);
@@ -518,7 +486,7 @@ TEST(Transform, WorkspaceReuseGivesIdenticalResults) {
 }
 
 TEST(Transform, RejectsBadArguments) {
-    const ShapeletModel model = galaxy_model(99, 4, 2.0, 0, 0);
+    const ShapeletModel model = test::random_model(4, 2.0, 0, 0, 99);
     Eigen::Matrix2d singular;
     singular << 1, 2, 2, 4;
     EXPECT_THROW(affine_transform(model, singular, Eigen::Vector2d::Zero()), Error);

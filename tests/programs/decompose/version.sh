@@ -1,9 +1,4 @@
 #!/usr/bin/env bash
-# shapesim-decompose --version: exit 0, one line on stdout:
-# "shapesim-decompose (shapesim) <version>".
-set -euo pipefail
-prog=shapesim-decompose
-
-out=$("$BIN/$prog" --version)
-[ "$(wc -l <<<"$out")" -eq 1 ]
-grep -q "^$prog (shapesim) ." <<<"$out"
+# shapesim-decompose --version (checks in ../lib.sh).
+source "$(dirname "${BASH_SOURCE[0]}")/../lib.sh"
+check_version shapesim-decompose

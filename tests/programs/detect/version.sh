@@ -1,8 +1,4 @@
 #!/usr/bin/env bash
-# shapesim-detect --version: exit 0, one line "shapesim-detect (shapesim) <version>" on stdout.
-set -euo pipefail
-prog=shapesim-detect
-
-out=$("$BIN/$prog" --version)
-[ "$(wc -l <<<"$out")" -eq 1 ]
-grep -q "^$prog (shapesim) ." <<<"$out"
+# shapesim-detect --version (checks in ../lib.sh).
+source "$(dirname "${BASH_SOURCE[0]}")/../lib.sh"
+check_version shapesim-detect

@@ -1,8 +1,4 @@
 #!/usr/bin/env bash
-# shapesim-render --version: exit 0, one line "shapesim-render (shapesim) <version>" on stdout.
-set -euo pipefail
-prog=shapesim-render
-
-out=$("$BIN/$prog" --version)
-[ "$(wc -l <<<"$out")" -eq 1 ]
-grep -q "^$prog (shapesim) ." <<<"$out"
+# shapesim-render --version (checks in ../lib.sh).
+source "$(dirname "${BASH_SOURCE[0]}")/../lib.sh"
+check_version shapesim-render
