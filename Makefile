@@ -5,6 +5,7 @@
 #   make                 build the library and every program into bin/
 #   make test            unit tests (GoogleTest) and program tests
 #   make bench           Google Benchmark: run time and the error it buys
+#   make stress          orders past 100, extreme beta, NaN-riddled and 8192² inputs
 #   make install PREFIX=/usr/local
 #   make WERROR=1        warnings are errors (CI)
 #   make test SAN=1      unit tests under AddressSanitizer + UBSan (objects in build-san/)
