@@ -14,6 +14,7 @@ packages=(
   librandom123-dev          # counter-based random streams
   libgtest-dev              # unit tests
   libbenchmark-dev          # make bench
+  source-extractor          # SExtractor, the cross-check of shapesim-detect (tests, bench)
 )
 
 missing=()

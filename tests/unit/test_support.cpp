@@ -4,6 +4,9 @@
 #include "shapesim/fits_io.hpp"
 #include "shapesim/jsonl.hpp"
 #include "shapesim/polar.hpp"
+#include "shapesim/render.hpp"
+#include "shapesim/rng.hpp"
+#include "shapesim/transform.hpp"
 
 #include <fitsio.h>
 
@@ -210,6 +213,52 @@ ShapeletModel random_model(int n_max, double beta_pix, double x, double y, unsig
                            bool galaxy, double amplitude) {
     std::mt19937_64 engine(seed);
     return random_model(engine, n_max, beta_pix, x, y, galaxy, amplitude);
+}
+
+SyntheticField synthetic_field(int nx, int ny, double spacing, double flux_min, double flux_max,
+                               double noise_sigma, std::uint64_t seed, double psf_sigma,
+                               int star_every) {
+    constexpr double pi = 3.14159265358979323846;
+    SyntheticField field;
+    field.image = ImageArray::Zero(ny, nx);
+    field.weight = ImageArray::Constant(ny, nx, 1.0 / (noise_sigma * noise_sigma));
+    RenderWorkspace workspace;
+    const double margin = 8.0;
+    int index = 0;
+    for (double yc = margin + spacing / 2; yc < ny - margin; yc += spacing)
+        for (double xc = margin + spacing / 2; xc < nx - margin; xc += spacing, ++index) {
+            RandomStream r(seed, std::uint64_t(index), "synthetic object");
+            SyntheticObject o;
+            o.x = xc + r.uniform(-0.25, 0.25) * spacing;
+            o.y = yc + r.uniform(-0.25, 0.25) * spacing;
+            o.flux = flux_min * std::pow(flux_max / flux_min, r.uniform());
+            o.star = star_every > 0 && index % star_every == 0;
+            ShapeletModel model;
+            if (o.star) {
+                o.sigma = psf_sigma;
+                model = ShapeletModel(o.x, o.y, psf_sigma, 0);
+                model.at(0, 0) = Complex(o.flux / (2.0 * std::sqrt(pi) * psf_sigma), 0.0);
+            } else {
+                o.sigma = psf_sigma * r.uniform(1.2, 3.0);
+                const double g = 0.4 * std::sqrt(r.uniform()), angle = r.angle();
+                o.g1 = g * std::cos(angle);
+                o.g2 = g * std::sin(angle);
+                ShapeletModel round(o.x, o.y, o.sigma, 0);
+                round.at(0, 0) = Complex(o.flux / (2.0 * std::sqrt(pi) * o.sigma), 0.0);
+                ProjectionOptions options;
+                options.tolerance = 1e-9;
+                model = shear(round, o.g1, o.g2, options).model;
+            }
+            const int half = int(std::ceil(6.0 * o.sigma * 1.6)) + 2;
+            const PixelWindow window{int(o.x) - 1 - half, int(o.y) - 1 - half, 2 * half + 1,
+                                     2 * half + 1};
+            add_to_image(to_cartesian(model), field.image, window.clipped_to(nx, ny), workspace);
+            field.objects.push_back(o);
+        }
+    RandomStream noise(seed, "field", "synthetic noise");
+    for (Eigen::Index k = 0; k < field.image.size(); ++k)
+        field.image.data()[k] += noise_sigma * noise.gaussian();
+    return field;
 }
 
 }  // namespace shapesim::test

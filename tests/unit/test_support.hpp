@@ -8,6 +8,7 @@
 #include "shapesim/model.hpp"
 #include "shapesim/records.hpp"
 
+#include <cstdint>
 #include <functional>
 #include <random>
 #include <string>
@@ -78,4 +79,26 @@ ShapeletModel random_model(std::mt19937_64& engine, int n_max, double beta_pix, 
 ShapeletModel random_model(int n_max, double beta_pix, double x, double y, unsigned seed,
                            bool galaxy = true, double amplitude = 0.35);
 
+/// One object of a synthetic field, with its true properties.
+struct SyntheticObject {
+    double x = 0.0, y = 0.0;  ///< true centre, FITS pixels
+    double flux = 0.0;        ///< true total flux, image units
+    double sigma = 0.0;       ///< Gaussian σ before shear, pixels (the PSF σ for stars)
+    double g1 = 0.0, g2 = 0.0;///< shear applied (GalSim reduced shear)
+    bool star = false;
+};
+/// A synthetic deep field: elliptical Gaussian galaxies and point sources (Gaussian PSF of
+/// σ `psf_sigma`), pixel-integrated by the library renderer, plus white Gaussian noise of σ
+/// `noise_sigma`, all drawn from RandomStream(seed, …) so the field is deterministic.
+/// Objects are placed on a jittered grid (spacing `spacing` pixels, ≥ 8 pixels from the edges),
+/// galaxies with σ in [1.2, 3]·psf_sigma, |g| ≤ 0.4, and fluxes log-uniform in
+/// [flux_min, flux_max]; every `star_every`-th object is a star (0: none).
+struct SyntheticField {
+    ImageArray image;   ///< noisy image
+    ImageArray weight;  ///< 1/noise_sigma² everywhere
+    std::vector<SyntheticObject> objects;
+};
+SyntheticField synthetic_field(int nx, int ny, double spacing, double flux_min, double flux_max,
+                               double noise_sigma, std::uint64_t seed, double psf_sigma = 1.5,
+                               int star_every = 0);
 }  // namespace shapesim::test

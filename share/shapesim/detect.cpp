@@ -1,0 +1,508 @@
+#include "shapesim/detect.hpp"
+
+#include "shapesim/error.hpp"
+
+#include <cstddef>  // sep.h uses size_t without including it
+extern "C" {        // sep.h has no C++ guards
+#include <sep.h>
+}
+
+#include <algorithm>
+#include <cmath>
+#include <fstream>
+#include <limits>
+#include <memory>
+#include <sstream>
+
+namespace shapesim {
+
+namespace {
+
+constexpr double pi = 3.14159265358979323846;
+
+// libsep's status text plus its detail buffer (sizes from sep.h's contract: 61 and 512).
+std::string sep_message(int status) {
+    char message[64] = {};
+    char detail[512] = {};
+    sep_get_errmsg(status, message);
+    sep_get_errdetail(detail);
+    std::string text = message;
+    if (detail[0] != '\0') text += std::string(" (") + detail + ")";
+    return text;
+}
+
+void check_sep(int status, const std::string& what) {
+    if (status != 0) throw Error(what + ": libsep: " + sep_message(status));
+}
+
+struct BackgroundDeleter {
+    void operator()(sep_bkg* p) const { sep_bkg_free(p); }
+};
+struct CatalogDeleter {
+    void operator()(sep_catalog* p) const { sep_catalog_free(p); }
+};
+
+double median_of(std::vector<double>& values) {
+    if (values.empty()) return std::numeric_limits<double>::quiet_NaN();
+    const auto middle = values.begin() + std::ptrdiff_t(values.size() / 2);
+    std::nth_element(values.begin(), middle, values.end());
+    return *middle;
+}
+
+sep_image sep_view(const ImageArray& data, const ImageArray* sigma, const std::uint8_t* bad,
+                   const LabelArray* segmentation) {
+    sep_image im{};
+    im.data = data.data();
+    im.dtype = SEP_TDOUBLE;
+    im.w = int(data.cols());
+    im.h = int(data.rows());
+    if (sigma) {
+        im.noise = sigma->data();
+        im.ndtype = SEP_TDOUBLE;
+        im.noise_type = SEP_NOISE_STDDEV;
+    } else {
+        im.noise_type = SEP_NOISE_NONE;
+    }
+    if (bad) {
+        im.mask = bad;
+        im.mdtype = SEP_TBYTE;
+        im.maskthresh = 0.0;
+    }
+    if (segmentation) {
+        static_assert(sizeof(std::int32_t) == sizeof(int), "libsep segmaps are native int");
+        im.segmap = segmentation->data();
+        im.sdtype = SEP_TINT;
+    }
+    return im;
+}
+
+// FWHM from a Gaussian core (SExtractor's FWHM_IMAGE idea): for I = P exp(−r²/2s²) the area
+// above level t is A(t) = 2π s² ln(P/t), linear in ln t; a least-squares slope over eight
+// isophotes between the analysis threshold and the peak gives s, and FWHM = 2√(2 ln 2) s.
+double gaussian_core_fwhm(const std::vector<double>& values, double low, double peak) {
+    if (!(peak > low) || !(low > 0.0)) return std::numeric_limits<double>::quiet_NaN();
+    constexpr int levels = 8;
+    double sx = 0, sy = 0, sxx = 0, sxy = 0;
+    int used = 0;
+    for (int k = 0; k < levels; ++k) {
+        const double level = low * std::pow(peak / low, double(k) / levels);
+        const double area = double(std::count_if(values.begin(), values.end(),
+                                                 [&](double v) { return v > level; }));
+        if (area <= 0.0) continue;
+        const double t = std::log(level);
+        sx += t;
+        sy += area;
+        sxx += t * t;
+        sxy += t * area;
+        ++used;
+    }
+    if (used < 2) return std::numeric_limits<double>::quiet_NaN();
+    const double denominator = used * sxx - sx * sx;
+    if (!(denominator > 0.0)) return std::numeric_limits<double>::quiet_NaN();
+    const double slope = -(used * sxy - sx * sy) / denominator;  // 2π s²
+    if (!(slope > 0.0)) return std::numeric_limits<double>::quiet_NaN();
+    return std::sqrt(4.0 * std::log(2.0) * slope / pi);
+}
+
+// The image convolved with the (sum-normalised) detection filter at one pixel, bad pixels
+// and the outside of the image counting as zero.
+double filtered_value(const DetectionResult& result, const FilterKernel& filter, int pixel) {
+    const int nx = int(result.image.cols()), ny = int(result.image.rows());
+    const int i0 = pixel % nx, j0 = pixel / nx;
+    double sum = 0.0, norm = 0.0;
+    for (int b = 0; b < filter.ny; ++b)
+        for (int a = 0; a < filter.nx; ++a) {
+            const double w = filter.values[std::size_t(b * filter.nx + a)];
+            norm += w;
+            const int i = i0 + a - filter.nx / 2, j = j0 + b - filter.ny / 2;
+            if (i < 0 || j < 0 || i >= nx || j >= ny) continue;
+            sum += w * result.image(j, i);
+        }
+    return norm != 0.0 ? sum / norm : sum;
+}
+
+// Correlated-noise factor from 4×4 blocks of sky (see DetectionResult::noise_correlation):
+// block sums normalised by √Σσ², their 3σ-clipped rms. Too few blocks (< 20): 1.
+double correlated_noise_factor(const DetectionResult& result) {
+    constexpr int block = 4;
+    const int nx = int(result.image.cols()), ny = int(result.image.rows());
+    std::vector<double> z;
+    for (int j0 = 0; j0 + block <= ny; j0 += block)
+        for (int i0 = 0; i0 + block <= nx; i0 += block) {
+            double sum = 0.0, variance = 0.0;
+            bool sky = true;
+            for (int j = j0; j < j0 + block && sky; ++j)
+                for (int i = i0; i < i0 + block; ++i) {
+                    if (result.segmentation(j, i) != 0 || result.is_bad(j, i)) {
+                        sky = false;
+                        break;
+                    }
+                    sum += result.image(j, i);
+                    variance += result.sigma(j, i) * result.sigma(j, i);
+                }
+            if (sky) z.push_back(sum / std::sqrt(variance));
+        }
+    if (z.size() < 20) return 1.0;
+    double mean = 0.0, rms = 0.0;
+    double low = -std::numeric_limits<double>::infinity(), high = -low;
+    for (int pass = 0; pass < 4; ++pass) {
+        double s = 0.0, ss = 0.0;
+        long count = 0;
+        for (double v : z)
+            if (v >= low && v <= high) {
+                s += v;
+                ss += v * v;
+                ++count;
+            }
+        mean = s / double(count);
+        rms = std::sqrt(std::max(0.0, ss / double(count) - mean * mean));
+        low = mean - 3.0 * rms;
+        high = mean + 3.0 * rms;
+    }
+    return rms > 0.0 ? rms : 1.0;
+}
+
+}  // namespace
+
+// ---------------------------------------------------------------------------------------------
+// Filters and noise maps
+
+FilterKernel default_filter_kernel() {
+    return FilterKernel{"default", 3, 3, {1, 2, 1, 2, 4, 2, 1, 2, 1}};
+}
+
+FilterKernel parse_filter_kernel(std::istream& in, const std::string& name) {
+    FilterKernel kernel;
+    kernel.name = name;
+    std::string text;
+    long line_number = 0;
+    bool header_seen = false;
+    while (std::getline(in, text)) {
+        ++line_number;
+        const auto hash = text.find('#');
+        if (hash != std::string::npos) text.erase(hash);
+        std::istringstream line(text);
+        std::string first;
+        if (!(line >> first)) continue;
+        if (!header_seen) {
+            std::string norm;
+            line >> norm;
+            if (first != "CONV" || (norm != "NORM" && norm != "NONORM"))
+                throw Error("not a SExtractor filter: first line must be CONV NORM or "
+                            "CONV NONORM", name, line_number);
+            header_seen = true;
+            continue;
+        }
+        std::istringstream row(text);
+        std::vector<float> values;
+        std::string token;
+        while (row >> token) {
+            char* end = nullptr;
+            const double v = std::strtod(token.c_str(), &end);
+            if (end == token.c_str() || *end != '\0' || !std::isfinite(v))
+                throw Error("not a number: '" + token + "'", name, line_number);
+            values.push_back(float(v));
+        }
+        if (kernel.ny == 0)
+            kernel.nx = int(values.size());
+        else if (int(values.size()) != kernel.nx)
+            throw Error("row has " + std::to_string(values.size()) + " values, the first had " +
+                            std::to_string(kernel.nx),
+                        name, line_number);
+        kernel.values.insert(kernel.values.end(), values.begin(), values.end());
+        ++kernel.ny;
+    }
+    if (!header_seen) throw Error("empty filter file (no CONV line)", name);
+    if (kernel.ny == 0) throw Error("filter has no rows", name);
+    double sum = 0.0;
+    for (float v : kernel.values) sum += std::abs(v);
+    if (!(sum > 0.0)) throw Error("filter is all zeros", name);
+    return kernel;
+}
+
+FilterKernel read_filter_kernel(const std::string& path) {
+    std::ifstream in(path);
+    if (!in) throw Error("cannot open filter file", path);
+    return parse_filter_kernel(in, path);
+}
+
+NoiseMapType parse_noise_map_type(const std::string& text) {
+    if (text == "weight") return NoiseMapType::weight;
+    if (text == "rms") return NoiseMapType::rms;
+    if (text == "variance") return NoiseMapType::variance;
+    throw Error("unknown noise map type '" + text + "' (weight, rms or variance)");
+}
+
+ImageArray inverse_variance_from(const ImageArray& map, NoiseMapType type,
+                                 const std::string& place) {
+    ImageArray w(map.rows(), map.cols());
+    for (Eigen::Index j = 0; j < map.rows(); ++j)
+        for (Eigen::Index i = 0; i < map.cols(); ++i) {
+            const double v = map(j, i);
+            if (v < 0.0) {
+                std::ostringstream s;
+                s << "negative " << (type == NoiseMapType::weight ? "weight" : "noise value")
+                  << " " << v << " at pixel (" << i + 1 << ", " << j + 1 << ")";
+                throw Error(s.str(), place);
+            }
+            double out = 0.0;
+            if (std::isfinite(v) && v > 0.0) {
+                switch (type) {
+                    case NoiseMapType::weight: out = v; break;
+                    case NoiseMapType::rms: out = 1.0 / (v * v); break;
+                    case NoiseMapType::variance: out = 1.0 / v; break;
+                }
+                if (!std::isfinite(out)) out = 0.0;
+            }
+            w(j, i) = out;
+        }
+    return w;
+}
+
+void DetectionOptions::validate() const {
+    auto fail = [](const char* field, const std::string& why) {
+        throw Error(why, "", 0, field);
+    };
+    if (!(detect_thresh > 0.0 && std::isfinite(detect_thresh)))
+        fail("DETECT_THRESH", "must be > 0");
+    if (!(analysis_thresh > 0.0 && std::isfinite(analysis_thresh)))
+        fail("ANALYSIS_THRESH", "must be > 0");
+    if (min_area < 1) fail("DETECT_MINAREA", "must be ≥ 1");
+    if (deblend_nthresh < 1) fail("DEBLEND_NTHRESH", "must be ≥ 1");
+    if (!(deblend_mincont >= 0.0 && deblend_mincont <= 1.0))
+        fail("DEBLEND_MINCONT", "must be in [0, 1]");
+    if (!(clean_param > 0.0)) fail("CLEAN_PARAM", "must be > 0");
+    if (back_size < 1) fail("BACK_SIZE", "must be ≥ 1");
+    if (back_filter_size < 1) fail("BACK_FILTERSIZE", "must be ≥ 1");
+    if (filter.nx < 1 || filter.ny < 1 ||
+        filter.values.size() != std::size_t(filter.nx) * std::size_t(filter.ny))
+        fail("FILTER_NAME", "filter kernel is empty or inconsistent");
+    if (!(kron_factor > 0.0)) fail("PHOT_AUTOPARAMS", "Kron factor must be > 0");
+    if (!(kron_min_radius >= 0.0)) fail("PHOT_AUTOPARAMS", "minimum radius must be ≥ 0");
+    if (!(gain >= 0.0 && std::isfinite(gain))) fail("GAIN", "must be ≥ 0");
+}
+
+// ---------------------------------------------------------------------------------------------
+// Apertures
+
+ApertureFlux circular_aperture_flux(const ImageArray& image, const ImageArray* sigma,
+                                    const std::uint8_t* bad, const LabelArray* segmentation,
+                                    int label, double x, double y, double radius) {
+    require(radius > 0.0 && std::isfinite(radius), "aperture radius must be > 0");
+    const sep_image im = sep_view(image, sigma, bad, segmentation);
+    double sum = 0.0, error = 0.0, area = 0.0;
+    short flag = 0;
+    check_sep(sep_sum_circle(&im, x - 1.0, y - 1.0, radius, segmentation ? label : 0, 0, 0,
+                             &sum, &error, &area, &flag),
+              "circular aperture");
+    ApertureFlux out;
+    out.flux = sum;
+    out.error = sigma ? error : 0.0;
+    out.truncated = (flag & SEP_APER_TRUNC) != 0;
+    out.masked = (flag & SEP_APER_HASMASKED) != 0;
+    return out;
+}
+
+ApertureFlux circular_aperture_flux(const DetectionResult& result, int label, double x,
+                                    double y, double radius) {
+    ApertureFlux out = circular_aperture_flux(result.image, &result.sigma, result.bad.data(),
+                                              &result.segmentation, label, x, y, radius);
+    out.error *= result.noise_correlation;
+    return out;
+}
+
+// ---------------------------------------------------------------------------------------------
+// Detection
+
+DetectionResult detect_sources(const ImageArray& image, const ImageArray* inverse_variance,
+                               const DetectionOptions& options) {
+    options.validate();
+    const Eigen::Index ny = image.rows(), nx = image.cols();
+    require(nx > 0 && ny > 0, "image is empty");
+    if (inverse_variance && (inverse_variance->rows() != ny || inverse_variance->cols() != nx)) {
+        std::ostringstream s;
+        s << "weight map is " << inverse_variance->cols() << "×" << inverse_variance->rows()
+          << " pixels but the image is " << nx << "×" << ny;
+        throw Error(s.str());
+    }
+
+    DetectionResult result;
+    const std::size_t n = std::size_t(nx) * std::size_t(ny);
+    result.bad.assign(n, 0);
+    result.image = image;
+    for (Eigen::Index j = 0; j < ny; ++j)
+        for (Eigen::Index i = 0; i < nx; ++i) {
+            const bool bad = !std::isfinite(image(j, i)) ||
+                             (inverse_variance && !((*inverse_variance)(j, i) > 0.0));
+            if (bad) {
+                result.bad[std::size_t(j * nx + i)] = 1;
+                result.image(j, i) = 0.0;
+                ++result.bad_pixels;
+            }
+        }
+    if (result.bad_pixels == (long long)n)
+        throw Error("no usable pixel: every pixel is NaN/infinite or has zero weight");
+
+    // Background: mesh, filter, spline; subtract.
+    std::unique_ptr<sep_bkg, BackgroundDeleter> background;
+    {
+        const sep_image im = sep_view(result.image, nullptr, result.bad.data(), nullptr);
+        sep_bkg* raw = nullptr;
+        check_sep(sep_background(&im, options.back_size, options.back_size,
+                                 options.back_filter_size, options.back_filter_size, 0.0, &raw),
+                  "background");
+        background.reset(raw);
+    }
+    check_sep(sep_bkg_subarray(background.get(), result.image.data(), SEP_TDOUBLE),
+              "background subtraction");
+    result.background_mean = sep_bkg_global(background.get());
+    result.background_rms = sep_bkg_globalrms(background.get());
+    for (std::size_t k = 0; k < n; ++k)
+        if (result.bad[k]) result.image.data()[k] = 0.0;
+
+    // Noise map for the threshold.
+    result.sigma.resize(ny, nx);
+    constexpr double infinite = std::numeric_limits<double>::infinity();
+    if (inverse_variance) {
+        std::vector<double> sigmas;
+        sigmas.reserve(n);
+        for (std::size_t k = 0; k < n; ++k)
+            if (!result.bad[k]) sigmas.push_back(1.0 / std::sqrt(inverse_variance->data()[k]));
+        const double median_sigma = median_of(sigmas);
+        if (options.rescale_weight) {
+            if (!(result.background_rms > 0.0))
+                throw Error("background rms is zero: cannot rescale the weight map "
+                            "(a constant image?)");
+            result.weight_scale = std::pow(median_sigma / result.background_rms, 2);
+        }
+        const double scale = std::sqrt(result.weight_scale);
+        for (std::size_t k = 0; k < n; ++k)
+            result.sigma.data()[k] =
+                result.bad[k] ? infinite : 1.0 / (std::sqrt(inverse_variance->data()[k]) * scale);
+    } else {
+        check_sep(sep_bkg_rmsarray(background.get(), result.sigma.data(), SEP_TDOUBLE),
+                  "background rms");
+        for (std::size_t k = 0; k < n; ++k) {
+            if (result.bad[k]) result.sigma.data()[k] = infinite;
+            else if (!(result.sigma.data()[k] > 0.0))
+                throw Error("background rms is zero: the image has no noise (a constant "
+                            "image?); give a weight map");
+        }
+    }
+
+    // libsep reads the noise array at masked pixels too: give it finite values there.
+    ImageArray sep_sigma = result.sigma;
+    for (std::size_t k = 0; k < n; ++k)
+        if (result.bad[k]) sep_sigma.data()[k] = std::numeric_limits<float>::max();
+
+    // Extraction; the pixel stack grows when a large image needs it.
+    std::unique_ptr<sep_catalog, CatalogDeleter> catalog;
+    {
+        const sep_image im = sep_view(result.image, &sep_sigma, result.bad.data(), nullptr);
+        std::size_t stack = std::max<std::size_t>(300000, n / 4);
+        for (int attempt = 0;; ++attempt) {
+            sep_set_extract_pixstack(stack);
+            sep_catalog* raw = nullptr;
+            const int status = sep_extract(
+                &im, float(options.detect_thresh), SEP_THRESH_REL, options.min_area,
+                options.filter.values.data(), options.filter.nx, options.filter.ny,
+                options.filter_mode == FilterMode::matched ? SEP_FILTER_MATCHED
+                                                           : SEP_FILTER_CONV,
+                options.deblend_nthresh, options.deblend_mincont, options.clean ? 1 : 0,
+                options.clean_param, &raw);
+            if (status == 0) {
+                catalog.reset(raw);
+                break;
+            }
+            // Status 2 is libsep's PIXSTACK_FULL ("internal pixel buffer full"): retry with
+            // a bigger stack.
+            if (status == 2 && attempt < 4 && stack < n) {
+                stack = std::min(stack * 4, n);
+                continue;
+            }
+            check_sep(status, "extraction");
+        }
+    }
+
+    // Segmentation map from the objects' pixel lists.
+    const sep_catalog& cat = *catalog;
+    result.segmentation = LabelArray::Zero(ny, nx);
+    for (int k = 0; k < cat.nobj; ++k)
+        for (int p = 0; p < cat.npix[k]; ++p) result.segmentation.data()[cat.pix[k][p]] = k + 1;
+
+    result.noise_correlation = correlated_noise_factor(result);
+
+    // Measurements.
+    const sep_image im = sep_view(result.image, &sep_sigma, result.bad.data(),
+                                  &result.segmentation);
+    result.objects.reserve(std::size_t(cat.nobj));
+    std::vector<double> values;
+    for (int k = 0; k < cat.nobj; ++k) {
+        Detection d;
+        d.label = k + 1;
+        d.x = cat.x[k] + 1.0;
+        d.y = cat.y[k] + 1.0;
+        d.x_peak = cat.xpeak[k] + 1;
+        d.y_peak = cat.ypeak[k] + 1;
+        d.xmin = cat.xmin[k] + 1;
+        d.xmax = cat.xmax[k] + 1;
+        d.ymin = cat.ymin[k] + 1;
+        d.ymax = cat.ymax[k] + 1;
+        d.a = cat.a[k];
+        d.b = cat.b[k];
+        d.theta = double(cat.theta[k]) * 180.0 / pi;
+        d.cxx = cat.cxx[k];
+        d.cyy = cat.cyy[k];
+        d.cxy = cat.cxy[k];
+        d.flux_iso = cat.flux[k];
+        d.peak = cat.peak[k];
+        d.npix = cat.npix[k];
+        d.sigma = result.sigma(cat.ypeak[k], cat.xpeak[k]);
+        d.threshold = options.detect_thresh * d.sigma;
+        if (cat.flag[k] & SEP_OBJ_MERGED) d.flags.push_back("blended");
+        if (cat.flag[k] & SEP_OBJ_TRUNC) d.flags.push_back("truncated");
+        if (cat.flag[k] & SEP_OBJ_SINGU) d.flags.push_back("singular");
+
+        // Isophotal area above the analysis threshold on the image; the isophotes for the
+        // FWHM on the filtered image, between the detection threshold and the filtered peak,
+        // as SExtractor does (the filter suppresses the noise peaks that would bias it).
+        values.clear();
+        double filtered_peak = 0.0;
+        for (int p = 0; p < cat.npix[k]; ++p) {
+            const int pixel = cat.pix[k][p];
+            if (result.image.data()[pixel] > options.analysis_thresh * result.sigma.data()[pixel])
+                ++d.iso_area;
+            const double f = filtered_value(result, options.filter, pixel);
+            values.push_back(f);
+            filtered_peak = std::max(filtered_peak, f);
+        }
+        d.fwhm = gaussian_core_fwhm(values, options.detect_thresh * d.sigma, filtered_peak);
+
+        // Kron radius within 6 a (SExtractor), then the AUTO ellipse.
+        double kron = 0.0;
+        short flag = 0;
+        const double x0 = cat.x[k], y0 = cat.y[k];
+        check_sep(sep_kron_radius(&im, x0, y0, d.cxx, d.cyy, d.cxy, 6.0, d.label, &kron, &flag),
+                  "Kron radius of object " + std::to_string(d.label));
+        if (!(kron > 0.0) || !std::isfinite(kron)) kron = 0.0;
+        d.kron_radius = kron;
+        const double radius = std::max(options.kron_factor * kron, options.kron_min_radius);
+        // A degenerate ellipse (a line of pixels) still needs a usable aperture.
+        const double a_ap = std::max(d.a, 0.5), b_ap = std::max(d.b, 0.5);
+        double sum = 0.0, error = 0.0, area = 0.0;
+        flag = 0;
+        check_sep(sep_sum_ellipse(&im, x0, y0, a_ap, b_ap, double(cat.theta[k]), radius,
+                                  d.label, 0, 0, &sum, &error, &area, &flag),
+                  "AUTO flux of object " + std::to_string(d.label));
+        d.flux_auto = sum;
+        d.flux_auto_err = error * result.noise_correlation;
+        if (options.gain > 0.0 && sum > 0.0)
+            d.flux_auto_err = std::sqrt(d.flux_auto_err * d.flux_auto_err + sum / options.gain);
+        if (flag & SEP_APER_TRUNC) d.flags.push_back("aperture_truncated");
+        if (flag & SEP_APER_HASMASKED) d.flags.push_back("aperture_masked");
+        result.objects.push_back(std::move(d));
+    }
+    return result;
+}
+
+}  // namespace shapesim

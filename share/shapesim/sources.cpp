@@ -1,0 +1,76 @@
+#include "shapesim/sources.hpp"
+
+#include "shapesim/fits_io.hpp"
+
+#include <cmath>
+
+namespace shapesim {
+
+SourceRecord source_record(const Detection& object, const CoreFraction& core,
+                           double stellarity_value, const CutStamp* cut,
+                           const SourceContext& context) {
+    SourceRecord r;
+    r.id = std::to_string(object.label);
+    r.x = object.x;
+    r.y = object.y;
+    if (context.wcs) {
+        const SkyPosition sky = context.wcs->pixel_to_sky(object.x, object.y);
+        r.ra = sky.ra;
+        r.dec = sky.dec;
+    }
+    r.flux = object.flux_auto;
+    r.flux_err = object.flux_auto_err;
+    if (object.flux_auto > 0.0) r.mag = context.zero_point - 2.5 * std::log10(object.flux_auto);
+    r.a = object.a;
+    r.b = object.b;
+    r.theta = object.theta;
+    if (std::isfinite(object.fwhm)) r.fwhm = object.fwhm;
+    r.stellarity = stellarity_value;
+    r.flags = object.flags;
+    if (!(object.flux_auto > 0.0)) r.flags.push_back("nonpositive_flux");
+    if (cut && cut->clipped) r.flags.push_back("edge");
+    if (cut && cut->noise_global) r.flags.push_back("noise_global");
+
+    Json& e = r.extra;
+    e["kind"] = stellarity_value > context.star_threshold ? "star" : "galaxy";
+    e["flux_iso"] = object.flux_iso;
+    e["iso_area"] = object.iso_area;
+    e["npix"] = object.npix;
+    e["peak"] = object.peak;
+    e["x_peak"] = object.x_peak;
+    e["y_peak"] = object.y_peak;
+    e["kron_radius"] = object.kron_radius;
+    e["sigma"] = object.sigma;
+    e["threshold"] = object.threshold;
+    if (std::isfinite(core.ratio)) {
+        e["core_fraction"] = core.ratio;
+        e["core_fraction_err"] = core.error;
+    }
+    if (cut) {
+        e["stamp_file"] = context.stamps;
+        e["stamp_hdu"] = cut->stamp.id;
+        e["stamp_x0"] = cut->stamp.x0;
+        e["stamp_y0"] = cut->stamp.y0;
+        e["stamp_nx"] = int(cut->stamp.image.cols());
+        e["stamp_ny"] = int(cut->stamp.image.rows());
+        e["noise_rms"] = cut->noise_rms;
+        e["weight_scale"] = cut->weight_scale;
+        e["border_pixels"] = cut->border_pixels;
+    }
+    e["pixel_scale"] = context.pixel_scale;
+    e["zero_point"] = context.zero_point;
+    e["image"] = context.image;
+    return r;
+}
+
+std::optional<double> header_zero_point(FitsReader& fits) {
+    for (const char* key : {"MAGZPT", "MAGZERO", "ZEROPNT", "ZP", "PHOTZP"})
+        if (auto zp = fits.optional_double(key)) return zp;
+    const auto flam = fits.optional_double("PHOTFLAM");
+    const auto plam = fits.optional_double("PHOTPLAM");
+    if (flam && plam && *flam > 0.0 && *plam > 0.0)
+        return -2.5 * std::log10(*flam) - 5.0 * std::log10(*plam) - 2.408;
+    return std::nullopt;
+}
+
+}  // namespace shapesim

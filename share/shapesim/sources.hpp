@@ -1,0 +1,45 @@
+// From detections to `shapesim.source/1` records: the catalogue shapesim-detect writes.
+//
+// A record carries what downstream stages need without the big image (paper §2.1, DESIGN §2):
+// position (FITS pixels and, with a WCS, RA/Dec), Kron flux and magnitude, shape, FWHM,
+// stellarity, flags; its stamp (`stamp_file`, `stamp_hdu` = the id, origin `stamp_x0/y0`,
+// size), the local noise (`noise_rms`, `weight_scale`), `pixel_scale`, `zero_point` and the
+// source `image`. Extra measurements keep their SExtractor meaning: `flux_iso`, `iso_area`,
+// `npix`, `peak`, `x_peak`/`y_peak`, `kron_radius`, `sigma`, `threshold`, plus
+// `core_fraction` (the stellarity statistic, stellarity.hpp) and `kind` ("star"/"galaxy").
+#pragma once
+
+#include "shapesim/detect.hpp"
+#include "shapesim/geometry.hpp"
+#include "shapesim/records.hpp"
+#include "shapesim/stamps.hpp"
+#include "shapesim/stellarity.hpp"
+
+#include <optional>
+#include <string>
+
+namespace shapesim {
+
+class FitsReader;
+
+/// Facts about the field every record of one run shares.
+struct SourceContext {
+    std::string image;           ///< source image, as the user named it
+    double pixel_scale = 0.0;    ///< arcsec per pixel
+    double zero_point = 0.0;     ///< mag = zero_point − 2.5 log₁₀ flux
+    std::optional<Wcs> wcs;      ///< for ra, dec
+    std::string stamps;          ///< stamps file (empty: no stamps written)
+    double star_threshold = 0.97;///< stellarity above which `kind` is "star"
+};
+
+/// The record of one detection; `cut` is its stamp (null when no stamps are written).
+SourceRecord source_record(const Detection& object, const CoreFraction& core,
+                           double stellarity_value, const CutStamp* cut,
+                           const SourceContext& context);
+
+/// A photometric zero point (AB magnitude of one image unit) from the header: MAGZPT,
+/// MAGZERO, ZEROPNT, ZP or PHOTZP as given; else HST's PHOTFLAM/PHOTPLAM as AB,
+/// ZP = −2.5 log₁₀ PHOTFLAM − 5 log₁₀ PHOTPLAM − 2.408. nullopt when none is there.
+std::optional<double> header_zero_point(FitsReader& fits);
+
+}  // namespace shapesim
