@@ -12,6 +12,7 @@
 #include "shapesim/records.hpp"
 #include "shapesim/sources.hpp"
 
+#include <cmath>
 #include <iostream>
 #include <memory>
 
@@ -225,6 +226,11 @@ int run(int argc, const char* const argv[]) {
     log.info(field.objects.size(), " objects above ", s.detection.detect_thresh,
              "σ (background rms ", field.background_rms, ", weight scale ", field.weight_scale,
              ", correlated-noise factor ", field.noise_correlation, ")");
+
+    if (inverse_variance && (field.weight_scale > 100.0 || field.weight_scale < 0.01))
+        log.warn("the weight map's noise differs from the measured rms by a factor ",
+                 1.0 / std::sqrt(field.weight_scale), " (is --weight-type ", s.weight_type,
+                 " right?)");
 
     std::unique_ptr<FitsWriter> stamps;
     if (!s.stamps.empty())

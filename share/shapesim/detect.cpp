@@ -8,6 +8,8 @@ extern "C" {        // sep.h has no C++ guards
 }
 
 #include <algorithm>
+#include <cerrno>
+#include <cstring>
 #include <cmath>
 #include <fstream>
 #include <limits>
@@ -222,7 +224,7 @@ FilterKernel parse_filter_kernel(std::istream& in, const std::string& name) {
 
 FilterKernel read_filter_kernel(const std::string& path) {
     std::ifstream in(path);
-    if (!in) throw Error("cannot open filter file", path);
+    if (!in) throw Error(std::string("cannot open filter file: ") + std::strerror(errno), path);
     return parse_filter_kernel(in, path);
 }
 
@@ -450,7 +452,11 @@ DetectionResult detect_sources(const ImageArray& image, const ImageArray* invers
         d.ymax = cat.ymax[k] + 1;
         d.a = cat.a[k];
         d.b = cat.b[k];
-        d.theta = double(cat.theta[k]) * 180.0 / pi;
+        // libsep stores θ as a float: float(π/2) read back exceeds π/2, which its own
+        // aperture functions then reject. Clamp once, to (−π/2, π/2].
+        double theta = std::clamp(double(cat.theta[k]), -0.5 * pi, 0.5 * pi);
+        if (theta == -0.5 * pi) theta = 0.5 * pi;
+        d.theta = theta * 180.0 / pi;
         d.cxx = cat.cxx[k];
         d.cyy = cat.cyy[k];
         d.cxy = cat.cxy[k];
@@ -491,7 +497,7 @@ DetectionResult detect_sources(const ImageArray& image, const ImageArray* invers
         const double a_ap = std::max(d.a, 0.5), b_ap = std::max(d.b, 0.5);
         double sum = 0.0, error = 0.0, area = 0.0;
         flag = 0;
-        check_sep(sep_sum_ellipse(&im, x0, y0, a_ap, b_ap, double(cat.theta[k]), radius,
+        check_sep(sep_sum_ellipse(&im, x0, y0, a_ap, b_ap, theta, radius,
                                   d.label, 0, 0, &sum, &error, &area, &flag),
                   "AUTO flux of object " + std::to_string(d.label));
         d.flux_auto = sum;
