@@ -145,22 +145,7 @@ double correlated_noise_factor(const DetectionResult& result) {
             if (sky) z.push_back(sum / std::sqrt(variance));
         }
     if (z.size() < 20) return 1.0;
-    double mean = 0.0, rms = 0.0;
-    double low = -std::numeric_limits<double>::infinity(), high = -low;
-    for (int pass = 0; pass < 4; ++pass) {
-        double s = 0.0, ss = 0.0;
-        long count = 0;
-        for (double v : z)
-            if (v >= low && v <= high) {
-                s += v;
-                ss += v * v;
-                ++count;
-            }
-        mean = s / double(count);
-        rms = std::sqrt(std::max(0.0, ss / double(count) - mean * mean));
-        low = mean - 3.0 * rms;
-        high = mean + 3.0 * rms;
-    }
+    const double rms = clipped_sigma(z);
     return rms > 0.0 ? rms : 1.0;
 }
 
@@ -284,24 +269,111 @@ void DetectionOptions::validate() const {
     if (!(gain >= 0.0 && std::isfinite(gain))) fail("GAIN", "must be ≥ 0");
 }
 
+double clipped_sigma(const std::vector<double>& values) {
+    double rms = std::numeric_limits<double>::quiet_NaN();
+    double low = -std::numeric_limits<double>::infinity(), high = -low;
+    long previous = -1;
+    for (int pass = 0; pass < 10; ++pass) {
+        double s = 0.0, ss = 0.0;
+        long count = 0;
+        for (double v : values)
+            if (v >= low && v <= high) {
+                s += v;
+                ss += v * v;
+                ++count;
+            }
+        if (count < 2) return std::numeric_limits<double>::quiet_NaN();
+        const double mean = s / double(count);
+        rms = std::sqrt(std::max(0.0, ss / double(count) - mean * mean));
+        if (count == previous) break;
+        previous = count;
+        low = mean - 3.0 * rms;
+        high = mean + 3.0 * rms;
+    }
+    // The values kept are those within ±3σ whether or not any fell outside: a sample of the
+    // truncated Gaussian, whose σ is 0.98658 of the full one.
+    return rms / 0.98658;
+}
+
 // ---------------------------------------------------------------------------------------------
 // Apertures
+
+namespace {
+
+// SExtractor's MASK_TYPE CORRECT on a cutout: the box of half-widths (half_x, half_y) about
+// the 0-based centre (x0, y0), where every pixel that is bad or owned by another object is
+// replaced by its mirror image through the centre (value and σ) when that one is usable, else
+// by 0 (σ 0). libsep's own masking only rescales the sum by the unmasked area, which
+// overestimates a galaxy's flux next to a brighter neighbour (by 7–13% for two equal
+// Gaussians 5σ apart), so the apertures run on these cutouts, unmasked.
+struct Cutout {
+    ImageArray image, sigma;
+    int i0 = 0, j0 = 0;       // 0-based image position of the cutout's pixel (0, 0)
+    bool masked = false;      // some pixel was replaced
+    bool truncated = false;   // the box runs off the image
+};
+
+Cutout corrected_cutout(const ImageArray& image, const ImageArray* sigma,
+                        const std::uint8_t* bad, const LabelArray* segmentation, int label,
+                        double x0, double y0, double half_x, double half_y) {
+    const int nx = int(image.cols()), ny = int(image.rows());
+    Cutout c;
+    c.truncated = x0 - half_x < -0.5 || y0 - half_y < -0.5 || x0 + half_x > nx - 0.5 ||
+                  y0 + half_y > ny - 0.5;
+    // One spare pixel each side: libsep's sub-pixel overlap reaches the boundary pixels.
+    const auto clamp_to = [](double v, int n) {
+        return int(std::clamp(v, 0.0, double(n - 1)));
+    };
+    c.i0 = clamp_to(std::floor(x0 - half_x) - 1, nx);
+    c.j0 = clamp_to(std::floor(y0 - half_y) - 1, ny);
+    const int i1 = clamp_to(std::ceil(x0 + half_x) + 1, nx);
+    const int j1 = clamp_to(std::ceil(y0 + half_y) + 1, ny);
+    const int w = i1 - c.i0 + 1, h = j1 - c.j0 + 1;
+    c.image = image.block(c.j0, c.i0, h, w);
+    c.sigma = sigma ? ImageArray(sigma->block(c.j0, c.i0, h, w)) : ImageArray::Zero(h, w);
+    const auto usable = [&](int i, int j) {
+        const std::size_t k = std::size_t(j) * std::size_t(nx) + std::size_t(i);
+        if (bad && bad[k]) return false;
+        if (!segmentation) return true;
+        const int owner = segmentation->data()[k];
+        return owner == 0 || owner == label;
+    };
+    for (int j = 0; j < h; ++j)
+        for (int i = 0; i < w; ++i) {
+            if (usable(c.i0 + i, c.j0 + j)) continue;
+            c.masked = true;
+            const int mi = int(std::lround(2.0 * x0 - (c.i0 + i)));
+            const int mj = int(std::lround(2.0 * y0 - (c.j0 + j)));
+            if (mi >= 0 && mj >= 0 && mi < nx && mj < ny && usable(mi, mj)) {
+                c.image(j, i) = image(mj, mi);
+                c.sigma(j, i) = sigma ? (*sigma)(mj, mi) : 0.0;
+            } else {
+                c.image(j, i) = 0.0;
+                c.sigma(j, i) = 0.0;
+            }
+        }
+    return c;
+}
+
+}  // namespace
 
 ApertureFlux circular_aperture_flux(const ImageArray& image, const ImageArray* sigma,
                                     const std::uint8_t* bad, const LabelArray* segmentation,
                                     int label, double x, double y, double radius) {
     require(radius > 0.0 && std::isfinite(radius), "aperture radius must be > 0");
-    const sep_image im = sep_view(image, sigma, bad, segmentation);
+    const Cutout c = corrected_cutout(image, sigma, bad, segmentation, label, x - 1.0, y - 1.0,
+                                      radius, radius);
+    const sep_image im = sep_view(c.image, sigma ? &c.sigma : nullptr, nullptr, nullptr);
     double sum = 0.0, error = 0.0, area = 0.0;
     short flag = 0;
-    check_sep(sep_sum_circle(&im, x - 1.0, y - 1.0, radius, segmentation ? label : 0, 0, 0,
-                             &sum, &error, &area, &flag),
+    check_sep(sep_sum_circle(&im, x - 1.0 - c.i0, y - 1.0 - c.j0, radius, 0, 0, 0, &sum, &error,
+                             &area, &flag),
               "circular aperture");
     ApertureFlux out;
     out.flux = sum;
     out.error = sigma ? error : 0.0;
-    out.truncated = (flag & SEP_APER_TRUNC) != 0;
-    out.masked = (flag & SEP_APER_HASMASKED) != 0;
+    out.truncated = c.truncated;
+    out.masked = c.masked;
     return out;
 }
 
@@ -435,8 +507,6 @@ DetectionResult detect_sources(const ImageArray& image, const ImageArray* invers
     result.noise_correlation = correlated_noise_factor(result);
 
     // Measurements.
-    const sep_image im = sep_view(result.image, &sep_sigma, result.bad.data(),
-                                  &result.segmentation);
     result.objects.reserve(std::size_t(cat.nobj));
     std::vector<double> values;
     for (int k = 0; k < cat.nobj; ++k) {
@@ -484,28 +554,47 @@ DetectionResult detect_sources(const ImageArray& image, const ImageArray* invers
         }
         d.fwhm = gaussian_core_fwhm(values, options.detect_thresh * d.sigma, filtered_peak);
 
-        // Kron radius within 6 a (SExtractor), then the AUTO ellipse.
+        // Kron radius within 6 a (SExtractor), then the AUTO ellipse, each on a cutout with
+        // the neighbours mirrored out.
+        const double x0 = cat.x[k], y0 = cat.y[k];
+        // A degenerate ellipse (a line of pixels) still needs a usable aperture.
+        const double a_ap = std::max(d.a, 0.5), b_ap = std::max(d.b, 0.5);
+        // Half-extents of the ellipse of semi-axes (r a, r b) at angle θ.
+        const auto half_x = [&](double r) {
+            return r * std::hypot(a_ap * std::cos(theta), b_ap * std::sin(theta));
+        };
+        const auto half_y = [&](double r) {
+            return r * std::hypot(a_ap * std::sin(theta), b_ap * std::cos(theta));
+        };
         double kron = 0.0;
         short flag = 0;
-        const double x0 = cat.x[k], y0 = cat.y[k];
-        check_sep(sep_kron_radius(&im, x0, y0, d.cxx, d.cyy, d.cxy, 6.0, d.label, &kron, &flag),
-                  "Kron radius of object " + std::to_string(d.label));
+        {
+            const Cutout c = corrected_cutout(result.image, nullptr, result.bad.data(),
+                                              &result.segmentation, d.label, x0, y0,
+                                              half_x(6.0), half_y(6.0));
+            const sep_image ci = sep_view(c.image, nullptr, nullptr, nullptr);
+            check_sep(sep_kron_radius(&ci, x0 - c.i0, y0 - c.j0, d.cxx, d.cyy, d.cxy, 6.0, 0,
+                                      &kron, &flag),
+                      "Kron radius of object " + std::to_string(d.label));
+        }
         if (!(kron > 0.0) || !std::isfinite(kron)) kron = 0.0;
         d.kron_radius = kron;
         const double radius = std::max(options.kron_factor * kron, options.kron_min_radius);
-        // A degenerate ellipse (a line of pixels) still needs a usable aperture.
-        const double a_ap = std::max(d.a, 0.5), b_ap = std::max(d.b, 0.5);
+        const Cutout c = corrected_cutout(result.image, &sep_sigma, result.bad.data(),
+                                          &result.segmentation, d.label, x0, y0, half_x(radius),
+                                          half_y(radius));
+        const sep_image ci = sep_view(c.image, &c.sigma, nullptr, nullptr);
         double sum = 0.0, error = 0.0, area = 0.0;
         flag = 0;
-        check_sep(sep_sum_ellipse(&im, x0, y0, a_ap, b_ap, theta, radius,
-                                  d.label, 0, 0, &sum, &error, &area, &flag),
+        check_sep(sep_sum_ellipse(&ci, x0 - c.i0, y0 - c.j0, a_ap, b_ap, theta, radius, 0, 0, 0,
+                                  &sum, &error, &area, &flag),
                   "AUTO flux of object " + std::to_string(d.label));
         d.flux_auto = sum;
         d.flux_auto_err = error * result.noise_correlation;
         if (options.gain > 0.0 && sum > 0.0)
             d.flux_auto_err = std::sqrt(d.flux_auto_err * d.flux_auto_err + sum / options.gain);
-        if (flag & SEP_APER_TRUNC) d.flags.push_back("aperture_truncated");
-        if (flag & SEP_APER_HASMASKED) d.flags.push_back("aperture_masked");
+        if (c.truncated) d.flags.push_back("aperture_truncated");
+        if (c.masked) d.flags.push_back("aperture_masked");
         result.objects.push_back(std::move(d));
     }
     return result;

@@ -137,6 +137,12 @@ struct DetectionResult {
     }
 };
 
+/// Standard deviation of `values` after 3σ clipping about the mean (at most 10 passes),
+/// divided by 0.98658, the σ a ±3σ cut leaves of a Gaussian, so that Gaussian noise gives
+/// its own σ. NaN for fewer than two values. For noise levels from sky pixels: faint wings
+/// and cosmic rays do not set them.
+double clipped_sigma(const std::vector<double>& values);
+
 /// Detect and measure the objects of `image` (any values; NaN = bad). `inverse_variance`
 /// (same size, ≥ 0, 0 = bad) may be null. Errors: sizes differ, no good pixel, libsep
 /// failures (with libsep's message). An image with nothing above threshold gives an empty

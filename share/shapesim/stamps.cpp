@@ -13,6 +13,7 @@ void StampOptions::validate() const {
         throw Error("stamp size factor must be ≥ 0", "", 0, "size_factor");
     if (!(size_offset >= 1.0 && std::isfinite(size_offset)))
         throw Error("stamp size offset must be ≥ 1 pixel", "", 0, "size_offset");
+    if (max_margin < 0) throw Error("margin must be ≥ 0 pixels", "", 0, "max_margin");
     if (border_width < 1) throw Error("border width must be ≥ 1 pixel", "", 0, "border_width");
     if (min_border_pixels < 2)
         throw Error("the noise needs ≥ 2 border pixels", "", 0, "min_border_pixels");
@@ -24,34 +25,6 @@ int stamp_side(const Detection& object, const StampOptions& options) {
     const int whole = int(std::min(std::ceil(side), 1.0e6));
     return std::max(3, whole % 2 == 1 ? whole : whole + 1);
 }
-
-namespace {
-
-// Standard deviation after 3σ clipping about the mean (three passes): a few neighbour wings
-// or cosmic rays in the border do not set the noise.
-double clipped_rms(const std::vector<double>& values) {
-    double mean = 0.0, rms = 0.0;
-    double low = -std::numeric_limits<double>::infinity();
-    double high = std::numeric_limits<double>::infinity();
-    for (int pass = 0; pass < 4; ++pass) {
-        double s = 0.0, ss = 0.0;
-        long count = 0;
-        for (double v : values)
-            if (v >= low && v <= high) {
-                s += v;
-                ss += v * v;
-                ++count;
-            }
-        if (count < 2) break;
-        mean = s / double(count);
-        rms = std::sqrt(std::max(0.0, ss / double(count) - mean * mean));
-        low = mean - 3.0 * rms;
-        high = mean + 3.0 * rms;
-    }
-    return rms;
-}
-
-}  // namespace
 
 CutStamp cut_stamp(const DetectionResult& field, const Detection& object, const std::string& id,
                    const StampOptions& options) {
@@ -84,26 +57,48 @@ CutStamp cut_stamp(const DetectionResult& field, const Detection& object, const 
             if (label != 0 && label != object.label) stamp.mask(j, i) = 1.0;
         }
 
-    // Local noise from the sky pixels of a border ring, widened until there are enough.
-    std::vector<double> z;
-    const int deepest = (std::min(w, h) + 1) / 2;
-    int depth = std::min(options.border_width, deepest);
-    for (;; ++depth) {
-        z.clear();
-        for (int j = 0; j < h; ++j)
-            for (int i = 0; i < w; ++i) {
-                const int edge = std::min(std::min(i, w - 1 - i), std::min(j, h - 1 - j));
-                if (edge >= depth) continue;
-                if (field.segmentation(j0 + j, i0 + i) != 0 || !(stamp.weight(j, i) > 0.0))
-                    continue;
-                z.push_back(stamp.image(j, i) * std::sqrt(stamp.weight(j, i)));
+    // Local noise from sky pixels: the stamp's border ring, then, while there are too few,
+    // the sky around the stamp out to `max_margin` pixels beyond it. A sky pixel touching a
+    // segment is skipped while enough others remain: the segment took its neighbours'
+    // upward noise peaks, so the pixels left just outside it are biased low.
+    const auto near_object = [&](int row, int column) {
+        for (int dj = -1; dj <= 1; ++dj)
+            for (int di = -1; di <= 1; ++di) {
+                const int r = row + dj, c = column + di;
+                if (r >= 0 && c >= 0 && r < ny && c < nx && field.segmentation(r, c) != 0)
+                    return true;
             }
-        if (int(z.size()) >= options.min_border_pixels || depth >= deepest) break;
+        return false;
+    };
+    const int depth = options.border_width;
+    std::vector<double> z;
+    for (const bool strict : {true, false}) {
+        for (int margin = 0;; margin = std::max(2 * margin, 4)) {
+            z.clear();
+            const int r0 = std::max(0, j0 - margin), r1 = std::min(ny - 1, j1 + margin);
+            const int c0 = std::max(0, i0 - margin), c1 = std::min(nx - 1, i1 + margin);
+            for (int row = r0; row <= r1; ++row)
+                for (int column = c0; column <= c1; ++column) {
+                    // Inside the stamp, only its border ring.
+                    if (row >= j0 + depth && row <= j1 - depth && column >= i0 + depth &&
+                        column <= i1 - depth)
+                        continue;
+                    if (field.is_bad(row, column) || !std::isfinite(field.sigma(row, column)))
+                        continue;
+                    if (strict ? near_object(row, column)
+                               : field.segmentation(row, column) != 0)
+                        continue;
+                    z.push_back(field.image(row, column) / field.sigma(row, column));
+                }
+            if (int(z.size()) >= options.min_border_pixels || margin >= options.max_margin)
+                break;
+        }
+        if (int(z.size()) >= options.min_border_pixels) break;
     }
     out.border_pixels = int(z.size());
     double local = 1.0;
     if (int(z.size()) >= options.min_border_pixels) {
-        const double rms = clipped_rms(z);
+        const double rms = clipped_sigma(z);
         if (rms > 0.0 && std::isfinite(rms)) local = 1.0 / (rms * rms);
         else out.noise_global = true;
     } else {

@@ -7,11 +7,13 @@
 //
 // Noise renormalisation: drizzled weight maps misstate the pixel-to-pixel noise (HDF: ×≈2 in
 // σ), and the absolute level matters to χ²_r in the shapelet fit. The stamp's border ring
-// (`border_width` pixels deep) gives the pixels owned by no object; their normalised values
-// z = I·√w have unit rms when the weights are right. The weights are multiplied by
-// 1/rms(z)² (rms after 3σ clipping), so the stamp's own noise fixes its χ² scale. When the
-// ring has fewer than `min_border_pixels` such pixels it is widened, up to the whole stamp;
-// below that the field-wide factor is kept and the stamp flagged "noise_global".
+// (`border_width` pixels deep) gives the pixels owned by no object and not touching one; their
+// normalised values z = I·√w have unit rms when the weights are right. The weights are
+// multiplied by 1/σ(z)² (clipped_sigma, detect.hpp), so the stamp's own noise fixes its χ²
+// scale. A 3a + 5 stamp of a faint galaxy has only a few dozen such pixels (σ(z) to ±13% from
+// 30), so while there are fewer than `min_border_pixels` the sky around the stamp is added,
+// out to `max_margin` pixels beyond it; then pixels touching a segment are allowed; below
+// that the field-wide factor is kept and the stamp flagged "noise_global".
 #pragma once
 
 #include "shapesim/detect.hpp"
@@ -23,7 +25,8 @@ struct StampOptions {
     double size_factor = 3.0;   ///< stamp side = size_factor · a + size_offset (pixels)
     double size_offset = 5.0;
     int border_width = 2;       ///< depth of the border ring for the noise, pixels
-    int min_border_pixels = 30; ///< fewer sky pixels than this: widen, then fall back
+    int min_border_pixels = 200;  ///< sky pixels wanted (σ to ±5%)
+    int max_margin = 32;          ///< how far beyond the stamp to look for them, pixels
 
     /// Throws Error unless sizes are positive.
     void validate() const;

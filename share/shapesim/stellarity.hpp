@@ -13,7 +13,9 @@
 // the annulus independent of the core) and s★ the PSF's phase scatter plus a floor of
 // 2% of ρ★ for PSF-model error:
 //   star:    ρ ~ N(ρ★, s★² + σ_ρ²)
-//   galaxy:  ρ = u + noise, u uniform on [0, ρ★]:  L = [Φ((ρ★−ρ)/σ_ρ) − Φ(−ρ/σ_ρ)] / ρ★
+//   galaxy:  ρ = u + noise, u uniform on [0, ρ_g], ρ_g = ρ★ − 2 s★ (a galaxy is resolved: its
+//            core fraction lies clearly below the PSF's; an unresolved one is a point
+//            source to any classifier):  L = [Φ((ρ_g−ρ)/σ_ρ) − Φ(−ρ/σ_ρ)] / ρ_g
 // Stellarity = L_star / (L_star + L_galaxy), equal priors. A bright star → 1, a bright
 // resolved galaxy → 0, and an object whose ρ is lost in noise → ≈ 0.5, as CLASS_STAR does.
 //
