@@ -227,6 +227,7 @@ int run(int argc, const char* const argv[]) {
              "σ (background rms ", field.background_rms, ", weight scale ", field.weight_scale,
              ", correlated-noise factor ", field.noise_correlation, ")");
 
+    context.noise_correlation = field.noise_correlation;
     if (inverse_variance && (field.weight_scale > 100.0 || field.weight_scale < 0.01))
         log.warn("the weight map's noise differs from the measured rms by a factor ",
                  1.0 / std::sqrt(field.weight_scale), " (is --weight-type ", s.weight_type,

@@ -5,6 +5,7 @@
 #include "shapesim/error.hpp"
 
 #include <fitsio.h>
+#include <strings.h>
 
 #include <cerrno>
 #include <cmath>
@@ -145,6 +146,26 @@ void FitsReader::move_to(int index) {
 
 void FitsReader::move_to(const std::string& extname) {
     int status = 0;
+    // Files are mostly read in the order they were written (stamps: image, weight, mask,
+    // object after object): try the next HDU before cfitsio's search from the start, which
+    // makes reading N stamps O(N²).
+    {
+        int hdus = 0, type = 0;
+        fits_get_num_hdus(impl_->f, &hdus, &status);
+        const int next = impl_->index + 1;  // 0-based index of the next HDU
+        if (status == 0 && next < hdus) {
+            fits_movabs_hdu(impl_->f, next + 1, &type, &status);
+            char value[FLEN_VALUE] = {};
+            int key_status = 0;
+            fits_read_key(impl_->f, TSTRING, "EXTNAME", value, nullptr, &key_status);
+            if (status == 0 && key_status == 0 && strcasecmp(value, extname.c_str()) == 0) {
+                impl_->located();
+                return;
+            }
+        }
+        status = 0;
+        fits_clear_errmsg();
+    }
     fits_movnam_hdu(impl_->f, ANY_HDU, const_cast<char*>(extname.c_str()), 0, &status);
     if (status == BAD_HDU_NUM) {
         impl_->located();

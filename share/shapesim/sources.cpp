@@ -57,6 +57,7 @@ SourceRecord source_record(const Detection& object, const CoreFraction& core,
         e["weight_scale"] = cut->weight_scale;
         e["border_pixels"] = cut->border_pixels;
     }
+    e["noise_correlation"] = context.noise_correlation;
     e["pixel_scale"] = context.pixel_scale;
     e["zero_point"] = context.zero_point;
     e["image"] = context.image;

@@ -1017,6 +1017,7 @@ TEST(DetectSourceRecord, CarriesMagnitudeKindAndFlags) {
     SourceContext context;
     context.zero_point = 25.0;
     context.pixel_scale = 0.04;
+    context.noise_correlation = 1.84;
     CutStamp cut;
     cut.clipped = true;
     cut.stamp.id = "7";
@@ -1027,6 +1028,7 @@ TEST(DetectSourceRecord, CarriesMagnitudeKindAndFlags) {
     EXPECT_DOUBLE_EQ(*r.mag, 20.0);  // 25 − 2.5 log₁₀ 100
     EXPECT_FALSE(r.fwhm.has_value());
     EXPECT_EQ(r.extra["kind"], "star");
+    EXPECT_EQ(r.extra["noise_correlation"], 1.84);  // decompose's χ² needs it
     EXPECT_EQ(r.flags, (std::vector<std::string>{"blended", "edge"}));
     r.validate();
 

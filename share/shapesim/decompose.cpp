@@ -1,0 +1,322 @@
+#include "shapesim/decompose.hpp"
+
+#include "shapesim/error.hpp"
+#include "shapesim/model.hpp"
+#include "shapesim/moments.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <limits>
+#include <optional>
+
+namespace shapesim {
+
+void DecomposeOptions::validate() const {
+    auto fail = [](const char* field, const char* why) { throw Error(why, "", 0, field); };
+    if (n_max_min < 0) fail("n_max_min", "must be ≥ 0");
+    if (n_max_cap < n_max_min) fail("n_max_cap", "must be ≥ n_max_min");
+    if (n_max_cap > 100) fail("n_max_cap", "must be ≤ 100");
+    if (!(chi2_target > 0.0)) fail("chi2_target", "must be > 0");
+    if (!(chi2_sigmas >= 0.0)) fail("chi2_sigmas", "must be ≥ 0");
+    if (!(beta_tolerance > 0.0 && beta_tolerance < 1.0)) fail("beta_tolerance", "must be in (0, 1)");
+    if (!(theta_min > 0.0)) fail("theta_min", "must be > 0");
+    if (!(centre_tolerance > 0.0)) fail("centre_tolerance", "must be > 0");
+    if (centre_iterations < 0) fail("centre_iterations", "must be ≥ 0");
+    if (!(flatten_fraction >= 0.0)) fail("flatten_fraction", "must be ≥ 0");
+    if (!(noise_correlation >= 1.0 && std::isfinite(noise_correlation)))
+        fail("noise_correlation", "must be ≥ 1");
+}
+
+double effective_chi2r(const ShapeletFit& fit, double noise_correlation) {
+    const double p = double(real_count(fit.model.n_max));
+    const double dof = std::max(1.0, double(fit.pixels_used) - p * noise_correlation *
+                                                                    noise_correlation);
+    return fit.chi2 / dof;
+}
+
+namespace {
+
+constexpr double infinite = std::numeric_limits<double>::infinity();
+
+// One order's search state: fits at (x, y, β), scored by the effective χ²_r.
+class OrderSearch {
+public:
+    OrderSearch(const ImageArray& image, const ImageArray& weight, const MaskArray* mask,
+                int n_max, const DecomposeOptions& options, long& fits)
+        : image_(image), weight_(weight), mask_(mask), n_max_(n_max), options_(options),
+          fits_(fits) {}
+
+    // χ²_r at (x, y, β); +∞ when the fit is impossible (too few pixels, rank-deficient).
+    double score(double x, double y, double beta) {
+        ++fits_;
+        try {
+            ShapeletFit fit =
+                fit_shapelets(image_, weight_, mask_, x, y, beta, n_max_, options_.solver);
+            const double chi2r = effective_chi2r(fit, options_.noise_correlation);
+            if (!std::isfinite(chi2r)) return infinite;
+            if (chi2r < best_chi2r_) {
+                best_chi2r_ = chi2r;
+                best_ = std::move(fit);
+            }
+            return chi2r;
+        } catch (const Error&) {
+            return infinite;
+        }
+    }
+
+    // Golden-section search of ln β over [lo, hi] at a fixed centre, after a coarse scan of
+    // five points that picks the bracket (χ²_r(β) can have more than one dip).
+    // With `scan` false the search is local: golden section over [lo, hi] directly.
+    double best_beta(double x, double y, double lo, double hi, bool scan = true) {
+        const double a = std::log(lo), b = std::log(hi);
+        if (b - a < options_.beta_tolerance) {  // the constraints leave one β
+            const double only = std::exp(0.5 * (a + b));
+            score(x, y, only);
+            return only;
+        }
+        double left = a, right = b;
+        if (scan) {
+            constexpr int coarse = 5;
+            double u[coarse], f[coarse];
+            int best = 0;
+            for (int k = 0; k < coarse; ++k) {
+                u[k] = a + (b - a) * k / (coarse - 1);
+                f[k] = score(x, y, std::exp(u[k]));
+                if (f[k] < f[best]) best = k;
+            }
+            left = u[std::max(best - 1, 0)];
+            right = u[std::min(best + 1, coarse - 1)];
+        }
+        constexpr double golden = 0.6180339887498949;
+        double c = right - golden * (right - left), d = left + golden * (right - left);
+        double fc = score(x, y, std::exp(c)), fd = score(x, y, std::exp(d));
+        while (right - left > options_.beta_tolerance) {
+            if (fc < fd) {
+                right = d;
+                d = c;
+                fd = fc;
+                c = right - golden * (right - left);
+                fc = score(x, y, std::exp(c));
+            } else {
+                left = c;
+                c = d;
+                fc = fd;
+                d = left + golden * (right - left);
+                fd = score(x, y, std::exp(d));
+            }
+        }
+        return fc < fd ? std::exp(c) : std::exp(d);
+    }
+
+    const std::optional<ShapeletFit>& best() const { return best_; }
+    double best_chi2r() const { return best_chi2r_; }
+    void forget() {
+        best_.reset();
+        best_chi2r_ = infinite;
+    }
+
+private:
+    const ImageArray& image_;
+    const ImageArray& weight_;
+    const MaskArray* mask_;
+    int n_max_;
+    const DecomposeOptions& options_;
+    long& fits_;
+    std::optional<ShapeletFit> best_;
+    double best_chi2r_ = infinite;
+};
+
+}  // namespace
+
+Decomposition decompose(const ImageArray& image, const ImageArray& weight, const MaskArray* mask,
+                        double x, double y, double beta_start, const DecomposeOptions& options) {
+    options.validate();
+    const double nx = double(image.cols()), ny = double(image.rows());
+    require(nx > 0 && ny > 0, "stamp is empty");
+    require(std::isfinite(x) && std::isfinite(y) && x >= 0.5 && x <= nx + 0.5 && y >= 0.5 &&
+                y <= ny + 0.5,
+            "start centre lies outside the stamp");
+    require(beta_start > 0.0 && std::isfinite(beta_start), "start β must be > 0");
+
+    Decomposition out;
+    ShapeletFit kept;
+    bool have_kept = false;
+    double kept_chi2r = infinite;
+    double beta = beta_start;
+    const double x_start = x, y_start = y;
+    for (int n = options.n_max_min; n <= options.n_max_cap; ++n) {
+        const double root = std::sqrt(n + 1.0);
+        // Largest scale inside the stamp, measured from the start centre (the centre moves by
+        // a fraction of a pixel, the bound need not follow it).
+        const double reach = std::min(std::min(x_start - 0.5, nx + 0.5 - x_start),
+                                      std::min(y_start - 0.5, ny + 0.5 - y_start));
+        const double lo = options.theta_min * root, hi = reach / root;
+        if (lo > hi) {
+            out.stop = "stamp_small";
+            break;
+        }
+        OrderSearch search(image, weight, mask, n, options, out.fits);
+        beta = search.best_beta(x, y, lo, hi);
+        // Recentre on the model's own centroid; after a large move, search β again.
+        for (int iteration = 0; iteration < options.centre_iterations && search.best(); ++iteration) {
+            const Moments m = moments(search.best()->model);
+            if (!std::isfinite(m.x) || !std::isfinite(m.y)) break;
+            // Stay within a few pixels of the detection: a centroid dragged further is a fit
+            // to a neighbour's or the noise's light.
+            const double new_x = std::clamp(m.x, x_start - 3.0, x_start + 3.0);
+            const double new_y = std::clamp(m.y, y_start - 3.0, y_start + 3.0);
+            const double shift = std::hypot(new_x - x, new_y - y);
+            x = new_x;
+            y = new_y;
+            search.forget();
+            // A large move may change which dip in χ²_r(β) is deepest: scan again; a small
+            // one only moves the minimum: search ±10% about the current β.
+            if (shift > 0.25) beta = search.best_beta(x, y, lo, hi);
+            else if (shift >= options.centre_tolerance)
+                beta = search.best_beta(x, y, std::max(lo, beta / 1.1), std::min(hi, beta * 1.1),
+                                        false);
+            else search.score(x, y, beta);
+            if (shift < options.centre_tolerance) break;
+        }
+        if (!search.best()) {
+            if (!have_kept) throw Error("no usable fit: too few usable pixels in the stamp");
+            out.stop = "stamp_small";
+            break;
+        }
+        const double chi2r = search.best_chi2r();
+        const ShapeletFit& best = *search.best();
+        out.trials.push_back({n, best.model.beta_pix, chi2r});
+        x = best.model.x;
+        y = best.model.y;
+        beta = best.model.beta_pix;
+        kept = best;
+        have_kept = true;
+        kept_chi2r = chi2r;
+        const double dof = std::max(1.0, double(best.pixels_used) -
+                                             real_count(n) * options.noise_correlation *
+                                                 options.noise_correlation);
+        if (chi2r <= options.chi2_target + options.chi2_sigmas * std::sqrt(2.0 / dof)) {
+            out.stop = "chi2_target";
+            out.converged = true;
+            break;
+        }
+        const std::size_t t = out.trials.size();
+        if (t >= 3 && out.trials[t - 3].chi2r - chi2r < options.flatten_fraction * out.trials[t - 3].chi2r) {
+            out.stop = "flattened";
+            break;
+        }
+        if (n == options.n_max_cap) out.stop = "n_max_cap";
+    }
+    if (!have_kept) throw Error("no usable fit: the stamp is too small for the lowest order");
+    out.fit = std::move(kept);
+    out.chi2r = kept_chi2r;
+
+    // β's share of the flux error, from the profile χ² at ln β ± h.
+    const double fixed = flux_error(out.fit);
+    out.flux_error = fixed;
+    constexpr double h = 0.05;
+    try {
+        const ShapeletModel& m = out.fit.model;
+        const ShapeletFit lo = fit_shapelets(image, weight, mask, m.x, m.y, m.beta_pix * std::exp(-h),
+                                             m.n_max, options.solver);
+        const ShapeletFit hi = fit_shapelets(image, weight, mask, m.x, m.y, m.beta_pix * std::exp(h),
+                                             m.n_max, options.solver);
+        out.fits += 2;
+        const double curvature = (lo.chi2 + hi.chi2 - 2.0 * out.fit.chi2) / (h * h);
+        const double slope = (flux(hi.model) - flux(lo.model)) / (2.0 * h);
+        if (curvature > 0.0 && std::isfinite(slope)) {
+            const double f2 = options.noise_correlation * options.noise_correlation;
+            out.flux_error = std::sqrt(fixed * fixed + slope * slope * 2.0 * f2 / curvature);
+        }
+    } catch (const Error&) {
+        // β at a constraint edge with too few pixels beyond it: keep the fixed-β error.
+    }
+    return out;
+}
+
+double flux_error(const ShapeletFit& fit) {
+    // Flux is linear in the real parameters: F = gᵀp with g_k = flux of the k-th unit vector.
+    const int p = real_count(fit.model.n_max);
+    if (fit.covariance.rows() != p) return std::numeric_limits<double>::quiet_NaN();
+    Eigen::VectorXd g(p);
+    ShapeletModel unit = fit.model;
+    for (int k = 0; k < p; ++k) {
+        Eigen::VectorXd e = Eigen::VectorXd::Zero(p);
+        e(k) = 1.0;
+        set_real_parameters(unit, e);
+        g(k) = flux(unit);
+    }
+    return std::sqrt(std::max(0.0, g.dot(fit.covariance * g)));
+}
+
+namespace {
+
+bool has(const std::vector<std::string>& flags, const char* flag) {
+    return std::find(flags.begin(), flags.end(), flag) != flags.end();
+}
+
+// Fraction of the pixels within `radius` of (x, y) (stamp FITS coordinates) that the mask
+// gives to a neighbour.
+double masked_fraction(const Stamp& stamp, double x, double y, double radius) {
+    long inside = 0, masked = 0;
+    for (Eigen::Index j = 0; j < stamp.mask.rows(); ++j)
+        for (Eigen::Index i = 0; i < stamp.mask.cols(); ++i) {
+            if (std::hypot(double(i + 1) - x, double(j + 1) - y) > radius) continue;
+            ++inside;
+            if (stamp.mask(j, i) != 0.0) ++masked;
+        }
+    return inside > 0 ? double(masked) / double(inside) : 0.0;
+}
+
+}  // namespace
+
+ShapeletRecord shapelet_record(const SourceRecord& source, const Decomposition& decomposition,
+                               const Stamp& stamp, double pixel_scale, double zero_point) {
+    const ShapeletFit& fit = decomposition.fit;
+    ShapeletModel model = fit.model;
+    model.x += stamp.x0 - 1;
+    model.y += stamp.y0 - 1;
+    ShapeletRecord r = ShapeletRecord::from_model(model, pixel_scale, source.id);
+    r.chi2r = decomposition.chi2r;
+    if (r.flux && *r.flux > 0.0) r.mag = zero_point - 2.5 * std::log10(*r.flux);
+    const double sigma_flux = decomposition.flux_error;
+
+    r.flags.push_back(decomposition.converged ? "converged" : "not_converged");
+    if (decomposition.stop == "n_max_cap") r.flags.push_back("n_max_cap");
+    const double reach = fit.model.beta_pix * std::sqrt(fit.model.n_max + 1.0);
+    if (has(source.flags, "blended") ||
+        masked_fraction(stamp, fit.model.x, fit.model.y, reach) > 0.05)
+        r.flags.push_back("neighbour");
+    if (has(source.flags, "edge") || has(source.flags, "truncated") ||
+        has(source.flags, "aperture_truncated"))
+        r.flags.push_back("edge");
+    if (!(r.flux && std::isfinite(sigma_flux) && *r.flux > 3.0 * sigma_flux))
+        r.flags.push_back("noise");
+
+    // The source's own fields first, renamed where the shapelet schema reuses the name.
+    const Json src = source.to_json();
+    for (const auto& [key, value] : src.items()) {
+        if (key == "schema" || key == "id") continue;
+        const bool reused = key == "x" || key == "y" || key == "flux" || key == "mag" ||
+                            key == "flags" || key == "beta" || key == "pixel_scale" ||
+                            key == "n_max" || key == "coeffs" || key == "chi2r";
+        r.extra[reused ? "source_" + key : key] = value;
+    }
+    Json& e = r.extra;
+    e["beta_pix"] = fit.model.beta_pix;
+    if (std::isfinite(sigma_flux)) e["flux_err"] = sigma_flux;
+    e["stop"] = decomposition.stop;
+    e["fits"] = decomposition.fits;
+    Json trials = Json::array();
+    for (const OrderTrial& t : decomposition.trials)
+        trials.push_back(Json::array({t.n_max, t.beta_pix, t.chi2r}));
+    e["trials"] = trials;
+    ShapeletModel errors = fit.model;
+    set_real_parameters(errors, fit.errors());
+    Json coeff_errors = Json::array();
+    for (const Complex& c : errors.coeffs) coeff_errors.push_back(Json::array({c.real(), c.imag()}));
+    e["coeff_errors"] = coeff_errors;
+    return r;
+}
+
+}  // namespace shapesim

@@ -1,0 +1,102 @@
+// The shapelet decomposition of one stamp with optimised centre, β and n_max (paper §2.2,
+// DESIGN §3; Massey & Refregier 2005 §5 for the constraints).
+//
+// For each n_max from `n_max_min` upward:
+//   β: a golden-section search on ln β minimising χ²_r, within the constraints that the
+//      smallest scale the basis resolves, θ_min = β/√(n_max+1), is not below `theta_min`
+//      pixels, and the largest, θ_max = β√(n_max+1), stays inside the stamp (distance from the
+//      centre to the nearest stamp edge);
+//   centre: moved to the fitted model's own centroid (closed form, moments.hpp) and the fit
+//      repeated, until it moves less than `centre_tolerance` pixels;
+// and n_max is raised until χ²_r ≤ `chi2_target` + `chi2_sigmas`·√(2/dof) ("chi2_target":
+// at the true order χ²_r itself scatters about 1 by √(2/dof), so a bare "≤ 1" would stop
+// there only half the time and fit noise the other half), or χ²_r stops falling by
+// more than `flatten_fraction` over two orders ("flattened"), or n_max reaches the cap
+// ("n_max_cap", the best fit at the cap kept), or the constraints leave no β ("stamp_small").
+//
+// Correlated noise. With per-pixel variances right but neighbouring pixels correlated, the
+// residual χ² of a fit of p smooth basis functions is E χ² = N − tr(H C) ≈ N − p·F², where
+// F is the correlated-noise factor (detect.hpp: rms of block sums over √Σσ²): a smooth
+// function's coefficient variance is inflated by F² as the block sums are. χ²/(N − p) then
+// falls below 1 before the model has taken up the galaxy (drizzled HDF: F ≈ 1.8, so a
+// 15-coefficient model on 100 pixels reaches χ²_r ≈ 0.57 on pure noise), biasing n_max low.
+// With `noise_correlation` = F the reduced χ² uses the effective degrees of freedom
+// N − p·F² (clamped to ≥ 1); F = 1 is the textbook χ²_r.
+#pragma once
+
+#include "shapesim/fits_io.hpp"
+#include "shapesim/lsq.hpp"
+#include "shapesim/records.hpp"
+
+#include <string>
+#include <vector>
+
+namespace shapesim {
+
+struct DecomposeOptions {
+    int n_max_min = 0;             ///< first order tried
+    int n_max_cap = 15;            ///< highest order (the method's default)
+    double chi2_target = 1.0;      ///< stop when χ²_r reaches this …
+    double chi2_sigmas = 2.0;      ///< … within this many σ of its noise, √(2/dof)
+    double beta_tolerance = 1e-3;  ///< golden-section tolerance on ln β
+    double theta_min = 1.0;        ///< smallest resolved scale β/√(n+1), pixels
+    double centre_tolerance = 0.01;///< recentring stops below this shift, pixels
+    int centre_iterations = 5;     ///< and after this many recentrings
+    double flatten_fraction = 0.01;///< "flattened": χ²_r(n−2) − χ²_r(n) < this · χ²_r(n−2)
+    double noise_correlation = 1.0;///< F for the effective degrees of freedom (see above)
+    LsqSolver solver = LsqSolver::automatic;
+
+    /// Throws Error (field named) when a value is out of range.
+    void validate() const;
+};
+
+/// One order's best fit, for the record and for diagnostics.
+struct OrderTrial {
+    int n_max = 0;
+    double beta_pix = 0.0;
+    double chi2r = 0.0;
+};
+
+/// The result of decompose().
+struct Decomposition {
+    ShapeletFit fit;       ///< the fit kept (model centre, β, n_max inside)
+    double chi2r = 0.0;    ///< χ²_r with the effective degrees of freedom
+    std::string stop;      ///< why the search stopped: chi2_target, flattened, n_max_cap,
+                           ///< stamp_small
+    bool converged = false;///< χ²_r ≤ chi2_target (+ its noise allowance)
+    double flux_error = 0.0;  ///< 1σ, with β's uncertainty (see decompose())
+    long fits = 0;         ///< linear fits performed
+    std::vector<OrderTrial> trials;  ///< the best (β, χ²_r) of each order tried
+};
+
+/// χ²_r of `fit` with effective degrees of freedom pixels − p·F² (≥ 1).
+double effective_chi2r(const ShapeletFit& fit, double noise_correlation);
+
+/// Decompose `image` (weights, optional mask as in fit_shapelets) starting from centre
+/// (x, y) in stamp FITS coordinates and scale `beta_start` pixels (e.g. the detection's a).
+/// Throws Error when the stamp has too few usable pixels for the lowest order.
+/// The flux error adds to the fixed-β covariance error the part β's own uncertainty brings
+/// (flux and β are strongly correlated: flux = 2√π β Σ a_{n,0}): from the profile χ²(ln β)
+/// at ±5%, σ²_lnβ = 2F²/∂²χ², and σ_F² = σ²_fixed + (∂F/∂ln β)² σ²_lnβ (F the correlated-noise
+/// factor, which flattens χ²'s curvature as it inflates smooth-function variances).
+Decomposition decompose(const ImageArray& image, const ImageArray& weight, const MaskArray* mask,
+                        double x, double y, double beta_start, const DecomposeOptions& options);
+
+/// 1σ error of the model flux 2√π β Σ a_{n,0} from the fit's covariance.
+double flux_error(const ShapeletFit& fit);
+
+/// The `shapesim.shapelet/1` record of a decomposed source (DESIGN §2).
+///  - centre in the parent image's FITS pixels (stamp origin added), β in arcsec at
+///    `pixel_scale`, coefficients, chi2r (effective), flux, mag (`zero_point`), and
+///    `coeff_errors` ([[σ_re, σ_im], …] in the coefficients' order), `flux_err`, `stop`,
+///    `beta_pix`, `trials` ([[n_max, β_pix, χ²_r], …]), `fits`.
+///  - flags: "converged" or "not_converged"; "n_max_cap"; "neighbour" (the source was
+///    deblended, or more than 5% of the pixels within the model's reach β√(n_max+1) belong
+///    to a neighbour); "edge" (stamp or aperture cut by the image edge); "noise" (model flux
+///    below 3σ: a probable noise detection).
+///  - the source's fields are carried through; those the schema reuses (x, y, flux, mag,
+///    flags, …) as `source_x`, `source_flux`, `source_flags`, ….
+ShapeletRecord shapelet_record(const SourceRecord& source, const Decomposition& decomposition,
+                               const Stamp& stamp, double pixel_scale, double zero_point);
+
+}  // namespace shapesim
