@@ -7,7 +7,9 @@
 #include "shapesim/decompose.hpp"
 #include "shapesim/error.hpp"
 #include "shapesim/fits_io.hpp"
+#include "shapesim/geometry.hpp"
 #include "shapesim/jsonl.hpp"
+#include "shapesim/psf.hpp"
 #include "shapesim/records.hpp"
 
 #include <atomic>
@@ -15,6 +17,7 @@
 #include <iostream>
 #include <map>
 #include <memory>
+#include <optional>
 #include <set>
 #include <thread>
 
@@ -29,11 +32,20 @@ const char* const description =
     "limits) and n_max (raised until chi2_r <= 1, capped at 15). Reads shapesim.source/1\n"
     "records on stdin and the stamps shapesim-detect wrote; writes shapesim.shapelet/1.\n"
     "\n"
-    "Example (after shapesim-detect ... --stamps stamps.fits > sources.jsonl):\n"
-    "  shapesim-decompose --stamps stamps.fits -j 2 < sources.jsonl > shapelets.jsonl";
+    "PSF mode: with --psf-image, model an (oversampled) PSF image at the pixel scale of\n"
+    "--like (or --pixel-scale) and write one shapesim.shapelet/1 record of unit flux.\n"
+    "\n"
+    "Examples (after shapesim-detect ... --stamps stamps.fits > sources.jsonl):\n"
+    "  shapesim-decompose --stamps stamps.fits -j 2 < sources.jsonl > shapelets.jsonl\n"
+    "  shapesim-decompose --psf-image wfpc2_f814w_tinytim_psf.fits --like hdf.fits \\\n"
+    "      --psf-box 0.0996 0.05 > psf.jsonl";
 
 struct Settings {
     std::string stamps, models, ids;
+    std::string psf_image;
+    double psf_pixel_scale = 0.0, pixel_scale = 0.0, psf_residual = 0.01;
+    std::vector<double> psf_box;
+    int psf_stamp = 41, psf_n_max_cap = 20;
     std::string input = "-";
     bool ignore_correlation = false;
     double noise_correlation = 0.0;
@@ -73,6 +85,25 @@ void declare(app::ProgramOptions& options, Settings& s) {
          "record's noise_correlation from shapesim-detect, else 1)")
         ("white-noise", po::bool_switch(&s.ignore_correlation),
          "use the textbook chi2_r (F = 1) even when the record has a factor");
+    options.group("PSF mode").add_options()
+        ("psf-image", po::value(&s.psf_image)->value_name("FILE"),
+         "model this PSF image instead of reading sources")
+        ("psf-pixel-scale", po::value(&s.psf_pixel_scale)->value_name("ARCSEC")
+             ->notifier(in_range("psf-pixel-scale", 1e-6, 3600.0)),
+         "pixel scale of --psf-image (default: its PIXSCALE keyword)")
+        ("pixel-scale", po::value(&s.pixel_scale)->value_name("ARCSEC")
+             ->notifier(in_range("pixel-scale", 1e-6, 3600.0)),
+         "target pixel scale (default: that of --like)")
+        ("psf-box", po::value(&s.psf_box)->value_name("ARCSEC")->multitoken(),
+         "convolve the PSF with square boxes of these widths first (detector pixel, drizzle "
+         "drop: a subsampled TinyTim PSF lacks both)")
+        ("psf-stamp", po::value(&s.psf_stamp)->default_value(41)
+             ->notifier(in_range("psf-stamp", 5, 1001)), "PSF stamp side at the target scale, pixels")
+        ("psf-residual", po::value(&s.psf_residual)->default_value(0.01)
+             ->notifier(in_range("psf-residual", 1e-6, 1.0)),
+         "raise n_max until max |residual| is below this fraction of the peak")
+        ("psf-n-max-cap", po::value(&s.psf_n_max_cap)->default_value(20)
+             ->notifier(in_range("psf-n-max-cap", 0, 60)), "highest n_max for the PSF");
     options.group("Output").add_options()
         ("models", po::value(&s.models)->value_name("FILE"),
          "write data, model and residual images (<id>.data/.model/.residual) to this FITS file")
@@ -83,6 +114,8 @@ void declare(app::ProgramOptions& options, Settings& s) {
 struct Job {
     SourceRecord source;
     Stamp stamp;
+    double pixel_scale = 0.0;
+    std::optional<double> zero_point;  // absent or null: no magnitudes
     double noise_correlation = 1.0;
     long line = 0;
 };
@@ -107,17 +140,56 @@ std::set<std::string> split_ids(const std::string& list) {
     return ids;
 }
 
+// PSF mode: one record of the PSF image's shapelet model at the target pixel scale.
+int run_psf(const Settings& s, const app::ProgramOptions& options, const app::Log& log) {
+    double target = s.pixel_scale;
+    if (!options.given("pixel-scale")) {
+        if (options.common().like.empty())
+            throw po::error("PSF mode needs --like IMAGE or --pixel-scale");
+        target = read_field_geometry(options.common().like).pixel_scale;
+    }
+    FitsReader fits(s.psf_image, FitsStart::first_image);
+    double scale = s.psf_pixel_scale;
+    if (!options.given("psf-pixel-scale")) {
+        const auto header = fits.optional_double("PIXSCALE");
+        if (!header) throw Error("no PIXSCALE keyword: give --psf-pixel-scale", fits.place());
+        scale = *header;
+    }
+    PsfFitOptions fit;
+    fit.residual_target = s.psf_residual;
+    fit.n_max_cap = s.psf_n_max_cap;
+    const int side = s.psf_stamp % 2 == 1 ? s.psf_stamp : s.psf_stamp + 1;
+    const PsfModel psf = psf_from_oversampled(fits.read_image(), scale, target, s.psf_box, side, fit);
+    JsonlWriter out(std::cout, "-");
+    out.write(psf_record(psf, target, "psf").to_json());
+    log.info("PSF n_max ", psf.n_max, ", beta ", psf.model.beta_pix * target, "\" (",
+             psf.model.beta_pix, " px): max |residual| ", psf.max_residual_fraction,
+             " of the peak, rms ", psf.rms_residual_fraction, " (", log.elapsed(), " s)");
+    if (!s.models.empty()) {
+        FitsWriter models(s.models, "shapesim-decompose");
+        models.write_image(psf.image, {"psf.data", -64, {}, {}, {}, {}});
+        models.write_image(psf.image - psf.residual, {"psf.model", -64, {}, {}, {}, {}});
+        models.write_image(psf.residual, {"psf.residual", -64, {}, {}, {}, {}});
+        models.commit();
+    }
+    return 0;
+}
+
 int run(int argc, const char* const argv[]) {
     app::ProgramOptions options("shapesim-decompose", "[OPTION]...", description,
                                 app::Common::quiet | app::Common::verbose | app::Common::threads |
-                                    app::Common::config | app::Common::print_params);
+                                    app::Common::like | app::Common::config |
+                                    app::Common::print_params);
     Settings s;
     declare(options, s);
     if (!options.parse(argc, argv)) return 0;
     const app::Log log("shapesim-decompose", options.common().verbosity);
+    if (s.fit.n_max_min > s.fit.n_max_cap)
+        throw po::error("--n-max-min must not exceed --n-max-cap");
     s.fit.validate();
     if (!s.ids.empty() && s.models.empty()) throw po::error("--ids needs --models");
     if (!s.models.empty()) app::check_writable(s.models);
+    if (!s.psf_image.empty()) return run_psf(s, options, log);
 
     // Read every record and its stamp first (cfitsio handles stay on this thread), fit in
     // parallel, write in input order: the output does not depend on the thread count.
@@ -148,13 +220,26 @@ int run(int argc, const char* const argv[]) {
             hdu = placed([&] { return required_string(source.extra, "stamp_hdu"); });
         auto& fits = stamp_files[file];
         if (!fits) fits = std::make_unique<FitsReader>(file);
-        job.stamp = read_stamp(*fits, hdu);
+        try {
+            job.stamp = read_stamp(*fits, hdu);
+        } catch (const Error& e) {  // the FITS place and the record that asked for it
+            throw Error(e.where_what(), reader.name(), reader.line(), "stamp_hdu");
+        }
         if (options.given("noise-correlation"))
             job.noise_correlation = s.noise_correlation;
         else if (!s.ignore_correlation && source.extra.contains("noise_correlation"))
             job.noise_correlation = std::max(1.0, placed([&] {
                 return required_double(source.extra, "noise_correlation");
             }));
+        // Typed reads here, on the reading thread: a wrong type is a placed error, not a
+        // worker's exception.
+        job.pixel_scale = placed([&] {
+            const auto v = optional_double(source.extra, "pixel_scale");
+            if (!v || !(*v > 0.0))
+                throw Error("no positive pixel_scale in the record", "", 0, "pixel_scale");
+            return *v;
+        });
+        job.zero_point = placed([&] { return optional_double(source.extra, "zero_point"); });
         job.source = source;
         jobs.push_back(std::move(job));
     }
@@ -169,10 +254,6 @@ int run(int argc, const char* const argv[]) {
             try {
                 DecomposeOptions fit = s.fit;
                 fit.noise_correlation = job.noise_correlation;
-                const double pixel_scale = job.source.extra.value("pixel_scale", 0.0);
-                const double zero_point = job.source.extra.value("zero_point", 0.0);
-                if (!(pixel_scale > 0.0))
-                    throw Error("no pixel_scale in the record", "", 0, "pixel_scale");
                 MaskArray mask = (job.stamp.mask != 0.0).cast<std::uint8_t>();
                 const double x = job.source.x - (job.stamp.x0 - 1);
                 const double y = job.source.y - (job.stamp.y0 - 1);
@@ -180,9 +261,12 @@ int run(int argc, const char* const argv[]) {
                 out.decomposition = decompose(job.stamp.image, job.stamp.weight, &mask, x, y,
                                               beta, fit);
                 out.record = shapelet_record(job.source, *out.decomposition, job.stamp,
-                                             pixel_scale, zero_point);
+                                             job.pixel_scale, job.zero_point);
             } catch (const Error& e) {
                 out.error = e.message();
+            } catch (const std::exception& e) {
+                // Never let a worker's exception terminate the program.
+                out.error = std::string("internal error: ") + e.what();
             }
         }
     };

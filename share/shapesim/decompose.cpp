@@ -114,6 +114,10 @@ public:
         best_.reset();
         best_chi2r_ = infinite;
     }
+    void keep(ShapeletFit fit, double chi2r) {
+        best_ = std::move(fit);
+        best_chi2r_ = chi2r;
+    }
 
 private:
     const ImageArray& image_;
@@ -157,7 +161,11 @@ Decomposition decompose(const ImageArray& image, const ImageArray& weight, const
         }
         OrderSearch search(image, weight, mask, n, options, out.fits);
         beta = search.best_beta(x, y, lo, hi);
-        // Recentre on the model's own centroid; after a large move, search β again.
+        // Recentre on the model's own centroid; after a large move, search β again. The
+        // iteration can wander at a galaxy's own top order (the centroid of a fit that is
+        // just short of the data moves off it): the best (χ²_r) position seen is kept.
+        std::optional<ShapeletFit> best_seen = search.best();
+        double best_seen_chi2r = search.best_chi2r();
         for (int iteration = 0; iteration < options.centre_iterations && search.best(); ++iteration) {
             const Moments m = moments(search.best()->model);
             if (!std::isfinite(m.x) || !std::isfinite(m.y)) break;
@@ -166,18 +174,35 @@ Decomposition decompose(const ImageArray& image, const ImageArray& weight, const
             const double new_x = std::clamp(m.x, x_start - 3.0, x_start + 3.0);
             const double new_y = std::clamp(m.y, y_start - 3.0, y_start + 3.0);
             const double shift = std::hypot(new_x - x, new_y - y);
+            if (shift < options.centre_tolerance) break;
             x = new_x;
             y = new_y;
             search.forget();
             // A large move may change which dip in χ²_r(β) is deepest: scan again; a small
             // one only moves the minimum: search ±10% about the current β.
             if (shift > 0.25) beta = search.best_beta(x, y, lo, hi);
-            else if (shift >= options.centre_tolerance)
+            else
                 beta = search.best_beta(x, y, std::max(lo, beta / 1.1), std::min(hi, beta * 1.1),
                                         false);
-            else search.score(x, y, beta);
-            if (shift < options.centre_tolerance) break;
+            if (!search.best() || !(search.best_chi2r() < best_seen_chi2r)) break;
+            best_seen = search.best();
+            best_seen_chi2r = search.best_chi2r();
         }
+        // The detection's centre as a second start: the previous order's centre may already
+        // have wandered.
+        if (best_seen && std::hypot(best_seen->model.x - x_start,
+                                    best_seen->model.y - y_start) > options.centre_tolerance) {
+            search.forget();
+            const double b = best_seen->model.beta_pix;
+            search.best_beta(x_start, y_start, std::max(lo, b / 1.1), std::min(hi, b * 1.1),
+                             false);
+            if (search.best() && search.best_chi2r() < best_seen_chi2r) {
+                best_seen = search.best();
+                best_seen_chi2r = search.best_chi2r();
+            }
+        }
+        search.forget();
+        if (best_seen) search.keep(std::move(*best_seen), best_seen_chi2r);
         if (!search.best()) {
             if (!have_kept) throw Error("no usable fit: too few usable pixels in the stamp");
             out.stop = "stamp_small";
@@ -271,14 +296,16 @@ double masked_fraction(const Stamp& stamp, double x, double y, double radius) {
 }  // namespace
 
 ShapeletRecord shapelet_record(const SourceRecord& source, const Decomposition& decomposition,
-                               const Stamp& stamp, double pixel_scale, double zero_point) {
+                               const Stamp& stamp, double pixel_scale,
+                               std::optional<double> zero_point) {
     const ShapeletFit& fit = decomposition.fit;
     ShapeletModel model = fit.model;
     model.x += stamp.x0 - 1;
     model.y += stamp.y0 - 1;
     ShapeletRecord r = ShapeletRecord::from_model(model, pixel_scale, source.id);
     r.chi2r = decomposition.chi2r;
-    if (r.flux && *r.flux > 0.0) r.mag = zero_point - 2.5 * std::log10(*r.flux);
+    if (zero_point && r.flux && *r.flux > 0.0)
+        r.mag = *zero_point - 2.5 * std::log10(*r.flux);
     const double sigma_flux = decomposition.flux_error;
 
     r.flags.push_back(decomposition.converged ? "converged" : "not_converged");

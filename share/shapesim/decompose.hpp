@@ -28,6 +28,7 @@
 #include "shapesim/lsq.hpp"
 #include "shapesim/records.hpp"
 
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -96,7 +97,9 @@ double flux_error(const ShapeletFit& fit);
 ///    below 3σ: a probable noise detection).
 ///  - the source's fields are carried through; those the schema reuses (x, y, flux, mag,
 ///    flags, …) as `source_x`, `source_flux`, `source_flags`, ….
+/// Without a zero point (absent or null in the source record) `mag` is left out.
 ShapeletRecord shapelet_record(const SourceRecord& source, const Decomposition& decomposition,
-                               const Stamp& stamp, double pixel_scale, double zero_point);
+                               const Stamp& stamp, double pixel_scale,
+                               std::optional<double> zero_point);
 
 }  // namespace shapesim

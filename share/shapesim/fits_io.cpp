@@ -148,22 +148,20 @@ void FitsReader::move_to(const std::string& extname) {
     int status = 0;
     // Files are mostly read in the order they were written (stamps: image, weight, mask,
     // object after object): try the next HDU before cfitsio's search from the start, which
-    // makes reading N stamps O(N²).
+    // makes reading N stamps O(N²). (No HDU count: cfitsio finds it by walking to the end.)
     {
-        int hdus = 0, type = 0;
-        fits_get_num_hdus(impl_->f, &hdus, &status);
-        const int next = impl_->index + 1;  // 0-based index of the next HDU
-        if (status == 0 && next < hdus) {
-            fits_movabs_hdu(impl_->f, next + 1, &type, &status);
+        int type = 0;
+        fits_movabs_hdu(impl_->f, impl_->index + 2, &type, &status);  // 1-based: next HDU
+        if (status == 0) {
             char value[FLEN_VALUE] = {};
             int key_status = 0;
             fits_read_key(impl_->f, TSTRING, "EXTNAME", value, nullptr, &key_status);
-            if (status == 0 && key_status == 0 && strcasecmp(value, extname.c_str()) == 0) {
+            if (key_status == 0 && strcasecmp(value, extname.c_str()) == 0) {
                 impl_->located();
                 return;
             }
         }
-        status = 0;
+        status = 0;  // past the last HDU, or another name: search
         fits_clear_errmsg();
     }
     fits_movnam_hdu(impl_->f, ANY_HDU, const_cast<char*>(extname.c_str()), 0, &status);

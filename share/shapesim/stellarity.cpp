@@ -2,6 +2,7 @@
 
 #include "shapesim/error.hpp"
 #include "shapesim/render.hpp"
+#include "shapesim/resample.hpp"
 
 #include <algorithm>
 #include <cmath>
@@ -64,22 +65,6 @@ double half_max_fwhm(const ImageArray& image) {
     return 2.0 * std::sqrt(area / pi);
 }
 
-// Overlap lengths between output cells of `width` input pixels, centred at
-// `first_centre + k·spacing` in input coordinates, and input pixels p ∈ [p − ½, p + ½].
-Eigen::MatrixXd overlap_matrix(int outputs, double first_centre, double spacing, double width,
-                               int inputs) {
-    Eigen::MatrixXd w = Eigen::MatrixXd::Zero(outputs, inputs);
-    for (int k = 0; k < outputs; ++k) {
-        const double lo = first_centre + k * spacing - 0.5 * width;
-        const double hi = lo + width;
-        const int p0 = std::max(0, int(std::floor(lo + 0.5)));
-        const int p1 = std::min(inputs - 1, int(std::floor(hi + 0.5)));
-        for (int p = p0; p <= p1; ++p)
-            w(k, p) = std::max(0.0, std::min(hi, p + 0.5) - std::max(lo, p - 0.5));
-    }
-    return w;
-}
-
 }  // namespace
 
 PointSourceLocus gaussian_point_source_locus(double fwhm_pixels) {
@@ -130,44 +115,21 @@ PointSourceLocus image_point_source_locus(const ImageArray& psf, double psf_pixe
         throw Error("PSF image is sampled more coarsely than the image");
     const double total = psf.sum();
     if (!(total > 0.0)) throw Error("PSF image has no positive flux");
-    double cx = 0.0, cy = 0.0;
-    for (Eigen::Index j = 0; j < psf.rows(); ++j)
-        for (Eigen::Index i = 0; i < psf.cols(); ++i) {
-            cx += double(i) * psf(j, i);
-            cy += double(j) * psf(j, i);
-        }
-    cx /= total;
-    cy /= total;
+    const PixelPosition centre = flux_centroid(psf);
     const double ratio = image_pixel_scale / psf_pixel_scale;
     const double fwhm = half_max_fwhm(psf) / ratio;
     const int side = side_for(fwhm);
     return locus_from(
         [&](double dx, double dy) {
             const double c = (side + 1) / 2.0;  // FITS centre of the output stamp
-            // Output pixel k (0-based) is centred at (k + 1 − c − dx) image pixels from the
-            // PSF centre, i.e. at cx + (k + 1 − c − dx)·ratio in PSF pixels.
-            const Eigen::MatrixXd wx =
-                overlap_matrix(side, cx + (1.0 - c - dx) * ratio, ratio, ratio, int(psf.cols()));
-            const Eigen::MatrixXd wy =
-                overlap_matrix(side, cy + (1.0 - c - dy) * ratio, ratio, ratio, int(psf.rows()));
-            const Eigen::MatrixXd out = wy * psf.matrix() * wx.transpose();
-            return PhasedStamp{out.array() / total, c + dx, c + dy};
+            // The PSF's centroid lands at (c + dx, c + dy) of the stamp, integrated over
+            // each image pixel (resample.hpp).
+            const ImageArray out =
+                resample_pixel_integrated(psf, psf_pixel_scale, image_pixel_scale, centre,
+                                          side, side, {c + dx, c + dy});
+            return PhasedStamp{out / total, c + dx, c + dy};
         },
         fwhm);
-}
-
-ImageArray box_convolve(const ImageArray& image, double width) {
-    if (!(width > 0.0) || !std::isfinite(width)) throw Error("box width must be > 0 pixels");
-    // Pad by the box's half width so no flux leaves the array; the centre stays at the
-    // same offset (pad pixels) from the array origin on both axes.
-    const int pad = int(std::ceil(0.5 * width));
-    const int nx = int(image.cols()) + 2 * pad, ny = int(image.rows()) + 2 * pad;
-    // Output pixel k of the padded array sits at input coordinate k − pad; mean over the box.
-    const Eigen::MatrixXd wx =
-        overlap_matrix(nx, -pad, 1.0, width, int(image.cols())) / width;
-    const Eigen::MatrixXd wy =
-        overlap_matrix(ny, -pad, 1.0, width, int(image.rows())) / width;
-    return (wy * image.matrix() * wx.transpose()).array();
 }
 
 CoreFraction core_fraction(const DetectionResult& field, const Detection& object,

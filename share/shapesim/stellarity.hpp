@@ -27,6 +27,7 @@
 
 #include "shapesim/detect.hpp"
 #include "shapesim/model.hpp"
+#include "shapesim/resample.hpp"
 
 namespace shapesim {
 
@@ -49,10 +50,8 @@ PointSourceLocus model_point_source_locus(const ShapeletModel& psf);
 PointSourceLocus image_point_source_locus(const ImageArray& psf, double psf_pixel_scale,
                                           double image_pixel_scale);
 
-/// `image` convolved with a square box `width` pixels wide (separable, flux-conserving; the
-/// result is padded by ⌈width/2⌉ pixels on every side). For PSF images that lack the detector
-/// pixel or a drizzle drop: TinyTim's subsampled PSFs omit both.
-ImageArray box_convolve(const ImageArray& image, double width);
+// box_convolve (a PSF image convolved with a detector pixel or drizzle drop) lives in
+// resample.hpp, included above, with the rest of the pixel-resampling maths.
 
 /// Core fraction ρ of a detection and its error.
 struct CoreFraction {

@@ -1,0 +1,109 @@
+// PSF mode: a shapelet model of a PSF image (DESIGN §3, paper §2.3).
+//
+// The PSF image is noise-free, so the fit is plain least squares (uniform weights,
+// lsq.hpp fit_shapelets) and "good" means a small residual relative to the peak, not χ²_r:
+//   - centre: at each n_max, start at the image's flux centroid, then move the basis centre
+//     until the fitted model's own centroid (moments.hpp) sits on it, as for galaxies: Newton
+//     steps on g(c) = centroid(fit at c) − c (Jacobian by finite differences at fixed β; a
+//     step is halved until |g| shrinks, ≤ 0.5 pixel), at most `centre_iterations`, stopping
+//     at |g| < `centre_tolerance`. (The plain iteration c ← centroid diverges even for an exact
+//     model: a truncated basis follows a shift of its centre only in part, dg/dc ≈ −2.2 in
+//     the tests.) The final |g| is reported per n_max;
+//   - β: at each n_max, the minimum of the residual sum of squares over ln β — a scan of
+//     `beta_grid` points over the allowed range, then golden-section refinement to
+//     `beta_tolerance` in ln β; after each re-centring the search is redone (from scratch
+//     after a move > 0.05 pixel, else within one scan step of the current β). The range keeps
+//     the basis resolved and inside the stamp: β/√(n+1) ≥ min_resolution_pixels and
+//     β√(n+1) ≤ half the stamp's smaller side. (An undersampled PSF — e.g. WFPC2 at 0.04″ —
+//     carries aliased power at the pixel scale that only a basis finer than 0.5 pixel can
+//     follow: there the resolution bound, not n_max, sets the residual floor; see
+//     psf_test.cpp for the numbers);
+//   - n_max: raised from n_max_min until max |residual| ≤ residual_target · peak, up to
+//     n_max_cap (or until the β range closes). When no n_max reaches the target, the one with
+//     the smallest max |residual| is returned, reached_target is false, and `steps` records
+//     every n_max tried, so callers can say why.
+// The residual covers the whole stamp, so it includes what lies beyond the model's reach
+// (r > β√(n+1)): a WFPC2 PSF has wide wings; `beyond_reach_*` report them.
+// The returned model is normalised to unit flux (moments.hpp `flux`), its centre in the
+// stamp's FITS coordinates and β in its pixels; `image` and `residual` are scaled alike.
+// Mind what normalising does to wide wings: the fit's own flux F covers only what the basis
+// reaches (TinyTim WFPC2 F814W at 0.03985″ in 41²: F = 95.0 % of the stamp's flux, the stamp
+// 97.3 % of the PSF's), so a unit-flux model puts the missing wing flux into the core;
+// model_flux / data_flux and flux_outside_stamp say how much.
+#pragma once
+
+#include "shapesim/image.hpp"
+#include "shapesim/model.hpp"
+#include "shapesim/records.hpp"
+
+#include <limits>
+#include <string>
+#include <vector>
+
+namespace shapesim {
+
+struct PsfFitOptions {
+    int n_max_min = 0;               ///< first n_max tried
+    int n_max_cap = 20;              ///< last n_max tried
+    double residual_target = 0.005;  ///< stop once max |residual| ≤ this × peak
+    double beta_tolerance = 1e-4;    ///< final bracket width in ln β
+    int beta_grid = 16;              ///< ln β scan points before refinement (≥ 3)
+    double min_resolution_pixels = 0.5;  ///< β/√(n_max+1) ≥ this (pixels)
+    int centre_iterations = 5;       ///< re-centrings on the model's centroid, at most
+    double centre_tolerance = 1e-4;  ///< pixels; stop re-centring below this move
+};
+
+/// The best fit at one n_max.
+struct PsfFitStep {
+    int n_max = 0;
+    double beta_pix = 0.0;
+    double x = 0.0, y = 0.0;              ///< basis centre, stamp FITS pixels
+    double max_residual_fraction = 0.0;   ///< max |residual| / peak
+    double rms_residual_fraction = 0.0;   ///< rms residual over the stamp / peak
+    double centroid_offset = 0.0;         ///< |model centroid − basis centre|, pixels
+    int fits = 0;                         ///< least-squares fits spent on this n_max
+};
+
+struct PsfModel {
+    ShapeletModel model;                  ///< unit flux; centre in stamp FITS pixels; β in pixels
+    int n_max = 0;
+    double max_residual_fraction = 0.0;   ///< max |data − model| / max data
+    double rms_residual_fraction = 0.0;   ///< rms (data − model) over the stamp / max data
+    bool reached_target = false;          ///< max_residual_fraction ≤ residual_target
+    ImageArray image;                     ///< the unit-flux model, pixel-integrated on the stamp
+    ImageArray residual;                  ///< data / F − image, F the fitted model's flux
+    double peak = 0.0;                    ///< max of data / F
+    double data_flux = 0.0;               ///< Σ data over the stamp (input units)
+    double model_flux = 0.0;              ///< F: flux of the fit before normalisation (input units)
+    double beyond_reach_flux_fraction = 0.0;  ///< Σ data at r > β√(n+1) / Σ data
+    double beyond_reach_max_residual_fraction = 0.0;  ///< max |residual| there / peak
+    /// psf_from_oversampled only: 1 − (flux in the stamp)/(flux of the box-convolved fine
+    /// image); NaN otherwise.
+    double flux_outside_stamp = std::numeric_limits<double>::quiet_NaN();
+    std::vector<PsfFitStep> steps;        ///< every n_max tried, in order
+};
+
+/// Fit a shapelet model to a noise-free PSF image already at the target pixel scale (see the
+/// file comment). Error when the image is empty, not finite, has max ≤ 0 or Σ ≤ 0, the options
+/// are inconsistent, or no n_max admits a β (stamp too small).
+PsfModel fit_psf_image(const ImageArray& psf_pixels_at_target_scale,
+                       const PsfFitOptions& options = {});
+
+/// An oversampled PSF image (pixels `fine_scale` wide, arcsec) to a PSF model at
+/// `target_scale` (arcsec per pixel): convolve with each box of `boxes_arcsec` in turn (e.g.
+/// the detector pixel and the drizzle drop, which TinyTim's subsampled PSFs lack; resample.hpp
+/// box_convolve), integrate over the target pixels into a stamp_pixels² stamp (odd) whose
+/// centre pixel holds the flux centroid (resample_pixel_integrated), and fit_psf_image it.
+/// Sets flux_outside_stamp. Error when the scales are not > 0, a box is not > 0, the stamp size
+/// is even or < 3, or the fine image is unusable.
+PsfModel psf_from_oversampled(const ImageArray& fine, double fine_scale, double target_scale,
+                              const std::vector<double>& boxes_arcsec, int stamp_pixels,
+                              const PsfFitOptions& options = {});
+
+/// A `shapesim.shapelet/1` record of the PSF model at `pixel_scale` (arcsec per pixel), for
+/// shapesim-render: flux 1; flags "converged" when the target was reached, else
+/// "residual_above_target"; extra fields psf_max_residual, psf_rms_residual and, when known,
+/// psf_flux_outside_stamp.
+ShapeletRecord psf_record(const PsfModel& psf, double pixel_scale, std::string id);
+
+}  // namespace shapesim
