@@ -310,8 +310,9 @@ int run(int argc, const char* const argv[]) {
         }
     }
     if (models) models->commit();
-    log.info(out.count(), " models (", converged, " converged with chi2_r <= ",
-             s.fit.chi2_target, "), ", failed, " stamps not fitted, in ", log.elapsed(), " s");
+    log.info(out.count(), " models (", converged, " converged: chi2_r <= ", s.fit.chi2_target,
+             " within ", s.fit.chi2_sigmas, " sigma), ", failed, " stamps not fitted, in ",
+             log.elapsed(), " s");
     return 0;
 }
 
