@@ -148,18 +148,15 @@ int run_psf(const Settings& s, const app::ProgramOptions& options, const app::Lo
             throw po::error("PSF mode needs --like IMAGE or --pixel-scale");
         target = read_field_geometry(options.common().like).pixel_scale;
     }
-    FitsReader fits(s.psf_image, FitsStart::first_image);
-    double scale = s.psf_pixel_scale;
-    if (!options.given("psf-pixel-scale")) {
-        const auto header = fits.optional_double("PIXSCALE");
-        if (!header) throw Error("no PIXSCALE keyword: give --psf-pixel-scale", fits.place());
-        scale = *header;
-    }
+    const PsfImage image = read_psf_image(
+        s.psf_image,
+        options.given("psf-pixel-scale") ? std::optional(s.psf_pixel_scale) : std::nullopt);
     PsfFitOptions fit;
     fit.residual_target = s.psf_residual;
     fit.n_max_cap = s.psf_n_max_cap;
     const int side = s.psf_stamp % 2 == 1 ? s.psf_stamp : s.psf_stamp + 1;
-    const PsfModel psf = psf_from_oversampled(fits.read_image(), scale, target, s.psf_box, side, fit);
+    const PsfModel psf =
+        psf_from_oversampled(image.pixels, image.pixel_scale, target, s.psf_box, side, fit);
     JsonlWriter out(std::cout, "-");
     out.write(psf_record(psf, target, "psf").to_json());
     log.info("PSF n_max ", psf.n_max, ", beta ", psf.model.beta_pix * target, "\" (",

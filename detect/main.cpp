@@ -9,6 +9,7 @@
 #include "shapesim/error.hpp"
 #include "shapesim/fits_io.hpp"
 #include "shapesim/jsonl.hpp"
+#include "shapesim/psf.hpp"
 #include "shapesim/records.hpp"
 #include "shapesim/sources.hpp"
 
@@ -194,19 +195,11 @@ int run(int argc, const char* const argv[]) {
     // The point-source locus for the stellarity.
     PointSourceLocus locus;
     if (!s.psf_image.empty()) {
-        FitsReader psf(s.psf_image, FitsStart::first_image);
-        double scale = s.psf_pixel_scale;
-        if (!options.given("psf-pixel-scale")) {
-            const auto header = psf.optional_double("PIXSCALE");
-            if (!header) throw Error("no PIXSCALE keyword: give --psf-pixel-scale", psf.place());
-            scale = *header;
-        }
-        ImageArray psf_image = psf.read_image();
-        for (double box : s.psf_box) {
-            if (!(box > 0.0)) throw po::error("--psf-box: widths must be > 0");
-            psf_image = box_convolve(psf_image, box / scale);
-        }
-        locus = image_point_source_locus(psf_image, scale, context.pixel_scale);
+        const PsfImage psf = read_psf_image(
+            s.psf_image, options.given("psf-pixel-scale") ? std::optional(s.psf_pixel_scale)
+                                                          : std::nullopt);
+        locus = image_point_source_locus(convolve_boxes(psf.pixels, psf.pixel_scale, s.psf_box),
+                                         psf.pixel_scale, context.pixel_scale);
     } else if (!s.psf_model.empty()) {
         JsonlReader reader(s.psf_model, {ShapeletRecord::schema});
         ShapeletRecord record;

@@ -1,5 +1,7 @@
 #include "shapesim/psf.hpp"
 
+#include "shapesim/fits_io.hpp"
+
 #include "shapesim/error.hpp"
 #include "shapesim/lsq.hpp"
 #include "shapesim/moments.hpp"
@@ -257,6 +259,33 @@ PsfModel fit_psf_image(const ImageArray& image, const PsfFitOptions& options) {
     return out;
 }
 
+ImageArray convolve_boxes(const ImageArray& fine, double fine_scale,
+                          const std::vector<double>& boxes_arcsec) {
+    ImageArray smoothed = fine;
+    for (double box : boxes_arcsec) {
+        if (!(box > 0.0) || !std::isfinite(box))
+            throw Error("PSF: box widths must be finite and > 0 arcsec, got " +
+                        std::to_string(box));
+        smoothed = box_convolve(smoothed, box / fine_scale);
+    }
+    return smoothed;
+}
+
+PsfImage read_psf_image(const std::string& path, std::optional<double> pixel_scale) {
+    FitsReader fits(path, FitsStart::first_image);
+    PsfImage out;
+    if (pixel_scale) {
+        out.pixel_scale = *pixel_scale;
+    } else {
+        const auto header = fits.optional_double("PIXSCALE");
+        if (!header) throw Error("no PIXSCALE keyword: give the PSF's pixel scale", fits.place());
+        out.pixel_scale = *header;
+    }
+    if (!(out.pixel_scale > 0.0)) throw Error("PSF pixel scale must be > 0", fits.place());
+    out.pixels = fits.read_image();
+    return out;
+}
+
 PsfModel psf_from_oversampled(const ImageArray& fine, double fine_scale, double target_scale,
                               const std::vector<double>& boxes_arcsec, int stamp_pixels,
                               const PsfFitOptions& options) {
@@ -268,13 +297,7 @@ PsfModel psf_from_oversampled(const ImageArray& fine, double fine_scale, double 
                     std::to_string(stamp_pixels));
     if (fine.size() == 0) throw Error("PSF image is empty");
     if (!fine.allFinite()) throw Error("PSF image has NaN or infinite pixels");
-    ImageArray smoothed = fine;
-    for (double box : boxes_arcsec) {
-        if (!(box > 0.0) || !std::isfinite(box))
-            throw Error("PSF: box widths must be finite and > 0 arcsec, got " +
-                        std::to_string(box));
-        smoothed = box_convolve(smoothed, box / fine_scale);
-    }
+    const ImageArray smoothed = convolve_boxes(fine, fine_scale, boxes_arcsec);
     const PixelPosition centroid = flux_centroid(smoothed);
     const double c = 0.5 * (stamp_pixels + 1);
     const ImageArray stamp = resample_pixel_integrated(

@@ -38,6 +38,8 @@
 
 #include <limits>
 #include <string>
+#include <optional>
+#include <string>
 #include <vector>
 
 namespace shapesim {
@@ -99,6 +101,21 @@ PsfModel fit_psf_image(const ImageArray& psf_pixels_at_target_scale,
 PsfModel psf_from_oversampled(const ImageArray& fine, double fine_scale, double target_scale,
                               const std::vector<double>& boxes_arcsec, int stamp_pixels,
                               const PsfFitOptions& options = {});
+
+/// An oversampled PSF image as read from a file.
+struct PsfImage {
+    ImageArray pixels;
+    double pixel_scale = 0.0;  ///< arcsec per pixel
+};
+/// The first image of `path` (cfitsio syntax allowed) at `pixel_scale` when given, else at
+/// its header's PIXSCALE (TinyTim's keyword). Error naming the file when neither is there.
+PsfImage read_psf_image(const std::string& path, std::optional<double> pixel_scale);
+
+/// `fine` (at `fine_scale` arcsec per pixel) convolved with square boxes `boxes_arcsec` wide,
+/// in turn (box_convolve): the detector pixel and a drizzle drop a subsampled PSF lacks.
+/// Error for a width that is not finite and > 0.
+ImageArray convolve_boxes(const ImageArray& fine, double fine_scale,
+                          const std::vector<double>& boxes_arcsec);
 
 /// A `shapesim.shapelet/1` record of the PSF model at `pixel_scale` (arcsec per pixel), for
 /// shapesim-render: flux 1; flags "converged" when the target was reached, else
