@@ -27,11 +27,13 @@ void DecomposeOptions::validate() const {
         fail("noise_correlation", "must be ≥ 1");
 }
 
-double effective_chi2r(const ShapeletFit& fit, double noise_correlation) {
+double effective_dof(const ShapeletFit& fit, double noise_correlation) {
     const double p = double(real_count(fit.model.n_max));
-    const double dof = std::max(1.0, double(fit.pixels_used) - p * noise_correlation *
-                                                                    noise_correlation);
-    return fit.chi2 / dof;
+    return std::max(1.0, double(fit.pixels_used) - p * noise_correlation * noise_correlation);
+}
+
+double effective_chi2r(const ShapeletFit& fit, double noise_correlation) {
+    return fit.chi2 / effective_dof(fit, noise_correlation);
 }
 
 namespace {
@@ -217,9 +219,7 @@ Decomposition decompose(const ImageArray& image, const ImageArray& weight, const
         kept = best;
         have_kept = true;
         kept_chi2r = chi2r;
-        const double dof = std::max(1.0, double(best.pixels_used) -
-                                             real_count(n) * options.noise_correlation *
-                                                 options.noise_correlation);
+        const double dof = effective_dof(best, options.noise_correlation);
         if (chi2r <= options.chi2_target + options.chi2_sigmas * std::sqrt(2.0 / dof)) {
             out.stop = "chi2_target";
             out.converged = true;

@@ -70,7 +70,9 @@ struct Decomposition {
     std::vector<OrderTrial> trials;  ///< the best (β, χ²_r) of each order tried
 };
 
-/// χ²_r of `fit` with effective degrees of freedom pixels − p·F² (≥ 1).
+/// Effective degrees of freedom of `fit`: pixels − p·F² (≥ 1).
+double effective_dof(const ShapeletFit& fit, double noise_correlation);
+/// χ²_r of `fit` with those degrees of freedom.
 double effective_chi2r(const ShapeletFit& fit, double noise_correlation);
 
 /// Decompose `image` (weights, optional mask as in fit_shapelets) starting from centre
