@@ -256,6 +256,23 @@ Decomposition decompose(const ImageArray& image, const ImageArray& weight, const
     } catch (const Error&) {
         // β at a constraint edge with too few pixels beyond it: keep the fixed-β error.
     }
+    // Truncation's share: the flux the orders above n_max would still move, estimated from
+    // the fit four orders up at the same centre and β (two more flux-carrying even orders),
+    // less the noise variance those extra coefficients add to the difference (nested
+    // least-squares fits: Var(F' − F) = σ'² − σ²).
+    try {
+        const ShapeletModel& m = out.fit.model;
+        const ShapeletFit up = fit_shapelets(image, weight, mask, m.x, m.y, m.beta_pix,
+                                             m.n_max + truncation_orders, options.solver);
+        ++out.fits;
+        const double change = flux(up.model) - flux(m);
+        const double up_error = flux_error(up);
+        out.truncation_error =
+            std::sqrt(std::max(0.0, change * change - (up_error * up_error - fixed * fixed)));
+        out.flux_error = std::hypot(out.flux_error, out.truncation_error);
+    } catch (const Error&) {
+        // Too few pixels for the higher order: no truncation estimate.
+    }
     return out;
 }
 
@@ -332,6 +349,7 @@ ShapeletRecord shapelet_record(const SourceRecord& source, const Decomposition& 
     Json& e = r.extra;
     e["beta_pix"] = fit.model.beta_pix;
     if (std::isfinite(sigma_flux)) e["flux_err"] = sigma_flux;
+    e["flux_err_truncation"] = decomposition.truncation_error;
     e["stop"] = decomposition.stop;
     e["fits"] = decomposition.fits;
     Json trials = Json::array();

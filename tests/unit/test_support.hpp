@@ -101,4 +101,34 @@ struct SyntheticField {
 SyntheticField synthetic_field(int nx, int ny, double spacing, double flux_min, double flux_max,
                                double noise_sigma, std::uint64_t seed, double psf_sigma = 1.5,
                                int star_every = 0);
+
+/// A galaxy-like random model (a_00 dominant, random_model) centred in a `side`² stamp, its
+/// centroid on the basis centre (the optimiser centres on the centroid; a truth off it has no
+/// finite expansion there), scaled to total `flux`.
+ShapeletModel centred_galaxy(int n_max, double beta, int side, unsigned seed, double flux);
+/// render_stamp(model) plus white noise σ from RandomStream(seed, id, "noise").
+ImageArray noisy_stamp(const ShapeletModel& model, int side, double sigma, std::uint64_t seed,
+                       std::uint64_t id);
+
+/// Decompositions of noisy stamps of known models (decompose.hpp with default options):
+/// truth n_max 2, 4, 8, 12, β = 1.15 and 1.6 × √(n+1) px, S/N 10, 100, 1000 (σ such that the
+/// flux within 2β has S/N 2·snr), `seeds` models each, unit flux in a 61² stamp.
+struct DecomposeGrid {
+    int cases = 0;
+    int max_excess = -100;   ///< largest fitted − true n_max
+    int over = 0;            ///< cases with fitted n_max > truth + 2
+    std::vector<double> snr; ///< per case
+    std::vector<double> pull;///< (F − 1)/σ_F per case
+    std::vector<double> converged_chi2r;
+};
+DecomposeGrid decompose_grid(int seeds);
+
+/// Mean and rms about the mean of the values of `v` whose `key` satisfies `keep`.
+struct MeanRms {
+    double mean = 0.0, rms = 0.0, error = 0.0;  ///< error: rms/√n, the mean's
+    std::size_t n = 0;
+};
+MeanRms mean_rms(const std::vector<double>& v, const std::vector<double>& key,
+                 const std::function<bool(double)>& keep);
+
 }  // namespace shapesim::test
