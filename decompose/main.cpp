@@ -41,7 +41,7 @@ const char* const description =
     "      --psf-box 0.0996 0.05 > psf.jsonl";
 
 struct Settings {
-    std::string stamps, models, ids;
+    std::string stamps, models, ids, stars;
     std::string psf_image;
     double psf_pixel_scale = 0.0, pixel_scale = 0.0, psf_residual = 0.01;
     std::vector<double> psf_box;
@@ -59,7 +59,10 @@ void declare(app::ProgramOptions& options, Settings& s) {
         ("input,i", po::value(&s.input)->value_name("FILE")->default_value("-"),
          "source records (default: stdin)")
         ("stamps", po::value(&s.stamps)->value_name("FILE"),
-         "stamps file (default: each record's stamp_file)");
+         "stamps file (default: each record's stamp_file)")
+        ("stars", po::value(&s.stars)->value_name("FILE"),
+         "star records (shapesim-detect --stars): flag galaxies whose model reaches a "
+         "brighter star's wings \"bright_star\"");
     options.group("Optimiser").add_options()
         ("n-max-cap", po::value(&f.n_max_cap)->default_value(15)
              ->notifier(in_range("n-max-cap", 0, 100)), "highest n_max")
@@ -188,6 +191,12 @@ int run(int argc, const char* const argv[]) {
     if (!s.models.empty()) app::check_writable(s.models);
     if (!s.psf_image.empty()) return run_psf(s, options, log);
 
+    std::vector<SourceRecord> stars;
+    if (!s.stars.empty()) {
+        JsonlReader star_reader(s.stars, {SourceRecord::schema});
+        SourceRecord star;
+        while (star_reader.next_record(star)) stars.push_back(star);
+    }
     // Read every record and its stamp first (cfitsio handles stay on this thread), fit in
     // parallel, write in input order: the output does not depend on the thread count.
     JsonlReader reader(s.input, {SourceRecord::schema});
@@ -240,7 +249,8 @@ int run(int argc, const char* const argv[]) {
         job.source = source;
         jobs.push_back(std::move(job));
     }
-    log.info(jobs.size(), " stamps read in ", log.elapsed(), " s");
+    log.info(jobs.size(), " stamps", s.stars.empty() ? "" : " and " + std::to_string(stars.size()) + " stars",
+             " read in ", log.elapsed(), " s");
 
     std::vector<Outcome> outcomes(jobs.size());
     std::atomic<std::size_t> next{0};
@@ -259,6 +269,11 @@ int run(int argc, const char* const argv[]) {
                                               beta, fit);
                 out.record = shapelet_record(job.source, *out.decomposition, job.stamp,
                                              job.pixel_scale, job.zero_point);
+                const ShapeletModel& m = out.decomposition->fit.model;
+                if (near_bright_star(out.record->x, out.record->y,
+                                     m.beta_pix * std::sqrt(m.n_max + 1.0), job.source.flux,
+                                     stars))
+                    out.record->flags.push_back("bright_star");
             } catch (const Error& e) {
                 out.error = e.message();
             } catch (const std::exception& e) {

@@ -1,6 +1,7 @@
 #include "shapesim/decompose.hpp"
 
 #include "shapesim/error.hpp"
+#include "shapesim/jsonl.hpp"
 #include "shapesim/model.hpp"
 #include "shapesim/moments.hpp"
 
@@ -334,14 +335,20 @@ ShapeletRecord shapelet_record(const SourceRecord& source, const Decomposition& 
     if (has(source.flags, "edge") || has(source.flags, "truncated") ||
         has(source.flags, "aperture_truncated"))
         r.flags.push_back("edge");
-    if (!(r.flux && std::isfinite(sigma_flux) && *r.flux > 3.0 * sigma_flux))
+    // A noise detection is judged by the noise alone: truncation's share says how well the
+    // flux is known, not whether the object is there.
+    const double sigma_noise = std::sqrt(std::max(
+        0.0, sigma_flux * sigma_flux -
+                 decomposition.truncation_error * decomposition.truncation_error));
+    if (!(r.flux && std::isfinite(sigma_noise) && *r.flux > 3.0 * sigma_noise))
         r.flags.push_back("noise");
 
     // The source's own fields first, renamed where the shapelet schema reuses the name.
     const Json src = source.to_json();
     for (const auto& [key, value] : src.items()) {
         if (key == "schema" || key == "id") continue;
-        const bool reused = key == "x" || key == "y" || key == "flux" || key == "mag" ||
+        const bool reused = key == "x" || key == "y" || key == "flux" || key == "flux_err" ||
+                            key == "mag" ||
                             key == "flags" || key == "beta" || key == "pixel_scale" ||
                             key == "n_max" || key == "coeffs" || key == "chi2r";
         r.extra[reused ? "source_" + key : key] = value;
@@ -362,6 +369,19 @@ ShapeletRecord shapelet_record(const SourceRecord& source, const Decomposition& 
     for (const Complex& c : errors.coeffs) coeff_errors.push_back(Json::array({c.real(), c.imag()}));
     e["coeff_errors"] = coeff_errors;
     return r;
+}
+
+bool near_bright_star(double x, double y, double reach, double galaxy_flux,
+                      const std::vector<SourceRecord>& stars) {
+    for (const SourceRecord& star : stars) {
+        if (!(star.flux > galaxy_flux)) continue;
+        double radius = 0.0;
+        const auto kron = optional_double(star.extra, "kron_radius");
+        if (kron && star.a) radius = *kron * *star.a;
+        else if (star.fwhm) radius = 1.5 * *star.fwhm;
+        if (std::hypot(star.x - x, star.y - y) < reach + 2.0 * radius) return true;
+    }
+    return false;
 }
 
 }  // namespace shapesim

@@ -104,12 +104,20 @@ double flux_error(const ShapeletFit& fit);
 ///  - flags: "converged" or "not_converged"; "n_max_cap"; "neighbour" (the source was
 ///    deblended, or more than 5% of the pixels within the model's reach β√(n_max+1) belong
 ///    to a neighbour); "edge" (stamp or aperture cut by the image edge); "noise" (model flux
-///    below 3σ: a probable noise detection).
-///  - the source's fields are carried through; those the schema reuses (x, y, flux, mag,
-///    flags, …) as `source_x`, `source_flux`, `source_flags`, ….
+///    below 3σ of the noise, truncation's share left out: a probable noise detection). ("bright_star", near_bright_star(), is the
+///    caller's: it needs the star list.)
+///  - the source's fields are carried through; those the schema reuses (x, y, flux, flux_err,
+///    mag, flags, …) as `source_x`, `source_flux`, `source_flags`, ….
 /// Without a zero point (absent or null in the source record) `mag` is left out.
 ShapeletRecord shapelet_record(const SourceRecord& source, const Decomposition& decomposition,
                                const Stamp& stamp, double pixel_scale,
                                std::optional<double> zero_point);
+
+/// Whether a star brighter than the galaxy lies close enough for its wings to touch the
+/// galaxy's model: the star's circle of twice its Kron radius (kron_radius·a, or 1.5·FWHM when
+/// the record has neither) overlaps the model's reach, β√(n_max+1) about its centre. All in
+/// the parent image's FITS pixels; `galaxy_flux` and the stars' fluxes in the same units.
+bool near_bright_star(double x, double y, double reach, double galaxy_flux,
+                      const std::vector<SourceRecord>& stars);
 
 }  // namespace shapesim

@@ -213,6 +213,7 @@ TEST(DecomposeRecord, ShiftsToTheParentAndCarriesTheSource) {
     source.x = truth.x + 100;
     source.y = truth.y + 200;
     source.flux = 49.0;
+    source.flux_err = 0.7;
     source.flags = {"blended"};
     source.stellarity = 0.1;
     source.extra["stamp_hdu"] = "17";
@@ -228,10 +229,35 @@ TEST(DecomposeRecord, ShiftsToTheParentAndCarriesTheSource) {
     EXPECT_NE(std::find(r.flags.begin(), r.flags.end(), "neighbour"), r.flags.end());
     ASSERT_TRUE(r.extra.contains("source_flux"));
     EXPECT_EQ(r.extra.at("source_flux"), 49.0);
+    ASSERT_TRUE(r.extra.contains("source_flux_err"));
+    EXPECT_EQ(r.extra.at("source_flux_err"), 0.7);
+    EXPECT_NEAR(r.extra.at("flux_err").get<double>(), d.flux_error, 1e-15);
+    EXPECT_EQ(std::find(r.flags.begin(), r.flags.end(), "noise"), r.flags.end());
     ASSERT_TRUE(r.extra.contains("stellarity"));
     EXPECT_EQ(r.extra.at("stellarity"), 0.1);
     EXPECT_EQ(r.extra.at("stamp_hdu"), "17");
     ASSERT_TRUE(r.extra.contains("coeff_errors"));
     EXPECT_EQ(r.extra.at("coeff_errors").size(), r.coeffs.size());
     r.validate();
+}
+
+// A brighter star flags a galaxy whose reach meets twice the star's Kron radius; a fainter or
+// farther one does not; the FWHM stands in for a missing Kron radius.
+TEST(DecomposeRecord, NearBrightStar) {
+    SourceRecord star;
+    star.x = 100.0;
+    star.y = 100.0;
+    star.flux = 1000.0;
+    star.a = 2.0;
+    star.extra["kron_radius"] = 3.0;  // Kron radius 6 px: reach of the wings 12 px
+    const std::vector<SourceRecord> stars{star};
+    EXPECT_TRUE(near_bright_star(100.0, 115.0, 3.5, 10.0, stars));   // 15 < 3.5 + 12
+    EXPECT_FALSE(near_bright_star(100.0, 116.0, 3.5, 10.0, stars));  // 16 > 15.5
+    EXPECT_FALSE(near_bright_star(100.0, 115.0, 3.5, 2000.0, stars));  // galaxy brighter
+    EXPECT_FALSE(near_bright_star(100.0, 115.0, 3.5, 10.0, {}));
+    SourceRecord fwhm_only = star;
+    fwhm_only.extra = Json::object();
+    fwhm_only.fwhm = 4.0;  // radius 6 px again
+    EXPECT_TRUE(near_bright_star(112.0, 100.0, 0.5, 10.0, {fwhm_only}));
+    EXPECT_FALSE(near_bright_star(113.0, 100.0, 0.5, 10.0, {fwhm_only}));
 }

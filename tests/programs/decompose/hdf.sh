@@ -89,3 +89,21 @@ head -n 10 shapelets.jsonl | cmp -s - ten_shapelets.jsonl ||
   fail "--ids: the records differ from the full run's"
 ids ten.jsonl | grep '^[12]$' >wanted_ids
 expect_models some.fits wanted_ids
+
+# --stars: a bright star put 3 px from object 1 flags it "bright_star"; objects far from it
+# are not flagged, and without --stars nothing is.
+! grep -q '"bright_star"' ten_shapelets.jsonl || fail "bright_star without --stars"
+python3 -c 'import json, sys
+r = json.loads(open(sys.argv[1]).readline())
+assert r["id"] == "1", r["id"]
+star = {"schema": "shapesim.source/1", "id": "s1", "x": r["x"] + 3.0, "y": r["y"],
+        "flux": 1e6, "a": 2.0, "b": 2.0, "kron_radius": 3.5, "flags": [], "kind": "star"}
+print(json.dumps(star))' ten.jsonl >star.jsonl || fail "could not write the star record"
+"$BIN/$prog" -q --stars star.jsonl <ten.jsonl >starred.jsonl || fail "--stars run failed"
+grep '^{"schema":"shapesim.shapelet/1","id":"1"' starred.jsonl | grep -q '"bright_star"' ||
+  fail "--stars: object 1, 3 px from a bright star, is not flagged bright_star"
+flagged=$(grep -c '"bright_star"' starred.jsonl || true)
+[ "$flagged" -lt 10 ] || fail "--stars: all $flagged objects flagged"
+rc=0
+"$BIN/$prog" -q --stars missing.jsonl <ten.jsonl >out 2>err || rc=$?
+expect_error "$rc" 1 '^shapesim-decompose: missing\.jsonl: cannot open'
