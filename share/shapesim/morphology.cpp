@@ -1,0 +1,354 @@
+#include "shapesim/morphology.hpp"
+
+#include "shapesim/error.hpp"
+#include "shapesim/jsonl.hpp"
+#include "shapesim/moments.hpp"
+#include "shapesim/transform.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <limits>
+
+namespace shapesim {
+
+namespace {
+
+constexpr double pi = 3.14159265358979323846;
+constexpr double degree = pi / 180.0;
+
+bool nonzero(Complex c, double scale) { return std::abs(c) > 1e-12 * scale; }
+
+}  // namespace
+
+ShapeletModel align(const ShapeletModel& model, Alignment* how) {
+    Alignment a;
+    const double scale = std::max(std::abs(model.coeffs[0]), 1e-300);
+    const std::vector<PolarIndex> index = polar_indices(model.n_max);
+    ShapeletModel out = model;
+    // The rotation: the ellipticity χ of the closed-form quadrupole moments (every m = 2
+    // coefficient contributes, a_{2,2} most), else a_{2,2}, else the first non-zero m ≥ 1
+    // coefficient, made real and positive. `m` is the symmetry order of what was aligned.
+    int m = 0;
+    const Moments moment = moments(model);
+    if (std::isfinite(std::abs(moment.chi)) && std::abs(moment.chi) > 1e-12) {
+        // rotate(ρ) turns χ by e^{2iρ} (the object turns by ρ): undo its phase.
+        m = 2;
+        a.rotation = -std::arg(moment.chi) / 2.0;
+    } else {
+        std::optional<std::size_t> lead;
+        if (model.n_max >= 2 && nonzero(model.at(2, 2), scale)) lead = polar_index(2, 2);
+        for (std::size_t k = 0; !lead && k < index.size(); ++k)
+            if (index[k].m >= 1 && nonzero(model.coeffs[k], scale)) lead = k;
+        if (lead) {
+            m = index[*lead].m;
+            a.rotation = std::arg(model.coeffs[*lead]) / m;  // rotate() multiplies by e^{−imρ}
+        }
+    }
+    if (m > 0) {
+        out = rotate(model, a.rotation);
+        // Rotations by 2π/m keep the lead; for even m one of them is π, which flips the
+        // odd-m coefficients: make the first one with Re ≠ 0 have Re > 0.
+        if (m % 2 == 0)
+            for (std::size_t k = 0; k < index.size(); ++k)
+                if (index[k].m % 2 == 1 && std::abs(out.coeffs[k].real()) > 1e-12 * scale) {
+                    if (out.coeffs[k].real() < 0.0) {
+                        a.rotation += pi;
+                        out = rotate(model, a.rotation);
+                    }
+                    break;
+                }
+        // The reflection (a → conj a keeps χ and a real lead real): Im a_{4,2} ≥ 0, else
+        // the first later coefficient with Im ≠ 0.
+        // Even m first: the π choice above may still be open for the odd ones.
+        const std::size_t from = model.n_max >= 4 ? std::size_t(polar_index(4, 2)) : 0;
+        for (int parity : {0, 1}) {
+            std::size_t k = from;
+            while (k < index.size() && !(index[k].m >= 1 && index[k].m % 2 == parity &&
+                                         std::abs(out.coeffs[k].imag()) > 1e-12 * scale))
+                ++k;
+            if (k == index.size()) continue;
+            if (out.coeffs[k].imag() < 0.0) {
+                a.reflected = true;
+                out = reflect_x(out);
+            }
+            break;
+        }
+    }
+    if (how) *how = a;
+    return out;
+}
+
+ShapeletModel unalign(const ShapeletModel& aligned, const Alignment& how) {
+    return rotate(how.reflected ? reflect_x(aligned) : aligned, -how.rotation);
+}
+
+bool SmoothingLengths::is_delta() const {
+    if (phase_deg != 0.0 || beta != 0.0 || mag != 0.0) return false;
+    return std::all_of(coefficient.begin(), coefficient.end(), [](double l) { return l == 0.0; });
+}
+
+void SmoothOptions::validate() const {
+    auto check = [](double v, const char* field) {
+        if (!(v >= 0.0 && std::isfinite(v))) throw Error("must be finite and ≥ 0", "", 0, field);
+    };
+    check(k, "k");
+    check(phase_deg, "lambda_phase");
+    if (beta) check(*beta, "lambda_beta");
+    if (mag) check(*mag, "lambda_mag");
+    if (modulus) check(*modulus, "lambda_modulus");
+}
+
+double mean_nearest_neighbour_separation(std::vector<double> values) {
+    if (values.size() < 2) return 0.0;
+    std::sort(values.begin(), values.end());
+    double sum = 0.0;
+    for (std::size_t i = 0; i < values.size(); ++i) {
+        double d = std::numeric_limits<double>::infinity();
+        if (i > 0) d = values[i] - values[i - 1];
+        if (i + 1 < values.size()) d = std::min(d, values[i + 1] - values[i]);
+        sum += d;
+    }
+    return sum / double(values.size());
+}
+
+Morphology build_morphology(const std::vector<ShapeletRecord>& records,
+                            const SmoothOptions& options) {
+    options.validate();
+    Morphology out;
+    for (const ShapeletRecord& r : records) {
+        const ShapeletModel model = r.to_model();
+        const double a00 = model.coeffs[0].real();
+        if (!(a00 > 0.0)) throw Error("a_00 must be > 0 to normalise the shape", "", 0, r.id);
+        if (!r.mag) throw Error("no magnitude (give the zero point to shapesim-decompose)", "", 0, r.id);
+        MorphologyPoint p;
+        p.id = r.id;
+        p.n_max = r.n_max;
+        p.beta = r.beta;
+        p.mag = *r.mag;
+        const ShapeletModel aligned = align(model, &p.alignment);
+        p.shape.resize(aligned.coeffs.size());
+        for (std::size_t k = 0; k < aligned.coeffs.size(); ++k) p.shape[k] = aligned.coeffs[k] / a00;
+        p.shape[0] = 1.0;
+        out.n_max = std::max(out.n_max, p.n_max);
+        out.points.push_back(std::move(p));
+    }
+    SmoothingLengths& l = out.lambda;
+    const double k = options.delta ? 0.0 : options.k;
+    l.phase_deg = options.delta ? 0.0 : options.phase_deg;
+    std::vector<double> betas, mags;
+    for (const auto& p : out.points) {
+        betas.push_back(p.beta);
+        mags.push_back(p.mag);
+    }
+    l.beta = options.delta ? 0.0 : options.beta.value_or(k * mean_nearest_neighbour_separation(betas));
+    l.mag = options.delta ? 0.0 : options.mag.value_or(k * mean_nearest_neighbour_separation(mags));
+    const std::vector<PolarIndex> index = polar_indices(out.n_max);
+    l.coefficient.assign(index.size(), 0.0);
+    for (std::size_t i = 1; i < index.size(); ++i) {
+        if (options.delta) break;
+        if (options.modulus) {
+            l.coefficient[i] = *options.modulus;
+            continue;
+        }
+        std::vector<double> axis;
+        for (const auto& p : out.points)
+            if (i < p.shape.size())
+                axis.push_back(index[i].m == 0 ? p.shape[i].real() : std::abs(p.shape[i]));
+        l.coefficient[i] = k * mean_nearest_neighbour_separation(axis);
+    }
+    // One zero point when every record agrees.
+    std::optional<double> zp;
+    bool agree = true;
+    for (const ShapeletRecord& r : records) {
+        const auto z = r.extra.contains("zero_point") && r.extra.at("zero_point").is_number()
+                           ? std::optional<double>(r.extra.at("zero_point").get<double>())
+                           : std::nullopt;
+        if (!z) agree = false;
+        else if (!zp) zp = z;
+        else if (*zp != *z) agree = false;
+    }
+    if (agree) out.zero_point = zp;
+    return out;
+}
+
+Json Morphology::to_json() const {
+    Json doc = Json::object();
+    doc["schema"] = schema;
+    doc["n_max"] = n_max;
+    if (zero_point) doc["zero_point"] = *zero_point;
+    Json lam = Json::object();
+    lam["phase_deg"] = lambda.phase_deg;
+    lam["beta"] = lambda.beta;
+    lam["mag"] = lambda.mag;
+    lam["coefficient"] = lambda.coefficient;
+    doc["lambda"] = lam;
+    Json pts = Json::array();
+    for (const auto& p : points) {
+        Json shape = Json::array();
+        for (const Complex& c : p.shape) shape.push_back(Json::array({c.real(), c.imag()}));
+        pts.push_back({{"id", p.id},
+                       {"n_max", p.n_max},
+                       {"beta", p.beta},
+                       {"mag", p.mag},
+                       {"weight", p.weight},
+                       {"rotation", p.alignment.rotation},
+                       {"reflected", p.alignment.reflected},
+                       {"shape", shape}});
+    }
+    doc["points"] = pts;
+    doc["provenance"] = provenance;
+    return doc;
+}
+
+namespace {
+
+double number(const Json& object, const char* field, const std::string& where) {
+    if (!object.is_object() || !object.contains(field) || !object.at(field).is_number())
+        throw Error("missing or not a number", "", 0, where + field);
+    const double v = object.at(field).get<double>();
+    if (!std::isfinite(v)) throw Error("not finite", "", 0, where + field);
+    return v;
+}
+
+}  // namespace
+
+Morphology Morphology::from_json(const Json& doc) {
+    if (!doc.is_object() || !doc.contains("schema") || doc.at("schema") != schema)
+        throw Error(std::string("not a morphology model (expected schema \"") + schema + "\")",
+                    "", 0, "schema");
+    Morphology m;
+    m.n_max = int(number(doc, "n_max", ""));
+    if (m.n_max < 0 || m.n_max > 100) throw Error("must be in [0, 100]", "", 0, "n_max");
+    if (doc.contains("zero_point") && !doc.at("zero_point").is_null())
+        m.zero_point = number(doc, "zero_point", "");
+    if (!doc.contains("lambda")) throw Error("missing", "", 0, "lambda");
+    const Json& lam = doc.at("lambda");
+    m.lambda.phase_deg = number(lam, "phase_deg", "lambda.");
+    m.lambda.beta = number(lam, "beta", "lambda.");
+    m.lambda.mag = number(lam, "mag", "lambda.");
+    if (!lam.contains("coefficient") || !lam.at("coefficient").is_array() ||
+        lam.at("coefficient").size() != std::size_t(polar_count(m.n_max)))
+        throw Error("must be an array of polar_count(n_max) numbers", "", 0, "lambda.coefficient");
+    for (const Json& v : lam.at("coefficient")) {
+        if (!v.is_number() || !(v.get<double>() >= 0.0))
+            throw Error("must be numbers ≥ 0", "", 0, "lambda.coefficient");
+        m.lambda.coefficient.push_back(v.get<double>());
+    }
+    if (m.lambda.phase_deg < 0 || m.lambda.beta < 0 || m.lambda.mag < 0)
+        throw Error("smoothing lengths must be ≥ 0", "", 0, "lambda");
+    if (!doc.contains("points") || !doc.at("points").is_array() || doc.at("points").empty())
+        throw Error("must be a non-empty array", "", 0, "points");
+    std::size_t i = 0;
+    for (const Json& pj : doc.at("points")) {
+        const std::string where = "points[" + std::to_string(i++) + "].";
+        MorphologyPoint p;
+        if (!pj.is_object() || !pj.contains("id") || !pj.at("id").is_string())
+            throw Error("missing or not a string", "", 0, where + "id");
+        p.id = pj.at("id").get<std::string>();
+        p.n_max = int(number(pj, "n_max", where));
+        if (p.n_max < 0 || p.n_max > m.n_max)
+            throw Error("must be in [0, n_max of the model]", "", 0, where + "n_max");
+        p.beta = number(pj, "beta", where);
+        if (!(p.beta > 0.0)) throw Error("must be > 0", "", 0, where + "beta");
+        p.mag = number(pj, "mag", where);
+        p.weight = pj.contains("weight") ? number(pj, "weight", where) : 1.0;
+        if (!(p.weight >= 0.0)) throw Error("must be ≥ 0", "", 0, where + "weight");
+        p.alignment.rotation = pj.contains("rotation") ? number(pj, "rotation", where) : 0.0;
+        p.alignment.reflected = pj.value("reflected", false);
+        if (!pj.contains("shape") || !pj.at("shape").is_array() ||
+            pj.at("shape").size() != std::size_t(polar_count(p.n_max)))
+            throw Error("must hold polar_count(n_max) [re, im] pairs", "", 0, where + "shape");
+        for (const Json& c : pj.at("shape")) {
+            if (!c.is_array() || c.size() != 2 || !c[0].is_number() || !c[1].is_number())
+                throw Error("must hold [re, im] pairs of numbers", "", 0, where + "shape");
+            const Complex v(c[0].get<double>(), c[1].get<double>());
+            if (!std::isfinite(v.real()) || !std::isfinite(v.imag()))
+                throw Error("not finite", "", 0, where + "shape");
+            p.shape.push_back(v);
+        }
+        m.points.push_back(std::move(p));
+    }
+    if (doc.contains("provenance")) m.provenance = doc.at("provenance");
+    return m;
+}
+
+std::vector<double> parent_table(const Morphology& morphology, double mag_limit) {
+    std::vector<double> cumulative;
+    double sum = 0.0;
+    for (const auto& p : morphology.points) {
+        if (p.mag <= mag_limit) sum += p.weight;
+        cumulative.push_back(sum);
+    }
+    if (!(sum > 0.0))
+        throw Error("no model with positive weight is as bright as the magnitude limit");
+    return cumulative;
+}
+
+DrawnGalaxy draw_galaxy(const Morphology& morphology, const std::vector<double>& parents,
+                        RandomStream& stream, double pixel_scale, double zero_point,
+                        double mag_limit) {
+    DrawnGalaxy g;
+    const double u = stream.uniform() * parents.back();
+    g.parent = std::size_t(std::upper_bound(parents.begin(), parents.end(), u) - parents.begin());
+    g.parent = std::min(g.parent, parents.size() - 1);
+    while (g.parent > 0 && parents[g.parent] == parents[g.parent - 1]) --g.parent;  // weight 0
+    const MorphologyPoint& p = morphology.points[g.parent];
+    const SmoothingLengths& l = morphology.lambda;
+    const std::vector<PolarIndex> index = polar_indices(p.n_max);
+    std::vector<Complex> shape = p.shape;
+    double beta = p.beta, mag = p.mag, sum = 0.0;
+    constexpr int max_redraws = 1000;
+    for (;; ++g.redraws) {
+        if (g.redraws == max_redraws) {  // give up perturbing: the parent itself
+            shape = p.shape;
+            beta = p.beta;
+            mag = p.mag;
+            sum = 0.0;
+            for (std::size_t k = 0; k < index.size(); ++k)
+                if (index[k].m == 0 && index[k].n % 2 == 0) sum += shape[k].real();
+            break;
+        }
+        beta = p.beta + l.beta * stream.epanechnikov();
+        mag = p.mag + l.mag * stream.epanechnikov();
+        sum = 1.0;
+        for (std::size_t k = 1; k < index.size(); ++k) {
+            const Complex c = p.shape[k];
+            if (index[k].m == 0) {
+                const double v = c.real() + l.coefficient[k] * stream.epanechnikov();
+                shape[k] = Complex(v, 0.0);
+                if (index[k].n % 2 == 0) sum += v;
+            } else if (l.coefficient[k] == 0.0 && l.phase_deg == 0.0) {
+                shape[k] = c;  // the δ-function PDF returns the parent exactly
+            } else {
+                const double modulus = std::abs(c) + l.coefficient[k] * stream.epanechnikov();
+                const double phase = std::arg(c) + l.phase_deg * degree * stream.epanechnikov();
+                shape[k] = std::polar(modulus, phase);
+            }
+        }
+        if (beta > 0.0 && sum > 0.0 && mag <= mag_limit) break;
+    }
+    double norm = 0.0, change = 0.0;
+    for (std::size_t k = 0; k < shape.size(); ++k) {
+        norm += std::norm(p.shape[k]);
+        change += std::norm(shape[k] - p.shape[k]);
+    }
+    g.perturbation = std::sqrt(change / norm);
+    g.mag = mag;
+    g.beta = beta;
+    g.flux = std::pow(10.0, -0.4 * (mag - zero_point));
+    const double beta_pix = beta / pixel_scale;
+    const double a00 = g.flux / (2.0 * std::sqrt(pi) * beta_pix * sum);
+    ShapeletModel model(0.0, 0.0, beta_pix, p.n_max);
+    for (std::size_t k = 0; k < shape.size(); ++k) model.coeffs[k] = a00 * shape[k];
+    g.rotation = stream.angle();
+    g.reflected = stream.coin();
+    if (g.reflected) model = reflect_x(model);
+    g.model = rotate(model, g.rotation);
+    return g;
+}
+
+double model_reach(double beta_pix, int n_max) {
+    return beta_pix * (std::sqrt(2.0 * n_max + 1.0) + 5.0);
+}
+
+}  // namespace shapesim

@@ -1,0 +1,132 @@
+// The morphology PDF of the method (paper §3–4.1, DESIGN §4): aligned shapelet models as
+// points of a parameter space, smoothed by Epanechnikov kernels, resampled by Silverman's
+// bootstrap.
+//
+// Alignment (align()): rotate so the ellipticity lies along x — the paper's "a_{2,2} phase",
+// taken exactly: χ of the closed-form quadrupole moments (moments.hpp), to which every m = 2
+// coefficient contributes, a_{2,2} most — made real and positive. Rotation by π keeps χ, and
+// every even-m coefficient, but flips the odd-m ones: of the two, take the one giving the
+// first odd-m coefficient (packed order) with Re ≠ 0 Re > 0. Then reflect about the x axis
+// (a → conj a, which keeps χ real) when Im a_{4,2} < 0. Where what a rule needs is absent or
+// zero (|a| ≤ 1e-12·|a_{0,0}|; χ = 0 for a model with no m = 2 part), the next thing of its
+// kind decides: for the rotation a_{2,2}, else the first non-zero m ≥ 1 coefficient (made
+// real and positive by a rotation of phase/m); for the reflection the first even-m coefficient
+// from a_{4,2} on (from a_{1,1} when n_max < 4) with Im ≠ 0, else the first such odd-m one. A model with no such coefficient
+// (n_max 0, or circularly symmetric) is left as it is.
+//
+// Parameter space (one point per model): c_{n,m} = a_{n,m}/a_{0,0} as modulus |c| and phase
+// arg c for m > 0, the real c_{n,0} for n > 0, plus β (arcsec) and magnitude. Models of
+// different n_max share the space: absent coefficients are zero and are never perturbed.
+//
+// Smoothing lengths: λ_phase fixed (15° by default); every other axis λ = k × the mean
+// nearest-neighbour separation along that axis over the models that have it (k = 4); fewer
+// than two models on an axis ⇒ λ = 0. λ = 0 everywhere is the δ-function PDF.
+//
+// Drawing (draw_galaxy()): a parent by weight (uniform by default), an Epanechnikov
+// perturbation of λ on every axis it has (RandomStream::epanechnikov, the paper's
+// three-uniform recipe), the coefficients rebuilt as a_{0,0}·c' with a_{0,0} set by the drawn
+// magnitude (flux = 2√π β_pix a_{0,0} Σ_{n even} c'_{n,0}), then a uniform rotation and a
+// fair-coin reflection. Perturbing c = a/a_{0,0} with a fixed λ is the paper's adaptive
+// kernel: in a the width is a_{0,0}·λ, wider for brighter, rarer galaxies.
+#pragma once
+
+#include "shapesim/model.hpp"
+#include "shapesim/records.hpp"
+#include "shapesim/rng.hpp"
+
+#include <optional>
+#include <string>
+#include <vector>
+
+namespace shapesim {
+
+/// How a model was aligned: aligned = reflect?(rotate(model, rotation)).
+struct Alignment {
+    double rotation = 0.0;  ///< radians, as transform.hpp rotate()
+    bool reflected = false; ///< reflected about the x axis after the rotation
+};
+
+/// The aligned model (see above) and how it was reached.
+ShapeletModel align(const ShapeletModel& model, Alignment* how = nullptr);
+/// The inverse of align(): the original model from the aligned one.
+ShapeletModel unalign(const ShapeletModel& aligned, const Alignment& how);
+
+/// One real galaxy: its aligned shape normalised by a_{0,0}.
+struct MorphologyPoint {
+    std::string id;
+    int n_max = 0;
+    double beta = 0.0;  ///< arcsec
+    double mag = 0.0;
+    double weight = 1.0;            ///< parent-selection weight (relative)
+    std::vector<Complex> shape;     ///< c_{n,m} = a_{n,m}/a_{0,0}, aligned; c_{0,0} = 1
+    Alignment alignment;            ///< how the real model was aligned
+};
+
+/// Smoothing length of every axis.
+struct SmoothingLengths {
+    double phase_deg = 15.0;
+    double beta = 0.0;   ///< arcsec
+    double mag = 0.0;
+    /// Per packed polar index (n, m): of |c| for m > 0, of c for m = 0; index 0 unused (0).
+    std::vector<double> coefficient;
+    bool is_delta() const;
+};
+
+/// Options of build_morphology().
+struct SmoothOptions {
+    double k = 4.0;                      ///< λ = k × mean nearest-neighbour separation
+    double phase_deg = 15.0;             ///< λ_phase
+    std::optional<double> beta, mag, modulus;  ///< overrides (modulus: every coefficient axis)
+    bool delta = false;                  ///< every λ = 0
+    void validate() const;
+};
+
+/// The morphology model that `shapesim-smooth` writes and `shapesim-sample` reads.
+struct Morphology {
+    static constexpr const char* schema = "shapesim.morphology/1";
+    int n_max = 0;                       ///< largest n_max of the points
+    std::vector<MorphologyPoint> points;
+    SmoothingLengths lambda;
+    std::optional<double> zero_point;    ///< of the magnitudes (when every input agreed)
+    Json provenance = Json::object();    ///< input hash, options, program version
+
+    Json to_json() const;
+    /// Throws Error naming the field on a wrong schema or value.
+    static Morphology from_json(const Json& document);
+};
+
+/// Mean over the values of the distance to the nearest other value (0 for fewer than two).
+double mean_nearest_neighbour_separation(std::vector<double> values);
+
+/// Align every record's model and compute the smoothing lengths. Throws Error when a record
+/// has a_{0,0} ≤ 0 or no magnitude (the caller filters such records first).
+Morphology build_morphology(const std::vector<ShapeletRecord>& records, const SmoothOptions& options);
+
+/// One drawn galaxy, centred at (0, 0), before placement on the sky.
+struct DrawnGalaxy {
+    ShapeletModel model;    ///< rotated and reflected, β in pixels of the target scale
+    std::size_t parent = 0; ///< index into Morphology::points
+    double mag = 0.0, flux = 0.0, beta = 0.0;  ///< beta in arcsec
+    double rotation = 0.0;  ///< radians, applied after the parent's alignment
+    bool reflected = false; ///< reflected about x before the rotation
+    double perturbation = 0.0;  ///< ‖c' − c‖/‖c‖ over the shape vector
+    int redraws = 0;        ///< perturbations refused (non-positive flux, β ≤ 0, too faint)
+};
+
+/// Cumulative parent weights for draw_galaxy(), over the points with mag ≤ `mag_limit`.
+/// Throws Error when no point qualifies.
+std::vector<double> parent_table(const Morphology& morphology, double mag_limit);
+
+/// Draw one galaxy from `stream` (parent, perturbation, rotation, reflection — in that order).
+/// Perturbations giving a non-positive flux sum, β ≤ 0 or mag > `mag_limit` are redrawn (at
+/// most 1000 times, then the parent unperturbed).
+DrawnGalaxy draw_galaxy(const Morphology& morphology, const std::vector<double>& parents,
+                        RandomStream& stream, double pixel_scale, double zero_point,
+                        double mag_limit);
+
+/// Radius (pixels) beyond which a model of scale β_pix and order n_max contributes less than
+/// ~1e-6 of its peak: β(√(2 n_max + 1) + 5) — the Gaussian envelope past the basis's last
+/// turning point. Sample uses it to decide which tiles an object reaches.
+double model_reach(double beta_pix, int n_max);
+
+}  // namespace shapesim
