@@ -1,16 +1,176 @@
-// shapesim-smooth: placeholder until the program is implemented (its issue is open).
-// --help states the purpose (DESIGN §1) and --version works; anything else exits 2.
+// shapesim-smooth: shapelet records (shapesim-decompose) → the morphology model, one JSON
+// document (paper §3–4.1; DESIGN §4). The work is in the library: morphology.hpp.
+#include "shapesim/app/options.hpp"
 #include "shapesim/app/run_main.hpp"
+#include "shapesim/error.hpp"
+#include "shapesim/jsonl.hpp"
+#include "shapesim/morphology.hpp"
+#include "shapesim/records.hpp"
+#include "shapesim/rng.hpp"
+#include "shapesim/version.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <iostream>
+#include <map>
 
 namespace {
+
+using namespace shapesim;
+namespace po = app::po;
+
 const char* const description =
-    "Align the shapelet models (rotate, flip), build their parameter space and its\n"
-    "smoothing lengths, and write the smoothed PDF model of galaxy morphology.\n"
+    "Align the shapelet models (rotate the ellipticity onto x, flip so the a_42 phase is\n"
+    "positive), place them in the parameter space of a_nm/a_00 moduli and phases, beta and\n"
+    "magnitude, compute the smoothing length of every axis (k x the mean nearest-neighbour\n"
+    "separation; 15 degrees for phases) and write the morphology model that\n"
+    "shapesim-sample draws from, as one JSON document on stdout.\n"
     "\n"
-    "Planned use (DESIGN.md §1; not available yet):\n"
-    "  shapesim-smooth < shapelets.jsonl > morphology.pdf.json";
+    "Example:\n"
+    "  shapesim-smooth < shapelets.jsonl > morphology.pdf.json\n"
+    "  shapesim-smooth --delta < shapelets.jsonl > delta.pdf.json   # the delta-function PDF";
+
+struct Settings {
+    std::string input = "-", require = "converged", reject = "edge,bright_star", weight_field;
+    double k = 4.0, phase = 15.0, beta = 0.0, mag = 0.0, modulus = 0.0, mag_limit = 0.0;
+    bool delta = false;
+};
+
+std::vector<std::string> split(const std::string& list) {
+    std::vector<std::string> out;
+    std::string item;
+    for (char c : list + ",") {
+        if (c == ',') {
+            if (!item.empty()) out.push_back(item);
+            item.clear();
+        } else if (c != ' ') {
+            item += c;
+        }
+    }
+    return out;
+}
+
+bool has(const std::vector<std::string>& flags, const std::string& flag) {
+    return std::find(flags.begin(), flags.end(), flag) != flags.end();
+}
+
+int run(int argc, const char* const argv[]) {
+    app::ProgramOptions options("shapesim-smooth", "[OPTION]...", description,
+                                app::Common::quiet | app::Common::verbose | app::Common::config |
+                                    app::Common::print_params);
+    Settings s;
+    using app::in_range;
+    options.group("Input").add_options()
+        ("input,i", po::value(&s.input)->value_name("FILE")->default_value("-"),
+         "shapelet records (default: stdin)")
+        ("require", po::value(&s.require)->value_name("FLAGS")->default_value("converged"),
+         "keep records carrying all these flags (comma-separated; empty: all)")
+        ("reject", po::value(&s.reject)->value_name("FLAGS")->default_value("edge,bright_star"),
+         "drop records carrying any of these flags")
+        ("mag-limit", po::value(&s.mag_limit)->value_name("MAG"),
+         "drop records fainter than this")
+        ("weight-field", po::value(&s.weight_field)->value_name("NAME"),
+         "parent-selection weight from this numeric record field (default: all 1)");
+    options.group("Smoothing").add_options()
+        ("k", po::value(&s.k)->default_value(4.0)->notifier(in_range("k", 0.0, 1e6)),
+         "lambda = k x the mean nearest-neighbour separation along each axis")
+        ("lambda-phase", po::value(&s.phase)->default_value(15.0)
+             ->notifier(in_range("lambda-phase", 0.0, 180.0)), "phase smoothing length, degrees")
+        ("lambda-beta", po::value(&s.beta)->value_name("ARCSEC")
+             ->notifier(in_range("lambda-beta", 0.0, 1e6)), "override lambda of beta")
+        ("lambda-mag", po::value(&s.mag)->notifier(in_range("lambda-mag", 0.0, 1e6)),
+         "override lambda of the magnitude")
+        ("lambda-modulus", po::value(&s.modulus)->notifier(in_range("lambda-modulus", 0.0, 1e6)),
+         "override lambda of every coefficient axis (|a_nm/a_00|, a_n0/a_00)")
+        ("delta", po::bool_switch(&s.delta), "every lambda = 0: the delta-function PDF");
+    if (!options.parse(argc, argv)) return 0;
+    const app::Log log("shapesim-smooth", options.common().verbosity);
+
+    SmoothOptions smooth;
+    smooth.k = s.k;
+    smooth.phase_deg = s.phase;
+    smooth.delta = s.delta;
+    if (options.given("lambda-beta")) smooth.beta = s.beta;
+    if (options.given("lambda-mag")) smooth.mag = s.mag;
+    if (options.given("lambda-modulus")) smooth.modulus = s.modulus;
+    smooth.validate();
+    const std::vector<std::string> required = split(s.require), rejected = split(s.reject);
+
+    JsonlReader reader(s.input, {ShapeletRecord::schema});
+    std::vector<ShapeletRecord> kept;
+    std::vector<double> weights;
+    std::map<std::string, long> dropped;
+    std::uint64_t hash = fnv1a_64("");
+    Json record;
+    long read = 0;
+    while (reader.next(record)) {
+        ++read;
+        ShapeletRecord r;
+        try {
+            r = ShapeletRecord::from_json(record);
+        } catch (const Error& e) {
+            throw reader.locate(e);
+        }
+        // The input's identity for the provenance: FNV-1a over the records' compact dumps.
+        hash ^= fnv1a_64(record.dump());
+        hash *= 0x100000001b3ULL;
+        std::string why;
+        for (const auto& f : required)
+            if (!has(r.flags, f)) why = "not " + f;
+        for (const auto& f : rejected)
+            if (has(r.flags, f)) why = f;
+        if (why.empty() && !r.mag) why = "no magnitude";
+        if (why.empty() && options.given("mag-limit") && *r.mag > s.mag_limit) why = "fainter than --mag-limit";
+        if (why.empty() && !(r.coeffs[0].real() > 0.0)) why = "a_00 <= 0";
+        if (!why.empty()) {
+            ++dropped[why];
+            continue;
+        }
+        double weight = 1.0;
+        if (!s.weight_field.empty()) {
+            try {
+                const auto w = optional_double(r.extra, s.weight_field);
+                if (!w || !(*w >= 0.0))
+                    throw Error("missing, or not a number ≥ 0", "", 0, s.weight_field);
+                weight = *w;
+            } catch (const Error& e) {
+                throw reader.locate(e);
+            }
+        }
+        kept.push_back(std::move(r));
+        weights.push_back(weight);
+    }
+    if (kept.empty())
+        throw Error("no record left to smooth (" + std::to_string(read) +
+                    " read; see --require, --reject, --mag-limit)", reader.name());
+    Morphology morphology = build_morphology(kept, smooth);
+    for (std::size_t i = 0; i < weights.size(); ++i) morphology.points[i].weight = weights[i];
+    char hex[17];
+    std::snprintf(hex, sizeof hex, "%016llx", static_cast<unsigned long long>(hash));
+    Json dropped_json = Json::object();
+    for (const auto& [why, n] : dropped) dropped_json[why] = n;
+    morphology.provenance = {{"program", "shapesim-smooth"},
+                             {"version", version()},
+                             {"input", reader.name()},
+                             {"input_records", read},
+                             {"input_fnv1a64", hex},
+                             {"dropped", dropped_json},
+                             {"options",
+                              {{"k", s.k},
+                               {"lambda_phase", s.phase},
+                               {"delta", s.delta},
+                               {"require", required},
+                               {"reject", rejected}}}};
+    std::cout << morphology.to_json().dump() << '\n';
+    std::cout.flush();
+    if (!std::cout) throw Error("cannot write the morphology model", "stdout");
+    log.info(kept.size(), " of ", read, " models kept (n_max up to ", morphology.n_max,
+             "); lambda: beta ", morphology.lambda.beta, "\", mag ", morphology.lambda.mag,
+             ", phase ", morphology.lambda.phase_deg, " deg");
+    for (const auto& [why, n] : dropped) log.verbose(n, " dropped: ", why);
+    return 0;
+}
+
 }  // namespace
 
-int main(int argc, char** argv) {
-    return shapesim::app::run_placeholder(argc, argv, "shapesim-smooth", description);
-}
+int main(int argc, char** argv) { return app::run_main(argc, argv, "shapesim-smooth", run); }

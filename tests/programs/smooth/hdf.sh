@@ -1,0 +1,66 @@
+#!/usr/bin/env bash
+# shapesim-smooth on the HDF models (detect → decompose → smooth): one shapesim.morphology/1
+# document whose points are the converged, non-edge models; --delta zeroes every λ; the same
+# input gives the same bytes; bad input gives one clear stderr line and a non-zero exit.
+source "$(dirname "${BASH_SOURCE[0]}")/../lib.sh"
+prog=shapesim-smooth
+data=$(cd ../../../share/data/hdfn && pwd)
+
+cd "$TMPDIR"
+"$BIN/shapesim-detect" "$data/hdfn_f814w_v2.fits" --weight "$data/hdfn_f814w_v2_weight.fits" \
+  --zero-point 22.08 --stamps stamps.fits -q >sources.jsonl || fail "shapesim-detect failed"
+"$BIN/shapesim-decompose" -q -j 2 <sources.jsonl >shapelets.jsonl || fail "shapesim-decompose failed"
+
+"$BIN/$prog" -q <shapelets.jsonl >morph.json || fail "exit $?"
+"$BIN/$prog" -q <shapelets.jsonl >again.json || fail "second run failed"
+cmp -s morph.json again.json || fail "two runs differ"
+"$BIN/$prog" -q --delta <shapelets.jsonl >delta.json || fail "--delta failed"
+python3 - <<'PY' || fail "the morphology documents break the checks"
+import json, math
+records = [json.loads(l) for l in open("shapelets.jsonl")]
+want = [r["id"] for r in records if "converged" in r["flags"] and "edge" not in r["flags"]
+        and "bright_star" not in r["flags"] and r.get("mag") is not None
+        and r["coeffs"][0][0] > 0]
+m = json.load(open("morph.json"))
+assert m["schema"] == "shapesim.morphology/1", m["schema"]
+assert [p["id"] for p in m["points"]] == want, "points are not the converged, non-edge models"
+assert m["n_max"] == max(p["n_max"] for p in m["points"])
+lam = m["lambda"]
+assert lam["phase_deg"] == 15 and lam["beta"] > 0 and lam["mag"] > 0, lam
+assert len(lam["coefficient"]) == ((m["n_max"] + 2) // 2) * ((m["n_max"] + 3) // 2)
+# Every point's shape is a_nm/a_00 of its record (moduli kept by the alignment), c_00 = 1.
+by_id = {r["id"]: r for r in records}
+for p in m["points"]:
+    c = by_id[p["id"]]["coeffs"]
+    assert p["shape"][0] == [1.0, 0.0], p["id"]
+    for (re, im), (pr, pi) in zip(c, p["shape"]):
+        assert abs(math.hypot(re, im) / c[0][0] - math.hypot(pr, pi)) < 1e-9, p["id"]
+assert m["provenance"]["input_records"] == len(records)
+d = json.load(open("delta.json"))
+assert d["lambda"]["phase_deg"] == 0 and d["lambda"]["beta"] == 0 and d["lambda"]["mag"] == 0
+assert all(v == 0 for v in d["lambda"]["coefficient"])
+assert [p["shape"] for p in d["points"]] == [p["shape"] for p in m["points"]]
+PY
+
+# --k scales every computed λ; overrides win.
+"$BIN/$prog" -q --k 2 --lambda-mag 0.5 <shapelets.jsonl >k2.json || fail "--k 2 failed"
+python3 -c 'import json
+a, b = json.load(open("morph.json"))["lambda"], json.load(open("k2.json"))["lambda"]
+assert abs(b["beta"] - a["beta"] / 2) < 1e-12 * a["beta"], (a["beta"], b["beta"])
+assert b["mag"] == 0.5
+assert all(abs(y - x / 2) <= 1e-12 * x for x, y in zip(a["coefficient"], b["coefficient"]))' ||
+  fail "--k / --lambda-mag do not act as documented"
+
+# Bad input.
+rc=0; "$BIN/$prog" <sources.jsonl >out 2>err || rc=$?
+expect_error "$rc" 1 'schema: expected "shapesim.shapelet/1"'
+[ ! -s out ] || fail "output written for a wrong schema"
+rc=0; "$BIN/$prog" </dev/null >out 2>err || rc=$?
+expect_error "$rc" 1 'no record left to smooth'
+rc=0; { head -n 3 shapelets.jsonl; echo '{"schema":"shapesim.shapelet/1",'; } | "$BIN/$prog" >out 2>err || rc=$?
+expect_error "$rc" 1 '^shapesim-smooth: -:4: invalid JSON'
+rc=0; "$BIN/$prog" --weight-field nosuch <shapelets.jsonl >out 2>err || rc=$?
+expect_error "$rc" 1 'nosuch'
+rc=0; "$BIN/$prog" --k -1 <shapelets.jsonl >out 2>err || rc=$?
+expect_error "$rc" 2 'k'
+exit 0
