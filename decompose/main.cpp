@@ -129,20 +129,6 @@ struct Outcome {
     std::string error;  // non-empty: the stamp could not be fitted at all
 };
 
-std::set<std::string> split_ids(const std::string& list) {
-    std::set<std::string> ids;
-    std::string id;
-    for (char c : list + ",") {
-        if (c == ',') {
-            if (!id.empty()) ids.insert(id);
-            id.clear();
-        } else if (c != ' ') {
-            id += c;
-        }
-    }
-    return ids;
-}
-
 // PSF mode: one record of the PSF image's shapelet model at the target pixel scale.
 int run_psf(const Settings& s, const app::ProgramOptions& options, const app::Log& log) {
     double target = s.pixel_scale;
@@ -290,7 +276,8 @@ int run(int argc, const char* const argv[]) {
 
     std::unique_ptr<FitsWriter> models;
     if (!s.models.empty()) models = std::make_unique<FitsWriter>(s.models, "shapesim-decompose");
-    const std::set<std::string> wanted = split_ids(s.ids);
+    const std::vector<std::string> listed = app::split_list(s.ids);
+    const std::set<std::string> wanted(listed.begin(), listed.end());
     JsonlWriter out(std::cout, "-");
     long converged = 0, failed = 0;
     for (std::size_t k = 0; k < jobs.size(); ++k) {

@@ -36,20 +36,6 @@ struct Settings {
     bool delta = false;
 };
 
-std::vector<std::string> split(const std::string& list) {
-    std::vector<std::string> out;
-    std::string item;
-    for (char c : list + ",") {
-        if (c == ',') {
-            if (!item.empty()) out.push_back(item);
-            item.clear();
-        } else if (c != ' ') {
-            item += c;
-        }
-    }
-    return out;
-}
-
 bool has(const std::vector<std::string>& flags, const std::string& flag) {
     return std::find(flags.begin(), flags.end(), flag) != flags.end();
 }
@@ -94,7 +80,8 @@ int run(int argc, const char* const argv[]) {
     if (options.given("lambda-mag")) smooth.mag = s.mag;
     if (options.given("lambda-modulus")) smooth.modulus = s.modulus;
     smooth.validate();
-    const std::vector<std::string> required = split(s.require), rejected = split(s.reject);
+    const std::vector<std::string> required = app::split_list(s.require),
+                                   rejected = app::split_list(s.reject);
 
     JsonlReader reader(s.input, {ShapeletRecord::schema});
     std::vector<ShapeletRecord> kept;

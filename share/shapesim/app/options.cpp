@@ -217,4 +217,18 @@ std::string ProgramOptions::params() const {
     return s.str();
 }
 
+std::vector<std::string> split_list(const std::string& list) {
+    std::vector<std::string> items;
+    std::string item;
+    for (char c : list + ",") {
+        if (c == ',') {
+            if (!item.empty()) items.push_back(item);
+            item.clear();
+        } else if (c != ' ') {
+            item += c;
+        }
+    }
+    return items;
+}
+
 }  // namespace shapesim::app

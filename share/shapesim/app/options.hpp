@@ -129,6 +129,10 @@ private:
     bool allow_unregistered_ = false;
 };
 
+/// The items of a comma-separated option value ("a, b,,c" → a b c): spaces dropped, empty
+/// items skipped.
+std::vector<std::string> split_list(const std::string& list);
+
 /// The version line printed by --version: "<program> (shapesim) <shapesim::version()>".
 std::string version_line(const std::string& program);
 
