@@ -1,16 +1,177 @@
-// shapesim-sample: placeholder until the program is implemented (its issue is open).
-// --help states the purpose (DESIGN §1) and --version works; anything else exits 2.
+// shapesim-sample: the morphology model (shapesim-smooth) → new objects over a sky field as
+// shapesim.object/1 records on stdout (paper §4.1–4.2; DESIGN §4, §6). The work is in the
+// library: morphology.hpp (the draws), sample.hpp (the field, stars, tiles).
+#include "shapesim/app/options.hpp"
 #include "shapesim/app/run_main.hpp"
+#include "shapesim/error.hpp"
+#include "shapesim/geometry.hpp"
+#include "shapesim/jsonl.hpp"
+#include "shapesim/morphology.hpp"
+#include "shapesim/sample.hpp"
+
+#include <cmath>
+#include <fstream>
+#include <iostream>
+#include <sstream>
 
 namespace {
+
+using namespace shapesim;
+namespace po = app::po;
+
 const char* const description =
-    "Draw new galaxies (and stars) from a PDF model over a sky area by Monte Carlo.\n"
-    "Writes a shapesim.object/1 catalogue.\n"
+    "Draw new galaxies from the morphology model by Silverman's bootstrap (a real galaxy\n"
+    "picked at random, every parameter perturbed by an Epanechnikov kernel of its smoothing\n"
+    "length), give each a uniform position, orientation and flip, add stars, and write\n"
+    "shapesim.object/1 records. Every draw comes from the stream of (seed, object), so a\n"
+    "tile (--tile) holds exactly the objects of the whole field that reach it.\n"
     "\n"
-    "Planned use (DESIGN.md §1; not available yet):\n"
-    "  shapesim-sample morphology.pdf.json --like hdf.fits --seed 7 > objects.jsonl";
+    "Examples:\n"
+    "  shapesim-sample morphology.pdf.json --like hdf.fits --seed 7 > objects.jsonl\n"
+    "  shapesim-sample morphology.pdf.json --area 6 --seed 7 > objects6.jsonl   # 6 arcmin^2\n"
+    "  shapesim-sample morphology.pdf.json --like hdf.fits --tile 1 1 256 256 > tile.jsonl";
+
+struct Settings {
+    std::string model;
+    double area = 0.0, pixel_scale = 0.0398, ra = 0.0, dec = 0.0, margin = 0.5;
+    std::vector<double> size, tile;
+    std::string star_histogram;
+    std::uint64_t count = 0, star_count = 0;
+    SampleOptions sample;
+};
+
+Morphology read_morphology(const std::string& path) {
+    std::ifstream file;
+    std::istream* in = &std::cin;
+    if (path != "-") {
+        file.open(path);
+        if (!file) throw Error("cannot open", path);
+        in = &file;
+    }
+    std::stringstream text;
+    text << in->rdbuf();
+    Json doc;
+    try {
+        doc = Json::parse(text.str());
+    } catch (const Json::exception& e) {
+        throw Error(std::string("invalid JSON: ") + e.what(), path);
+    }
+    try {
+        return Morphology::from_json(doc);
+    } catch (const Error& e) {
+        throw e.at(path, 0);
+    }
+}
+
+int run(int argc, const char* const argv[]) {
+    app::ProgramOptions options("shapesim-sample", "[OPTION]... MODEL", description,
+                                app::Common::quiet | app::Common::verbose | app::Common::seed |
+                                    app::Common::like | app::Common::config |
+                                    app::Common::print_params);
+    Settings s;
+    SampleOptions& o = s.sample;
+    using app::in_range;
+    options.hidden().add_options()("model", po::value(&s.model)->required(),
+                                   "morphology model (shapesim-smooth)");
+    options.positional("model", 1);
+    options.group("Field (default: --like)").add_options()
+        ("area", po::value(&s.area)->value_name("ARCMIN2")->notifier(in_range("area", 1e-9, 1e9)),
+         "a square field of this area")
+        ("size", po::value(&s.size)->value_name("ARCMIN")->multitoken(),
+         "a field W H arcmin (one value: square)")
+        ("pixel-scale", po::value(&s.pixel_scale)->default_value(0.0398)
+             ->notifier(in_range("pixel-scale", 1e-6, 3600.0)),
+         "arcsec per pixel with --area/--size (the HDF's by default)")
+        ("ra", po::value(&s.ra)->default_value(0.0)->notifier(in_range("ra", -360.0, 360.0)),
+         "field centre RA, degrees, with --area/--size")
+        ("dec", po::value(&s.dec)->default_value(0.0)->notifier(in_range("dec", -90.0, 90.0)),
+         "field centre Dec, degrees")
+        ("tile", po::value(&s.tile)->value_name("X0 Y0 X1 Y1")->multitoken(),
+         "only the objects reaching these field pixels (FITS, inclusive)")
+        ("margin", po::value(&s.margin)->default_value(0.5)->notifier(in_range("margin", 0.0, 3600.0)),
+         "arcsec added to every object's reach for the tile test (PSF wings)");
+    options.group("Galaxies").add_options()
+        ("density", po::value(&o.density)->default_value(700.0)
+             ->notifier(in_range("density", 0.0, 1e8)), "galaxies per arcmin^2 (Poisson)")
+        ("count", po::value(&s.count), "exactly this many galaxies instead")
+        ("mag-limit", po::value(&o.mag_limit)->default_value(29.0)
+             ->notifier(in_range("mag-limit", -100.0, 100.0)), "nothing fainter")
+        ("zero-point", po::value(&o.zero_point)->notifier(in_range("zero-point", -100.0, 100.0)),
+         "of the output fluxes (default: the model's)");
+    options.group("Stars").add_options()
+        ("star-density", po::value(&o.stars.density)->default_value(0.0)
+             ->notifier(in_range("star-density", 0.0, 1e8)), "stars per arcmin^2 (Poisson)")
+        ("star-count", po::value(&s.star_count), "exactly this many stars instead")
+        ("star-slope", po::value(&o.stars.slope)->default_value(0.1)
+             ->notifier(in_range("star-slope", -10.0, 10.0)), "d log10 N / dm of the star counts")
+        ("star-mag-min", po::value(&o.stars.mag_min)->default_value(18.0)
+             ->notifier(in_range("star-mag-min", -100.0, 100.0)), "brightest star")
+        ("star-mag-max", po::value(&o.stars.mag_max)->notifier(in_range("star-mag-max", -100.0, 100.0)),
+         "faintest star (default: --mag-limit)")
+        ("star-histogram", po::value(&s.star_histogram)->value_name("FILE"),
+         "star counts from lines 'mag_lo mag_hi count' instead of the power law");
+    if (!options.parse(argc, argv)) return 0;
+    const app::Log log("shapesim-sample", options.common().verbosity);
+
+    // The field.
+    const int field_kinds = int(!options.common().like.empty()) + int(options.given("area")) +
+                            int(options.given("size"));
+    if (field_kinds != 1) throw po::error("give exactly one of --like, --area, --size");
+    FieldGeometry field;
+    if (!options.common().like.empty()) {
+        field = read_field_geometry(options.common().like);
+    } else {
+        double w = 0.0, h = 0.0;
+        if (options.given("area")) {
+            w = h = std::sqrt(s.area);
+        } else {
+            if (s.size.empty() || s.size.size() > 2) throw po::error("--size takes W [H] arcmin");
+            w = s.size[0];
+            h = s.size.size() == 2 ? s.size[1] : w;
+            if (!(w > 0.0 && h > 0.0 && w < 1e5 && h < 1e5))
+                throw po::error("--size: must be > 0 arcmin");
+        }
+        field.nx = int(std::lround(w * 60.0 / s.pixel_scale));
+        field.ny = int(std::lround(h * 60.0 / s.pixel_scale));
+        if (field.nx < 1 || field.ny < 1 || field.nx > 2000000000 / 2 || field.ny > 2000000000 / 2)
+            throw po::error("the field is not a sensible number of pixels");
+        field.pixel_scale = s.pixel_scale;
+        field.wcs = tan_wcs(s.ra, s.dec, s.pixel_scale, 0.5 + field.nx / 2.0, 0.5 + field.ny / 2.0);
+    }
+    std::optional<Tile> tile;
+    if (options.given("tile")) {
+        if (s.tile.size() != 4) throw po::error("--tile takes four numbers: X0 Y0 X1 Y1");
+        for (double v : s.tile)
+            if (v != std::floor(v) || !(std::abs(v) < 2e9)) throw po::error("--tile: whole pixels");
+        tile = Tile{long(s.tile[0]), long(s.tile[1]), long(s.tile[2]), long(s.tile[3])};
+        if (tile->x1 < tile->x0 || tile->y1 < tile->y0)
+            throw po::error("--tile: X1 >= X0 and Y1 >= Y0 needed");
+    }
+
+    const Morphology morphology = read_morphology(s.model);
+    if (!options.given("zero-point")) {
+        if (!morphology.zero_point)
+            throw po::error("the model has no zero point: give --zero-point");
+        o.zero_point = *morphology.zero_point;
+    }
+    o.seed = options.common().seed;
+    if (options.given("count")) o.count = s.count;
+    if (options.given("star-count")) o.star_count = s.star_count;
+    if (!options.given("star-mag-max")) o.stars.mag_max = o.mag_limit;
+    if (!s.star_histogram.empty()) o.stars.bins = read_star_histogram(s.star_histogram);
+    o.margin = s.margin / field.pixel_scale;
+
+    JsonlWriter out(std::cout, "-");
+    const SampleSummary summary =
+        sample_field(morphology, field, o, tile, [&](const ObjectRecord& r) { out.write(r.to_json()); });
+    log.info(summary.galaxies, " galaxies and ", summary.stars, " stars over ",
+             field.area_arcmin2(), " arcmin^2 (", field.nx, " x ", field.ny, " pixels); ",
+             summary.galaxies_out, " galaxies and ", summary.stars_out, " stars written",
+             tile ? " (in the tile)" : "", "; ", summary.redraws, " perturbations redrawn; ",
+             log.elapsed(), " s");
+    return 0;
+}
+
 }  // namespace
 
-int main(int argc, char** argv) {
-    return shapesim::app::run_placeholder(argc, argv, "shapesim-sample", description);
-}
+int main(int argc, char** argv) { return app::run_main(argc, argv, "shapesim-sample", run); }

@@ -31,7 +31,7 @@ const char* const description =
     "  shapesim-smooth --delta < shapelets.jsonl > delta.pdf.json   # the delta-function PDF";
 
 struct Settings {
-    std::string input = "-", require = "converged", reject = "edge,bright_star", weight_field;
+    std::string input = "-", require = "converged", reject = "edge,bright_star,noise", weight_field;
     double k = 4.0, phase = 15.0, beta = 0.0, mag = 0.0, modulus = 0.0, mag_limit = 0.0;
     bool delta = false;
 };
@@ -51,7 +51,7 @@ int run(int argc, const char* const argv[]) {
          "shapelet records (default: stdin)")
         ("require", po::value(&s.require)->value_name("FLAGS")->default_value("converged"),
          "keep records carrying all these flags (comma-separated; empty: all)")
-        ("reject", po::value(&s.reject)->value_name("FLAGS")->default_value("edge,bright_star"),
+        ("reject", po::value(&s.reject)->value_name("FLAGS")->default_value("edge,bright_star,noise"),
          "drop records carrying any of these flags")
         ("mag-limit", po::value(&s.mag_limit)->value_name("MAG"),
          "drop records fainter than this")

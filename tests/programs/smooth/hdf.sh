@@ -1,6 +1,6 @@
 #!/usr/bin/env bash
 # shapesim-smooth on the HDF models (detect → decompose → smooth): one shapesim.morphology/1
-# document whose points are the converged, non-edge models; --delta zeroes every λ; the same
+# document whose points are the converged models not flagged edge, bright_star or noise; --delta zeroes every λ; the same
 # input gives the same bytes; bad input gives one clear stderr line and a non-zero exit.
 source "$(dirname "${BASH_SOURCE[0]}")/../lib.sh"
 prog=shapesim-smooth
@@ -19,7 +19,8 @@ python3 - <<'PY' || fail "the morphology documents break the checks"
 import json, math
 records = [json.loads(l) for l in open("shapelets.jsonl")]
 want = [r["id"] for r in records if "converged" in r["flags"] and "edge" not in r["flags"]
-        and "bright_star" not in r["flags"] and r.get("mag") is not None
+        and "bright_star" not in r["flags"] and "noise" not in r["flags"]
+        and r.get("mag") is not None
         and r["coeffs"][0][0] > 0]
 m = json.load(open("morph.json"))
 assert m["schema"] == "shapesim.morphology/1", m["schema"]

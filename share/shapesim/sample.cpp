@@ -1,0 +1,182 @@
+#include "shapesim/sample.hpp"
+
+#include "shapesim/error.hpp"
+#include "shapesim/rng.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <fstream>
+#include <sstream>
+
+namespace shapesim {
+
+double StarCounts::magnitude(double u) const {
+    if (!bins.empty()) {
+        double total = 0.0;
+        for (const Bin& b : bins) total += b.count;
+        double target = u * total;
+        for (const Bin& b : bins) {
+            if (target < b.count) return b.lo + (b.hi - b.lo) * (target / b.count);
+            target -= b.count;
+        }
+        return bins.back().hi;
+    }
+    const double span = mag_max - mag_min;
+    if (slope == 0.0) return mag_min + u * span;
+    // N(< m) ∝ 10^{slope (m − mag_min)} − 1, inverted.
+    return mag_min + std::log10(1.0 + u * (std::pow(10.0, slope * span) - 1.0)) / slope;
+}
+
+void StarCounts::validate() const {
+    if (!(density >= 0.0 && std::isfinite(density))) throw Error("must be ≥ 0", "", 0, "star_density");
+    if (!std::isfinite(slope)) throw Error("must be finite", "", 0, "star_slope");
+    if (!(mag_max > mag_min)) throw Error("star magnitude range is empty", "", 0, "star_mag");
+    double total = 0.0;
+    for (const Bin& b : bins) {
+        if (!(b.hi > b.lo) || !(b.count >= 0.0) || !std::isfinite(b.count))
+            throw Error("each bin needs lo < hi and a count ≥ 0", "", 0, "star_histogram");
+        total += b.count;
+    }
+    if (!bins.empty() && !(total > 0.0))
+        throw Error("the histogram holds no stars", "", 0, "star_histogram");
+}
+
+std::vector<StarCounts::Bin> read_star_histogram(const std::string& path) {
+    std::ifstream in(path);
+    if (!in) throw Error("cannot open", path);
+    std::vector<StarCounts::Bin> bins;
+    std::string line;
+    long number = 0;
+    while (std::getline(in, line)) {
+        ++number;
+        const auto hash = line.find('#');
+        if (hash != std::string::npos) line.erase(hash);
+        std::istringstream fields(line);
+        StarCounts::Bin b;
+        if (!(fields >> b.lo)) continue;  // blank or comment
+        std::string rest;
+        if (!(fields >> b.hi >> b.count) || (fields >> rest))
+            throw Error("expected three numbers: mag_lo mag_hi count", path, number);
+        if (!(b.hi > b.lo) || !(b.count >= 0.0) || !std::isfinite(b.count))
+            throw Error("needs mag_lo < mag_hi and count ≥ 0", path, number);
+        bins.push_back(b);
+    }
+    if (bins.empty()) throw Error("no bins", path);
+    return bins;
+}
+
+void SampleOptions::validate() const {
+    if (!(density >= 0.0 && std::isfinite(density))) throw Error("must be ≥ 0", "", 0, "density");
+    if (!std::isfinite(mag_limit)) throw Error("must be finite", "", 0, "mag_limit");
+    if (!std::isfinite(zero_point)) throw Error("must be finite", "", 0, "zero_point");
+    if (!(margin >= 0.0 && std::isfinite(margin))) throw Error("must be ≥ 0", "", 0, "margin");
+    stars.validate();
+}
+
+bool Tile::reaches(double x, double y, double radius) const {
+    // Distance from (x, y) to the window's area [x0 − ½, x1 + ½] × [y0 − ½, y1 + ½].
+    const double dx = std::max({double(x0) - 0.5 - x, 0.0, x - double(x1) - 0.5});
+    const double dy = std::max({double(y0) - 0.5 - y, 0.0, y - double(y1) - 0.5});
+    return dx * dx + dy * dy <= radius * radius;
+}
+
+namespace {
+
+constexpr double degree = 3.14159265358979323846 / 180.0;
+
+// A uniform position over the field's pixel area.
+PixelPosition uniform_position(RandomStream& r, const FieldGeometry& field) {
+    PixelPosition p;
+    p.x = 0.5 + double(field.nx) * r.uniform();
+    p.y = 0.5 + double(field.ny) * r.uniform();
+    return p;
+}
+
+}  // namespace
+
+SampleSummary sample_field(const Morphology& morphology, const FieldGeometry& field,
+                           const SampleOptions& options, const std::optional<Tile>& tile,
+                           const std::function<void(const ObjectRecord&)>& emit) {
+    options.validate();
+    require(field.nx > 0 && field.ny > 0 && field.pixel_scale > 0.0, "the field is empty");
+    SampleSummary summary;
+    const double area = field.area_arcmin2();
+    const double scale = field.pixel_scale;
+
+    // Galaxies.
+    const std::vector<double> parents = parent_table(morphology, options.mag_limit);
+    if (options.count) {
+        summary.galaxies = *options.count;
+    } else {
+        RandomStream r(options.seed, 0, "galaxy count");
+        summary.galaxies = r.poisson(options.density * area);
+    }
+    // No galaxy reaches further than the widest parent, perturbed, at the top order: a tile
+    // skips the shape draw of objects beyond that.
+    double beta_max = 0.0;
+    for (const auto& p : morphology.points) beta_max = std::max(beta_max, p.beta);
+    const double reach_bound =
+        model_reach((beta_max + morphology.lambda.beta) / scale, morphology.n_max) + options.margin;
+    for (std::uint64_t k = 0; k < summary.galaxies; ++k) {
+        RandomStream where(options.seed, k, "galaxy position");
+        const PixelPosition p = uniform_position(where, field);
+        if (tile && !tile->reaches(p.x, p.y, reach_bound)) continue;
+        RandomStream stream(options.seed, k, "galaxy");
+        const DrawnGalaxy g =
+            draw_galaxy(morphology, parents, stream, scale, options.zero_point, options.mag_limit);
+        const double reach = model_reach(g.model.beta_pix, g.model.n_max) + options.margin;
+        if (tile && !tile->reaches(p.x, p.y, reach)) continue;
+        summary.redraws += std::uint64_t(g.redraws);
+        ObjectRecord o;
+        o.id = "g" + std::to_string(k);
+        o.kind = "galaxy";
+        const SkyPosition sky = field.wcs.pixel_to_sky(p.x, p.y);
+        o.ra = sky.ra;
+        o.dec = sky.dec;
+        o.x = p.x;
+        o.y = p.y;
+        o.mag = g.mag;
+        o.flux = g.flux;
+        o.beta = g.beta;
+        o.pixel_scale = scale;
+        o.n_max = g.model.n_max;
+        o.coeffs = g.model.coeffs;
+        o.parent = morphology.points[g.parent].id;
+        o.extra["rotation"] = g.rotation / degree;
+        o.extra["reflected"] = g.reflected;
+        o.extra["perturbation"] = g.perturbation;
+        o.extra["reach"] = reach;
+        emit(o);
+        ++summary.galaxies_out;
+    }
+
+    // Stars: the PSF at a magnitude from the star counts.
+    if (options.star_count) {
+        summary.stars = *options.star_count;
+    } else {
+        RandomStream r(options.seed, 0, "star count");
+        summary.stars = r.poisson(options.stars.density * area);
+    }
+    for (std::uint64_t k = 0; k < summary.stars; ++k) {
+        RandomStream where(options.seed, k, "star position");
+        const PixelPosition p = uniform_position(where, field);
+        if (tile && !tile->reaches(p.x, p.y, options.margin)) continue;
+        RandomStream stream(options.seed, k, "star");
+        ObjectRecord o;
+        o.id = "s" + std::to_string(k);
+        o.kind = "star";
+        const SkyPosition sky = field.wcs.pixel_to_sky(p.x, p.y);
+        o.ra = sky.ra;
+        o.dec = sky.dec;
+        o.x = p.x;
+        o.y = p.y;
+        o.mag = options.stars.magnitude(stream.uniform());
+        o.flux = std::pow(10.0, -0.4 * (*o.mag - options.zero_point));
+        o.extra["reach"] = options.margin;
+        emit(o);
+        ++summary.stars_out;
+    }
+    return summary;
+}
+
+}  // namespace shapesim

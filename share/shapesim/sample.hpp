@@ -1,0 +1,82 @@
+// Populating a sky field with objects drawn from the morphology PDF (paper §4.1–4.2,
+// DESIGN §4, §6): galaxies by Silverman's bootstrap (morphology.hpp draw_galaxy), stars from
+// a magnitude distribution, uniform positions, every draw from the counter-based stream of
+// (seed, object number, purpose) — so any object's record is the same whatever the tiling.
+//
+// Object k (k = 0 … N−1) is galaxy "g<k>": its position from RandomStream(seed, k,
+// "galaxy position"), its shape from RandomStream(seed, k, "galaxy"). Star k is "s<k>", from
+// "star position" and "star". N = Poisson(density × area) from RandomStream(seed, 0,
+// "galaxy count") (likewise "star count"), unless a count is given.
+//
+// Tiles: a window of the field's pixels. An object belongs to a tile when the circle of its
+// reach — model_reach(β_pix, n_max) plus `margin` pixels (for the PSF) — meets the window;
+// objects near a tile edge therefore appear in every tile they reach, with identical records,
+// and the union over a tiling is the whole-field draw. A star's reach is `margin` alone.
+#pragma once
+
+#include "shapesim/geometry.hpp"
+#include "shapesim/morphology.hpp"
+#include "shapesim/records.hpp"
+
+#include <cstdint>
+#include <functional>
+#include <optional>
+#include <vector>
+
+namespace shapesim {
+
+/// The stars' magnitude distribution: power-law counts, d log₁₀ N / dm = `slope` between
+/// `mag_min` and `mag_max`, or a histogram (`bins`: [lo, hi) edges and relative counts, flat
+/// within a bin) when given.
+struct StarCounts {
+    double density = 0.0;  ///< stars per arcmin² between the magnitude limits
+    double slope = 0.1;
+    double mag_min = 18.0, mag_max = 29.0;
+    struct Bin {
+        double lo = 0.0, hi = 0.0, count = 0.0;
+    };
+    std::vector<Bin> bins;
+    /// A magnitude from one uniform deviate u ∈ [0, 1) (inverse CDF).
+    double magnitude(double u) const;
+    void validate() const;
+};
+
+/// Read a star-count histogram: lines "mag_lo mag_hi count" ('#' comments, blank lines
+/// allowed); throws Error naming file and line.
+std::vector<StarCounts::Bin> read_star_histogram(const std::string& path);
+
+struct SampleOptions {
+    std::uint64_t seed = 0;
+    double density = 700.0;            ///< galaxies per arcmin² (brighter than mag_limit)
+    std::optional<std::uint64_t> count;///< exact number of galaxies instead
+    double mag_limit = 29.0;           ///< nothing fainter
+    double zero_point = 0.0;           ///< of the output fluxes
+    double margin = 0.0;               ///< pixels added to every reach (PSF, …)
+    StarCounts stars;
+    std::optional<std::uint64_t> star_count;
+    void validate() const;
+};
+
+/// A window of a field's pixels, FITS coordinates, inclusive: pixels x0…x1, y0…y1.
+struct Tile {
+    long x0 = 1, y0 = 1, x1 = 1, y1 = 1;
+    /// Whether a circle of `radius` pixels about (x, y) meets the window's pixel area.
+    bool reaches(double x, double y, double radius) const;
+};
+
+/// Counts of what sample_field() drew and emitted.
+struct SampleSummary {
+    std::uint64_t galaxies = 0, stars = 0;      ///< drawn over the whole field
+    std::uint64_t galaxies_out = 0, stars_out = 0;  ///< emitted (in the tile)
+    std::uint64_t redraws = 0;                  ///< perturbations refused and redrawn
+};
+
+/// Draw the field's objects and call `emit` for each one in the tile (all, without one),
+/// galaxies first, each kind in order of its number. Records carry x, y (field pixels), ra,
+/// dec, mag, flux, β, n_max, coefficients at the field's pixel scale, `parent`, and extra
+/// `rotation` (degrees), `reflected`, `perturbation`, `reach` (pixels, with the margin).
+SampleSummary sample_field(const Morphology& morphology, const FieldGeometry& field,
+                           const SampleOptions& options, const std::optional<Tile>& tile,
+                           const std::function<void(const ObjectRecord&)>& emit);
+
+}  // namespace shapesim

@@ -1,0 +1,152 @@
+// Filling a field (sample.hpp): tiles, determinism, counts, star magnitudes.
+#include "shapesim/sample.hpp"
+
+#include "shapesim/error.hpp"
+#include "shapesim/moments.hpp"
+#include "test_support.hpp"
+
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <cmath>
+#include <map>
+
+using namespace shapesim;
+
+namespace {
+
+// A morphology of 30 random galaxy-like models, n_max 0–10, at 0.04″/pixel, zero point 25.
+Morphology test_morphology() {
+    std::vector<ShapeletRecord> records;
+    for (int i = 0; i < 30; ++i) {
+        ShapeletModel m = test::random_model(i % 11, 1.0 + 0.15 * i, 0.0, 0.0, 500 + i, true, 0.2);
+        m.coeffs[0] = 1.0 + 0.3 * i;
+        if (flux(m) <= 0.0) continue;
+        ShapeletRecord r = ShapeletRecord::from_model(m, 0.04, "p" + std::to_string(i));
+        r.mag = 22.0 + 0.2 * i;
+        r.extra["zero_point"] = 25.0;
+        records.push_back(r);
+    }
+    return build_morphology(records, SmoothOptions{});
+}
+
+FieldGeometry test_field(int nx, int ny) {
+    FieldGeometry f;
+    f.nx = nx;
+    f.ny = ny;
+    f.pixel_scale = 0.04;
+    f.wcs = tan_wcs(150.0, 2.0, 0.04, 0.5 + nx / 2.0, 0.5 + ny / 2.0);
+    return f;
+}
+
+std::map<std::string, std::string> draw(const Morphology& m, const FieldGeometry& f,
+                                        const SampleOptions& o, const std::optional<Tile>& tile) {
+    std::map<std::string, std::string> out;
+    sample_field(m, f, o, tile, [&](const ObjectRecord& r) { out[r.id] = r.to_json().dump(); });
+    return out;
+}
+
+}  // namespace
+
+// A 3×3 tiling: every tile's records are records of the whole field, bit for bit; their union
+// is the whole field; an object sits in a tile only if its reach meets it; two runs agree.
+TEST(Sample, TilesUnionIsTheWholeFieldRecordForRecord) {
+    const Morphology m = test_morphology();
+    const FieldGeometry f = test_field(600, 450);
+    SampleOptions o;
+    o.seed = 11;
+    o.zero_point = 25.0;
+    o.density = 3000.0;
+    o.stars.density = 200.0;
+    o.margin = 3.0;
+    const auto whole = draw(m, f, o, std::nullopt);
+    ASSERT_GT(whole.size(), 100u);
+    EXPECT_EQ(draw(m, f, o, std::nullopt), whole);
+    std::map<std::string, std::string> merged;
+    std::size_t emitted = 0;
+    for (int j = 0; j < 3; ++j)
+        for (int i = 0; i < 3; ++i) {
+            const Tile t{1 + 200 * i, 1 + 150 * j, 200 * (i + 1), 150 * (j + 1)};
+            const auto part = draw(m, f, o, t);
+            emitted += part.size();
+            for (const auto& [id, text] : part) {
+                ASSERT_TRUE(whole.count(id)) << id;
+                EXPECT_EQ(text, whole.at(id)) << id;
+                const Json r = Json::parse(text);
+                EXPECT_TRUE(t.reaches(r["x"], r["y"], r["reach"])) << id;
+                merged[id] = text;
+            }
+        }
+    EXPECT_EQ(merged, whole);
+    EXPECT_GT(emitted, whole.size());  // objects near the tile edges are in more than one
+}
+
+// Counts: Poisson about density × area by default, exact with `count`; no galaxy fainter than
+// the limit, and each record's flux matches its magnitude and its coefficients.
+TEST(Sample, CountsMagnitudesAndFluxes) {
+    const Morphology m = test_morphology();
+    const FieldGeometry f = test_field(1500, 1500);  // 1 arcmin²
+    SampleOptions o;
+    o.seed = 3;
+    o.zero_point = 25.0;
+    o.mag_limit = 26.0;
+    std::vector<ObjectRecord> galaxies;
+    const SampleSummary s = sample_field(m, f, o, std::nullopt, [&](const ObjectRecord& r) {
+        galaxies.push_back(r);
+    });
+    EXPECT_NEAR(double(s.galaxies), 700.0 * f.area_arcmin2(), 4.0 * std::sqrt(700.0));
+    EXPECT_EQ(s.galaxies_out, s.galaxies);
+    EXPECT_EQ(s.stars, 0u);
+    for (const ObjectRecord& r : galaxies) {
+        ASSERT_TRUE(r.mag.has_value());
+        EXPECT_LE(*r.mag, 26.0);
+        EXPECT_NEAR(r.flux, std::pow(10.0, -0.4 * (*r.mag - 25.0)), 1e-12 * r.flux);
+        EXPECT_NEAR(flux(r.to_model(0.0, 0.0)), r.flux, 1e-10 * r.flux) << r.id;
+        EXPECT_GE(*r.x, 0.5);
+        EXPECT_LE(*r.x, 1500.5);
+        const SkyPosition sky = f.wcs.pixel_to_sky(*r.x, *r.y);
+        EXPECT_EQ(sky.ra, r.ra);
+    }
+    o.count = 17;
+    EXPECT_EQ(sample_field(m, f, o, std::nullopt, [](const ObjectRecord&) {}).galaxies, 17u);
+    o.mag_limit = 10.0;  // no parent that bright
+    EXPECT_THROW(sample_field(m, f, o, std::nullopt, [](const ObjectRecord&) {}), Error);
+}
+
+// Star magnitudes follow the power-law counts (KS against N(<m) ∝ 10^{α(m−m0)} − 1) and a
+// histogram's bins in proportion.
+TEST(Sample, StarMagnitudesFollowTheCounts) {
+    StarCounts c;
+    c.slope = 0.3;
+    c.mag_min = 18.0;
+    c.mag_max = 28.0;
+    std::vector<double> mags;
+    RandomStream r(5, 0, "test");
+    for (int i = 0; i < 20000; ++i) mags.push_back(c.magnitude(r.uniform()));
+    std::sort(mags.begin(), mags.end());
+    double d = 0.0;
+    const double norm = std::pow(10.0, 0.3 * 10.0) - 1.0;
+    for (std::size_t i = 0; i < mags.size(); ++i) {
+        const double cdf = (std::pow(10.0, 0.3 * (mags[i] - 18.0)) - 1.0) / norm;
+        d = std::max({d, std::abs(cdf - double(i) / 20000.0), std::abs(double(i + 1) / 20000.0 - cdf)});
+    }
+    EXPECT_LT(d, 0.0096);
+    c.bins = {{20.0, 21.0, 1.0}, {21.0, 23.0, 3.0}};
+    int low = 0;
+    for (int i = 0; i < 8000; ++i) {
+        const double m = c.magnitude(r.uniform());
+        ASSERT_GE(m, 20.0);
+        ASSERT_LE(m, 23.0);
+        if (m < 21.0) ++low;
+    }
+    EXPECT_NEAR(low / 8000.0, 0.25, 0.02);
+}
+
+TEST(Sample, TileReachIsTheDistanceToThePixelArea) {
+    const Tile t{11, 21, 20, 30};  // pixel area [10.5, 20.5] × [20.5, 30.5]
+    EXPECT_TRUE(t.reaches(15.0, 25.0, 0.0));
+    EXPECT_TRUE(t.reaches(8.5, 25.0, 2.0));
+    EXPECT_FALSE(t.reaches(8.5, 25.0, 1.99));
+    EXPECT_TRUE(t.reaches(23.5, 34.5, 5.0));   // corner: distance 5
+    EXPECT_FALSE(t.reaches(23.5, 34.5, 4.99));
+}
