@@ -70,7 +70,8 @@ void SampleOptions::validate() const {
     if (!std::isfinite(mag_limit)) throw Error("must be finite", "", 0, "mag_limit");
     if (!std::isfinite(zero_point)) throw Error("must be finite", "", 0, "zero_point");
     if (!(margin >= 0.0 && std::isfinite(margin))) throw Error("must be ≥ 0", "", 0, "margin");
-    stars.validate();
+    // The star counts matter only when there are stars to draw.
+    if (stars.density > 0.0 || (star_count && *star_count > 0)) stars.validate();
 }
 
 bool Tile::reaches(double x, double y, double radius) const {

@@ -1,0 +1,106 @@
+#!/usr/bin/env bash
+# shapesim-sample on the HDF morphology (detect → decompose → smooth → sample): --like gives the
+# HDF's geometry and a Poisson count about 700 per arcmin²; the same seed gives the same bytes,
+# another seed other objects; a 3×3 tiling reproduces the whole field record for record; the
+# δ model returns real models; stars follow --star-count; bad input fails with one line.
+source "$(dirname "${BASH_SOURCE[0]}")/../lib.sh"
+prog=shapesim-sample
+data=$(cd ../../../share/data/hdfn && pwd)
+hdf=$data/hdfn_f814w_v2.fits
+
+cd "$TMPDIR"
+"$BIN/shapesim-detect" "$hdf" --weight "$data/hdfn_f814w_v2_weight.fits" \
+  --zero-point 22.08 --stamps stamps.fits -q >sources.jsonl || fail "shapesim-detect failed"
+"$BIN/shapesim-decompose" -q -j 2 <sources.jsonl >shapelets.jsonl || fail "shapesim-decompose failed"
+"$BIN/shapesim-smooth" -q <shapelets.jsonl >morph.json || fail "shapesim-smooth failed"
+"$BIN/shapesim-smooth" -q --delta <shapelets.jsonl >delta.json || fail "shapesim-smooth --delta failed"
+
+# A 4× larger field than the cut (its pixel scale and a 1024² square) for the statistics.
+"$BIN/$prog" morph.json --size 0.6797 --pixel-scale 0.03985 --seed 7 --star-count 5 \
+  >a.jsonl 2>err || fail "exit $?: $(cat err)"
+"$BIN/$prog" morph.json --size 0.6797 --pixel-scale 0.03985 --seed 7 --star-count 5 -q >b.jsonl ||
+  fail "second run failed"
+cmp -s a.jsonl b.jsonl || fail "the same seed gave different output"
+"$BIN/$prog" morph.json --size 0.6797 --pixel-scale 0.03985 --seed 8 -q >c.jsonl || fail "seed 8 failed"
+! cmp -s a.jsonl c.jsonl || fail "seeds 7 and 8 gave the same output"
+python3 - <<'PY' || fail "the records break the checks"
+import json, math
+rows = [json.loads(l) for l in open("a.jsonl")]
+gal = [r for r in rows if r["kind"] == "galaxy"]
+stars = [r for r in rows if r["kind"] == "star"]
+area = (1024 * 0.03985 / 60) ** 2
+assert abs(len(gal) - 700 * area) < 5 * math.sqrt(700 * area), (len(gal), 700 * area)
+assert len(stars) == 5, len(stars)
+parents = {p["id"] for p in json.load(open("morph.json"))["points"]}
+for r in gal:
+    assert r["schema"] == "shapesim.object/1" and r["mag"] <= 29, r["id"]
+    assert r["parent"] in parents, r["parent"]
+    assert 0.5 <= r["x"] <= 1024.5 and 0.5 <= r["y"] <= 1024.5, r["id"]
+    n = r["n_max"]
+    assert len(r["coeffs"]) == ((n + 2) // 2) * ((n + 3) // 2), r["id"]
+    # flux = 2√π β_pix Σ_{n even} a_{n,0}
+    beta_pix = r["beta"] / r["pixel_scale"]
+    s, k = 0.0, 0
+    for nn in range(n + 1):
+        for m in range(nn % 2, nn + 1, 2):
+            if m == 0: s += r["coeffs"][k][0]
+            k += 1
+    f = 2 * math.sqrt(math.pi) * beta_pix * s
+    assert abs(f - r["flux"]) < 1e-9 * r["flux"], (r["id"], f, r["flux"])
+    assert abs(r["flux"] - 10 ** (-0.4 * (r["mag"] - 22.08))) < 1e-12 * r["flux"]
+PY
+
+# Tiles: 3×3 over the 1024² field (tiles of 342, 342 and 340 pixels).
+: >tiles.jsonl
+for y in "1 342" "343 684" "685 1024"; do
+  for x in "1 342" "343 684" "685 1024"; do
+    set -- $x $y
+    "$BIN/$prog" morph.json --size 0.6797 --pixel-scale 0.03985 --seed 7 --star-count 5 -q \
+      --tile "$1" "$3" "$2" "$4" >>tiles.jsonl || fail "tile $x $y failed"
+  done
+done
+sort -u tiles.jsonl >tiles_union
+sort a.jsonl >whole_sorted
+cmp -s tiles_union whole_sorted ||
+  fail "the union of the tiles differs from the whole field: $(diff tiles_union whole_sorted | head -3 | cut -c1-200)"
+[ "$(wc -l <tiles.jsonl)" -gt "$(wc -l <a.jsonl)" ] || fail "no object straddles a tile edge"
+
+# --like: the cut's geometry.
+"$BIN/$prog" morph.json --like "$hdf" --seed 1 -q >like.jsonl || fail "--like failed"
+python3 -c 'import json
+rows = [json.loads(l) for l in open("like.jsonl")]
+assert rows and all(0.5 <= r["x"] <= 512.5 and 0.5 <= r["y"] <= 512.5 for r in rows)
+assert all(abs(r["ra"] - 189.2) < 0.05 and abs(r["dec"] - 62.2) < 0.05 for r in rows), rows[0]' ||
+  fail "--like: positions or sky coordinates off the HDF cut"
+
+# δ model: every galaxy's coefficient moduli are its parent's times a_00 (rotation and flip
+# change phases only), and its β is the parent's.
+"$BIN/$prog" delta.json --like "$hdf" --seed 1 -q --count 200 >delta.jsonl || fail "δ sample failed"
+python3 - <<'PY' || fail "δ-sampled galaxies are not their parents"
+import json, math
+pts = {p["id"]: p for p in json.load(open("delta.json"))["points"]}
+for r in map(json.loads, open("delta.jsonl")):
+    if r["kind"] != "galaxy": continue
+    p = pts[r["parent"]]
+    assert r["beta"] == p["beta"] and abs(r["mag"] - p["mag"]) < 1e-12, r["id"]
+    a00 = r["coeffs"][0][0]
+    for (re, im), (pr, pi) in zip(r["coeffs"], p["shape"]):
+        assert abs(math.hypot(re, im) - a00 * math.hypot(pr, pi)) <= 1e-12 * a00, r["id"]
+PY
+
+# Bad input.
+rc=0; "$BIN/$prog" nosuch.json --area 1 >out 2>err || rc=$?
+expect_error "$rc" 1 'nosuch.json: cannot open'
+rc=0; "$BIN/$prog" shapelets.jsonl --area 1 >out 2>err || rc=$?
+expect_error "$rc" 1 'shapelets.jsonl'
+rc=0; "$BIN/$prog" morph.json >out 2>err || rc=$?
+expect_error "$rc" 2 'exactly one of --like, --area, --size'
+rc=0; "$BIN/$prog" morph.json --area 1 --tile 1 1 10 >out 2>err || rc=$?
+expect_error "$rc" 2 'tile'
+rc=0; "$BIN/$prog" morph.json --area 1 --mag-limit 15 >out 2>err || rc=$?
+expect_error "$rc" 1 'magnitude limit'
+echo '{"schema":"shapesim.morphology/1","n_max":0}' >broken.json
+rc=0; "$BIN/$prog" broken.json --area 1 >out 2>err || rc=$?
+expect_error "$rc" 1 'broken.json.*lambda'
+[ ! -s out ] || fail "output written for a broken model"
+exit 0
