@@ -168,7 +168,19 @@ Morphology build_morphology(const std::vector<ShapeletRecord>& records,
         else if (*zp != *z) agree = false;
     }
     if (agree) out.zero_point = zp;
+    out.prepare();
     return out;
+}
+
+void Morphology::prepare() {
+    for (MorphologyPoint& p : points) {
+        p.modulus.resize(p.shape.size());
+        p.phase.resize(p.shape.size());
+        for (std::size_t k = 0; k < p.shape.size(); ++k) {
+            p.modulus[k] = std::abs(p.shape[k]);
+            p.phase[k] = std::arg(p.shape[k]);
+        }
+    }
 }
 
 Json Morphology::to_json() const {
@@ -269,6 +281,7 @@ Morphology Morphology::from_json(const Json& doc) {
         m.points.push_back(std::move(p));
     }
     if (doc.contains("provenance")) m.provenance = doc.at("provenance");
+    m.prepare();
     return m;
 }
 
@@ -284,6 +297,17 @@ std::vector<double> parent_table(const Morphology& morphology, double mag_limit)
     return cumulative;
 }
 
+namespace {
+
+// The packed (n, m) sequence up to the largest order a record may hold; every smaller order's
+// sequence is its prefix (the packing runs over n). Built once, shared by all threads.
+const std::vector<PolarIndex>& packed_indices() {
+    static const std::vector<PolarIndex> table = polar_indices(100);
+    return table;
+}
+
+}  // namespace
+
 DrawnGalaxy draw_galaxy(const Morphology& morphology, const std::vector<double>& parents,
                         RandomStream& stream, double pixel_scale, double zero_point,
                         double mag_limit) {
@@ -294,56 +318,80 @@ DrawnGalaxy draw_galaxy(const Morphology& morphology, const std::vector<double>&
     while (g.parent > 0 && parents[g.parent] == parents[g.parent - 1]) --g.parent;  // weight 0
     const MorphologyPoint& p = morphology.points[g.parent];
     const SmoothingLengths& l = morphology.lambda;
-    const std::vector<PolarIndex> index = polar_indices(p.n_max);
-    std::vector<Complex> shape = p.shape;
+    const PolarIndex* index = packed_indices().data();
+    const std::size_t count = p.shape.size();
+    const bool prepared = p.modulus.size() == count && p.phase.size() == count;
+    // Perturbed shape as modulus and phase (m > 0) or value (m = 0); placed at the end.
+    std::vector<double> modulus(count), phase(count);
     double beta = p.beta, mag = p.mag, sum = 0.0;
+    const double lambda_phase = l.phase_deg * degree;
     constexpr int max_redraws = 1000;
     for (;; ++g.redraws) {
         if (g.redraws == max_redraws) {  // give up perturbing: the parent itself
-            shape = p.shape;
             beta = p.beta;
             mag = p.mag;
             sum = 0.0;
-            for (std::size_t k = 0; k < index.size(); ++k)
-                if (index[k].m == 0 && index[k].n % 2 == 0) sum += shape[k].real();
+            for (std::size_t k = 0; k < count; ++k) {
+                modulus[k] = index[k].m == 0 ? p.shape[k].real() : std::abs(p.shape[k]);
+                phase[k] = index[k].m == 0 ? 0.0 : std::arg(p.shape[k]);
+                if (index[k].m == 0 && index[k].n % 2 == 0) sum += modulus[k];
+            }
             break;
         }
         beta = p.beta + l.beta * stream.epanechnikov();
         mag = p.mag + l.mag * stream.epanechnikov();
+        modulus[0] = 1.0;
+        phase[0] = 0.0;
         sum = 1.0;
-        for (std::size_t k = 1; k < index.size(); ++k) {
+        for (std::size_t k = 1; k < count; ++k) {
             const Complex c = p.shape[k];
             if (index[k].m == 0) {
-                const double v = c.real() + l.coefficient[k] * stream.epanechnikov();
-                shape[k] = Complex(v, 0.0);
-                if (index[k].n % 2 == 0) sum += v;
-            } else if (l.coefficient[k] == 0.0 && l.phase_deg == 0.0) {
-                shape[k] = c;  // the δ-function PDF returns the parent exactly
+                modulus[k] = c.real() + l.coefficient[k] * stream.epanechnikov();
+                phase[k] = 0.0;
+                if (index[k].n % 2 == 0) sum += modulus[k];
             } else {
-                const double modulus = std::abs(c) + l.coefficient[k] * stream.epanechnikov();
-                const double phase = std::arg(c) + l.phase_deg * degree * stream.epanechnikov();
-                shape[k] = std::polar(modulus, phase);
+                modulus[k] = (prepared ? p.modulus[k] : std::abs(c)) +
+                             l.coefficient[k] * stream.epanechnikov();
+                phase[k] = (prepared ? p.phase[k] : std::arg(c)) +
+                           lambda_phase * stream.epanechnikov();
             }
         }
         if (beta > 0.0 && sum > 0.0 && mag <= mag_limit) break;
     }
-    double norm = 0.0, change = 0.0;
-    for (std::size_t k = 0; k < shape.size(); ++k) {
-        norm += std::norm(p.shape[k]);
-        change += std::norm(shape[k] - p.shape[k]);
-    }
-    g.perturbation = std::sqrt(change / norm);
     g.mag = mag;
     g.beta = beta;
     g.flux = std::pow(10.0, -0.4 * (mag - zero_point));
     const double beta_pix = beta / pixel_scale;
     const double a00 = g.flux / (2.0 * std::sqrt(pi) * beta_pix * sum);
-    ShapeletModel model(0.0, 0.0, beta_pix, p.n_max);
-    for (std::size_t k = 0; k < shape.size(); ++k) model.coeffs[k] = a00 * shape[k];
     g.rotation = stream.angle();
     g.reflected = stream.coin();
-    if (g.reflected) model = reflect_x(model);
-    g.model = rotate(model, g.rotation);
+    // Reflection about x (a → conj a), then rotation by ρ (a_{n,m} → a_{n,m} e^{−imρ}): one
+    // complex exponential per coefficient. The δ-function PDF (every λ = 0) keeps the parent's
+    // coefficients bit for bit before placement.
+    const bool delta = l.is_delta();
+    std::vector<Complex> turn(std::size_t(p.n_max) + 1);  // e^{−imρ} by powers
+    const Complex step = std::polar(1.0, -g.rotation);
+    turn[0] = 1.0;
+    for (std::size_t m = 1; m < turn.size(); ++m) turn[m] = turn[m - 1] * step;
+    ShapeletModel model(0.0, 0.0, beta_pix, p.n_max);
+    double norm = 0.0, change = 0.0;
+    for (std::size_t k = 0; k < count; ++k) {
+        const int m = index[k].m;
+        Complex shape;
+        if (m == 0) shape = Complex(modulus[k], 0.0);
+        else if (delta) shape = p.shape[k];
+        else shape = std::polar(modulus[k], phase[k]);
+        norm += std::norm(p.shape[k]);
+        change += std::norm(shape - p.shape[k]);
+        if (m == 0) {
+            model.coeffs[k] = a00 * shape;
+        } else {
+            const Complex placed = g.reflected ? std::conj(shape) : shape;
+            model.coeffs[k] = a00 * placed * turn[std::size_t(m)];
+        }
+    }
+    g.perturbation = std::sqrt(change / norm);
+    g.model = std::move(model);
     return g;
 }
 

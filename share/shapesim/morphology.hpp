@@ -60,6 +60,8 @@ struct MorphologyPoint {
     double weight = 1.0;            ///< parent-selection weight (relative)
     std::vector<Complex> shape;     ///< c_{n,m} = a_{n,m}/a_{0,0}, aligned; c_{0,0} = 1
     Alignment alignment;            ///< how the real model was aligned
+    /// |c| and arg c of `shape` (derived: Morphology::prepare() fills them for the draws).
+    std::vector<double> modulus, phase;
 };
 
 /// Smoothing length of every axis.
@@ -93,6 +95,9 @@ struct Morphology {
     Json to_json() const;
     /// Throws Error naming the field on a wrong schema or value.
     static Morphology from_json(const Json& document);
+    /// Fill every point's derived modulus and phase (build_morphology and from_json do;
+    /// call it again after changing a shape).
+    void prepare();
 };
 
 /// Mean over the values of the distance to the nearest other value (0 for fewer than two).
