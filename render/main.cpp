@@ -1,16 +1,360 @@
-// shapesim-render: placeholder until the program is implemented (its issue is open).
-// --help states the purpose (DESIGN §1) and --version works; anything else exits 2.
+// shapesim-render: shapesim.object/1 records → a FITS image with a WCS (paper §4.3;
+// DESIGN §3, §6). The work is in the library: scene.hpp (lensing, convolution, stamps,
+// painting, noise), convolve.hpp, transform.hpp, render.hpp.
+#include "shapesim/app/atomic_file.hpp"
+#include "shapesim/app/options.hpp"
 #include "shapesim/app/run_main.hpp"
+#include "shapesim/convolve.hpp"
+#include "shapesim/error.hpp"
+#include "shapesim/fits_io.hpp"
+#include "shapesim/geometry.hpp"
+#include "shapesim/jsonl.hpp"
+#include "shapesim/polar.hpp"
+#include "shapesim/records.hpp"
+#include "shapesim/scene.hpp"
+
+#include <algorithm>
+#include <atomic>
+#include <chrono>
+#include <cmath>
+#include <fstream>
+#include <iostream>
+#include <thread>
 
 namespace {
+
+using namespace shapesim;
+namespace po = app::po;
+
 const char* const description =
-    "Paint objects into a FITS image: PSF convolution, pixel integration, noise, and\n"
-    "FITS output with a WCS.\n"
+    "Paint objects into a FITS image as a telescope records them: each galaxy lensed (optional\n"
+    "shear and convergence), convolved with the PSF in shapelet space and integrated exactly\n"
+    "over the pixels it can reach; stars as the PSF; then photon noise, a (correlated)\n"
+    "Gaussian background and an optional sky. Positions come from each record's ra/dec\n"
+    "through the image's WCS. --tile renders a window of the field: a mosaic of tiles equals\n"
+    "the whole image bit for bit, noise included.\n"
     "\n"
-    "Planned use (DESIGN.md §1; not available yet):\n"
-    "  shapesim-render --psf psf.json --like hdf.fits -o sim.fits < objects.jsonl";
+    "Examples:\n"
+    "  shapesim-render --psf psf.jsonl --galaxy-psf psf.jsonl --like hdf.fits \\\n"
+    "      --noise-like sources.jsonl --seed 7 -o sim.fits < objects.jsonl\n"
+    "  shapesim-render --psf psf.jsonl --size 1 --noise-free -o clean.fits < objects.jsonl";
+
+struct Settings {
+    std::string input = "-", psf, galaxy_psf, truth, noise_like;
+    std::vector<double> size, tile, shear;
+    double area = 0.0, pixel_scale = 0.0398, ra = 0.0, dec = 0.0;
+    double kappa = 0.0, exposure = 1.0;
+    int bitpix = -32, difference_order = -1;
+    SceneOptions scene;
+};
+
+// The shapelet record in `path` (first line; "psf" or any id) as a model at `pixel_scale`,
+// unit flux.
+ShapeletModel read_psf(const std::string& path, double pixel_scale) {
+    JsonlReader reader(path, {ShapeletRecord::schema});
+    ShapeletRecord r;
+    if (!reader.next_record(r)) throw Error("no PSF record", path);
+    ShapeletModel m = r.to_model();
+    if (r.pixel_scale != pixel_scale) m = dilate(m, r.pixel_scale / pixel_scale);
+    const double f = moments(m).flux;
+    if (!(f > 0.0)) throw Error("the PSF has no positive flux", path, reader.line());
+    for (auto& c : m.coeffs) c /= f;
+    m.x = m.y = 0.0;
+    return m;
+}
+
+// Median noise_rms and noise_correlation of shapesim-detect's records.
+std::pair<double, double> noise_of(const std::string& path) {
+    JsonlReader reader(path, {SourceRecord::schema});
+    SourceRecord r;
+    std::vector<double> rms, factor;
+    while (reader.next_record(r)) {
+        try {
+            if (auto v = optional_double(r.extra, "noise_rms")) rms.push_back(*v);
+            if (auto v = optional_double(r.extra, "noise_correlation")) factor.push_back(*v);
+        } catch (const Error& e) {
+            throw reader.locate(e);
+        }
+    }
+    if (rms.empty()) throw Error("no noise_rms in the records", path);
+    auto median = [](std::vector<double> v) {
+        std::nth_element(v.begin(), v.begin() + std::ptrdiff_t(v.size() / 2), v.end());
+        return v[v.size() / 2];
+    };
+    return {median(rms), factor.empty() ? 1.0 : std::max(1.0, median(factor))};
+}
+
+int run(int argc, const char* const argv[]) {
+    app::ProgramOptions options("shapesim-render", "[OPTION]... -o IMAGE", description,
+                                app::Common::output | app::Common::quiet | app::Common::verbose |
+                                    app::Common::threads | app::Common::seed | app::Common::like |
+                                    app::Common::config | app::Common::print_params);
+    Settings s;
+    SceneOptions& o = s.scene;
+    using app::in_range;
+    options.group("Input").add_options()
+        ("input,i", po::value(&s.input)->value_name("FILE")->default_value("-"),
+         "object records (default: stdin)")
+        ("psf", po::value(&s.psf)->value_name("FILE"),
+         "PSF shapelet record of the image (shapesim-decompose --psf-image): stars are drawn "
+         "as it, galaxies convolved with it")
+        ("galaxy-psf", po::value(&s.galaxy_psf)->value_name("FILE"),
+         "the PSF the galaxy models already hold (e.g. models of real galaxies): galaxies are "
+         "convolved with the difference kernel psf / galaxy-psf, or not at all when equal")
+        ("difference-order", po::value(&s.difference_order)->value_name("N"),
+         "order of the difference kernel (default: the PSF's)");
+    options.group("Field (default: --like)").add_options()
+        ("area", po::value(&s.area)->value_name("ARCMIN2")->notifier(in_range("area", 1e-9, 1e9)),
+         "a square field of this area")
+        ("size", po::value(&s.size)->value_name("ARCMIN")->multitoken(),
+         "a field W H arcmin (one value: square)")
+        ("pixel-scale", po::value(&s.pixel_scale)->default_value(0.0398)
+             ->notifier(in_range("pixel-scale", 1e-6, 3600.0)), "arcsec per pixel with --area/--size")
+        ("ra", po::value(&s.ra)->default_value(0.0)->notifier(in_range("ra", -360.0, 360.0)),
+         "field centre RA, degrees")
+        ("dec", po::value(&s.dec)->default_value(0.0)->notifier(in_range("dec", -90.0, 90.0)),
+         "field centre Dec, degrees")
+        ("tile", po::value(&s.tile)->value_name("X0 Y0 X1 Y1")->multitoken(),
+         "render only these field pixels (FITS, inclusive); the WCS follows");
+    options.group("Accuracy").add_options()
+        ("truncation", po::value(&o.truncation)->default_value(1e-3)
+             ->notifier(in_range("truncation", 1e-12, 0.5)),
+         "stamps end where the model is below this fraction of the noise rms (noise-free: of "
+         "its central value)")
+        ("shear", po::value(&s.shear)->value_name("G1 G2")->multitoken(),
+         "reduced shear applied to every galaxy before the PSF")
+        ("kappa", po::value(&s.kappa)->default_value(0.0)->notifier(in_range("kappa", -10.0, 0.99)),
+         "convergence applied with the shear (flux kept)")
+        ("lensing-tolerance", po::value(&o.lensing_tolerance)->default_value(1e-8)
+             ->notifier(in_range("lensing-tolerance", 1e-14, 0.1)),
+         "relative truncation of the lensed shapelet series");
+    options.group("Noise").add_options()
+        ("noise-rms", po::value(&o.noise_rms)->notifier(in_range("noise-rms", 0.0, 1e30)),
+         "Gaussian background rms, image units")
+        ("noise-correlation", po::value(&o.noise_correlation)
+             ->notifier(in_range("noise-correlation", 1.0, 2.3)),
+         "correlated-noise factor F of the background (drizzle-like 3x3 kernel)")
+        ("noise-like", po::value(&s.noise_like)->value_name("FILE"),
+         "take the rms and F from shapesim-detect's records (medians of noise_rms, "
+         "noise_correlation)")
+        ("gain", po::value(&o.gain)->notifier(in_range("gain", 0.0, 1e30)),
+         "electrons per image unit (x --exposure) for photon noise; 0: none")
+        ("exposure", po::value(&s.exposure)->default_value(1.0)
+             ->notifier(in_range("exposure", 1e-9, 1e12)),
+         "seconds, for images in units per second")
+        ("sky", po::value(&o.sky)->default_value(0.0)->notifier(in_range("sky", -1e30, 1e30)),
+         "sky level added, image units")
+        ("noise-free", po::bool_switch(&o.noise_free), "no noise");
+    options.group("Output").add_options()
+        ("truth", po::value(&s.truth)->value_name("FILE"),
+         "write what was drawn (JSON lines: position, true flux and shape, stamp)")
+        ("bitpix", po::value(&s.bitpix)->default_value(-32), "-32 or -64");
+    if (!options.parse(argc, argv)) return 0;
+    const app::Log log("shapesim-render", options.common().verbosity);
+    using clock = std::chrono::steady_clock;
+
+    const std::string& output = options.common().output;
+    if (output.empty()) throw po::error("give the output image: -o FILE");
+    if (s.bitpix != -32 && s.bitpix != -64) throw po::error("--bitpix: -32 or -64");
+    app::check_writable(output);
+    if (!s.truth.empty()) app::check_writable(s.truth);
+    if (!s.galaxy_psf.empty() && s.psf.empty()) throw po::error("--galaxy-psf needs --psf");
+    if (options.given("noise-like") && (options.given("noise-rms") || options.given("noise-correlation")))
+        throw po::error("--noise-like sets --noise-rms and --noise-correlation");
+    if (!s.shear.empty()) {
+        if (s.shear.size() != 2) throw po::error("--shear takes two numbers: G1 G2");
+        if (!(std::hypot(s.shear[0], s.shear[1]) < 1.0)) throw po::error("--shear: |g| must be < 1");
+    }
+    if (!s.shear.empty() || s.kappa != 0.0) {
+        Lensing l;
+        if (!s.shear.empty()) {
+            l.g1 = s.shear[0];
+            l.g2 = s.shear[1];
+        }
+        l.kappa = s.kappa;
+        o.lensing = l;
+    }
+
+    // The field and the window.
+    const int field_kinds = int(!options.common().like.empty()) + int(options.given("area")) +
+                            int(options.given("size"));
+    if (field_kinds != 1) throw po::error("give exactly one of --like, --area, --size");
+    FieldGeometry field;
+    if (!options.common().like.empty()) {
+        field = read_field_geometry(options.common().like);
+    } else if (options.given("area")) {
+        field = make_field(std::sqrt(s.area), std::sqrt(s.area), s.pixel_scale, s.ra, s.dec);
+    } else {
+        if (s.size.empty() || s.size.size() > 2) throw po::error("--size takes W [H] arcmin");
+        field = make_field(s.size[0], s.size.size() == 2 ? s.size[1] : s.size[0], s.pixel_scale,
+                           s.ra, s.dec);
+    }
+    Tile window{1, 1, field.nx, field.ny};
+    if (options.given("tile")) {
+        if (s.tile.size() != 4) throw po::error("--tile takes four numbers: X0 Y0 X1 Y1");
+        for (double v : s.tile)
+            if (v != std::floor(v) || !(std::abs(v) < 2e9)) throw po::error("--tile: whole pixels");
+        window = Tile{long(s.tile[0]), long(s.tile[1]), long(s.tile[2]), long(s.tile[3])};
+        if (window.x0 < 1 || window.y0 < 1 || window.x1 > field.nx || window.y1 > field.ny ||
+            window.x1 < window.x0 || window.y1 < window.y0)
+            throw po::error("--tile: must lie within the field's 1.." + std::to_string(field.nx) +
+                            " x 1.." + std::to_string(field.ny) + " pixels");
+    }
+
+    // Noise and kernels.
+    if (!s.noise_like.empty()) std::tie(o.noise_rms, o.noise_correlation) = noise_of(s.noise_like);
+    o.gain *= s.exposure;
+    o.seed = options.common().seed;
+    o.threads = options.common().threads;
+    o.validate();
+    SceneKernels kernels;
+    std::string kernel_note = "none";
+    if (!s.psf.empty()) {
+        const ShapeletModel psf = read_psf(s.psf, field.pixel_scale);
+        kernels.star = to_cartesian(psf);
+        if (s.galaxy_psf.empty()) {
+            kernels.galaxy = kernels.star;
+            kernel_note = "the PSF";
+        } else {
+            const ShapeletModel old = read_psf(s.galaxy_psf, field.pixel_scale);
+            if (old.n_max == psf.n_max && old.beta_pix == psf.beta_pix && old.coeffs == psf.coeffs) {
+                kernel_note = "none (the models hold this PSF)";
+            } else {
+                const int order = s.difference_order >= 0 ? s.difference_order : psf.n_max;
+                const DifferenceKernel k = difference_kernel(old, psf, order);
+                kernels.galaxy = to_cartesian(k.kernel);
+                kernel_note = "difference kernel (relative residual " +
+                              std::to_string(k.report.relative_residual) + ")";
+            }
+        }
+    }
+
+    // Read the objects; positions from ra/dec through the field's WCS.
+    const auto t_read = clock::now();
+    JsonlReader reader(s.input, {ObjectRecord::schema});
+    std::vector<ObjectRecord> records;
+    ObjectRecord r;
+    while (reader.next_record(r)) {
+        const PixelPosition p = field.wcs.sky_to_pixel(r.ra, r.dec);
+        r.x = p.x;
+        r.y = p.y;
+        if (!r.has_shape() && !kernels.star)
+            throw Error("object " + r.id + " is a point source: give --psf", reader.name(),
+                        reader.line(), "kind");
+        records.push_back(r);
+    }
+
+    // Prepare (lens, convolve, size the stamps) in parallel; paint; noise.
+    const auto t_prepare = clock::now();
+    std::vector<PreparedObject> prepared(records.size());
+    std::vector<std::string> errors(records.size());
+    std::atomic<std::size_t> next{0};
+    auto worker = [&] {
+        ConvolveWorkspace ws;
+        for (std::size_t k = next++; k < records.size(); k = next++) {
+            try {
+                prepared[k] = prepare_object(records[k], field.pixel_scale, kernels, o, &ws);
+                prepared[k].index = k;
+            } catch (const std::exception& e) {
+                errors[k] = e.what();
+            }
+        }
+    };
+    {
+        std::vector<std::thread> pool;
+        for (int t = 1; t < o.threads; ++t) pool.emplace_back(worker);
+        worker();
+        for (auto& t : pool) t.join();
+    }
+    for (std::size_t k = 0; k < records.size(); ++k)
+        if (!errors[k].empty()) throw Error("object " + records[k].id + ": " + errors[k], reader.name());
+    // Only what reaches the window.
+    std::vector<PreparedObject> in_window;
+    for (auto& p : prepared) {
+        const PixelWindow& w = p.window;
+        if (p.drawn && w.column0 + w.nx > window.x0 - 1 && w.column0 < window.x1 &&
+            w.row0 + w.ny > window.y0 - 1 && w.row0 < window.y1)
+            in_window.push_back(std::move(p));
+    }
+    const auto t_paint = clock::now();
+    ImageArray image = paint(in_window, window, o);
+    const auto t_noise = clock::now();
+    add_noise(image, window, field.nx, o);
+    const auto t_write = clock::now();
+
+    // The image: the field's WCS moved to the window.
+    FitsImageSpec spec;
+    spec.bitpix = s.bitpix;
+    Wcs wcs = field.wcs;
+    wcs.crpix1 -= double(window.x0 - 1);
+    wcs.crpix2 -= double(window.y0 - 1);
+    spec.wcs = wcs;
+    spec.keywords = {
+        FitsKeyword("SEED", std::to_string(o.seed), "run seed (shapesim)"),
+        FitsKeyword("NOBJ", (long long)(in_window.size()), "objects drawn in this image"),
+        FitsKeyword("TRUNC", o.truncation, "stamp truncation, fraction of noise rms or peak"),
+        FitsKeyword("NOISERMS", o.noise_free ? 0.0 : o.noise_rms, "Gaussian background rms"),
+        FitsKeyword("NOISECOR", o.noise_correlation, "correlated-noise factor F (4x4 blocks)"),
+        FitsKeyword("GAIN", o.noise_free ? 0.0 : o.gain, "electrons per image unit (photon noise)"),
+        FitsKeyword("SKY", o.sky, "sky level added"),
+        FitsKeyword("NOISEFRE", o.noise_free, "noise-free image"),
+        FitsKeyword("G1", o.lensing ? o.lensing->g1 : 0.0, "reduced shear applied"),
+        FitsKeyword("G2", o.lensing ? o.lensing->g2 : 0.0, "reduced shear applied"),
+        FitsKeyword("KAPPA", o.lensing ? o.lensing->kappa : 0.0, "convergence applied"),
+        FitsKeyword("LENSTOL", o.lensing_tolerance, "lensing projection tolerance"),
+        FitsKeyword("PSF", s.psf.empty() ? std::string("none") : s.psf, "PSF record"),
+        FitsKeyword("GALKERN", kernel_note, "what galaxies were convolved with"),
+        FitsKeyword("TILEX0", (long long)window.x0, "first field column of this image"),
+        FitsKeyword("TILEY0", (long long)window.y0, "first field row of this image"),
+        FitsKeyword("FIELDNX", (long long)field.nx, "field width, pixels"),
+        FitsKeyword("FIELDNY", (long long)field.ny, "field height, pixels"),
+    };
+    FitsWriter fits(output, "shapesim-render");
+    fits.write_image(image, spec);
+
+    // The truth catalogue: every object drawn in the window.
+    std::unique_ptr<app::AtomicTextFile> truth;
+    if (!s.truth.empty()) {
+        truth = std::make_unique<app::AtomicTextFile>(s.truth);
+        JsonlWriter out(truth->stream(), s.truth);
+        for (const PreparedObject& p : in_window) {
+            Json t = Json::object();
+            t["schema"] = "shapesim.truth/1";
+            t["id"] = p.id;
+            t["kind"] = p.kind;
+            const ObjectRecord& rec = records[p.index];
+            t["ra"] = rec.ra;
+            t["dec"] = rec.dec;
+            t["x"] = p.model.x;
+            t["y"] = p.model.y;
+            t["flux"] = p.flux;
+            if (rec.mag) t["mag"] = *rec.mag - 2.5 * std::log10(p.flux / rec.flux);
+            if (p.intrinsic) {
+                // Undefined (null) for a model whose second moments are not positive.
+                const Complex e = p.intrinsic->epsilon;
+                t["e1"] = std::isfinite(e.real()) ? Json(e.real()) : Json(nullptr);
+                t["e2"] = std::isfinite(e.imag()) ? Json(e.imag()) : Json(nullptr);
+                const double r = p.intrinsic->rms_radius;
+                t["rms_radius"] = std::isfinite(r) ? Json(r) : Json(nullptr);
+                t["lensing_error"] = p.lensing_error;
+            }
+            t["n_max"] = p.model.n_max;
+            t["stamp_radius"] = p.radius;
+            out.write(t);
+        }
+    }
+    fits.commit();
+    if (truth) truth->commit();
+    const auto t_end = clock::now();
+    auto seconds = [](auto a, auto b) { return std::chrono::duration<double>(b - a).count(); };
+    log.info(in_window.size(), " of ", records.size(), " objects drawn into ", window.x1 - window.x0 + 1,
+             " x ", window.y1 - window.y0 + 1, " pixels; galaxy kernel: ", kernel_note,
+             "; read ", seconds(t_read, t_prepare), " s, prepare (lens, convolve) ",
+             seconds(t_prepare, t_paint), " s, paint ", seconds(t_paint, t_noise), " s, noise ",
+             seconds(t_noise, t_write), " s, write ", seconds(t_write, t_end), " s");
+    return 0;
+}
+
 }  // namespace
 
-int main(int argc, char** argv) {
-    return shapesim::app::run_placeholder(argc, argv, "shapesim-render", description);
-}
+int main(int argc, char** argv) { return app::run_main(argc, argv, "shapesim-render", run); }

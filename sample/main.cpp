@@ -131,12 +131,7 @@ int run(int argc, const char* const argv[]) {
             if (!(w > 0.0 && h > 0.0 && w < 1e5 && h < 1e5))
                 throw po::error("--size: must be > 0 arcmin");
         }
-        field.nx = int(std::lround(w * 60.0 / s.pixel_scale));
-        field.ny = int(std::lround(h * 60.0 / s.pixel_scale));
-        if (field.nx < 1 || field.ny < 1 || field.nx > 2000000000 / 2 || field.ny > 2000000000 / 2)
-            throw po::error("the field is not a sensible number of pixels");
-        field.pixel_scale = s.pixel_scale;
-        field.wcs = tan_wcs(s.ra, s.dec, s.pixel_scale, 0.5 + field.nx / 2.0, 0.5 + field.ny / 2.0);
+        field = make_field(w, h, s.pixel_scale, s.ra, s.dec);
     }
     std::optional<Tile> tile;
     if (options.given("tile")) {

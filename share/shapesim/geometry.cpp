@@ -131,6 +131,22 @@ double FieldGeometry::area_arcmin2() const {
     return double(nx) * double(ny) * pixel_scale * pixel_scale / 3600.0;
 }
 
+FieldGeometry make_field(double width_arcmin, double height_arcmin, double pixel_scale,
+                         double ra, double dec) {
+    require(pixel_scale > 0.0 && std::isfinite(pixel_scale), "the pixel scale must be > 0");
+    const double nx = std::round(width_arcmin * 60.0 / pixel_scale);
+    const double ny = std::round(height_arcmin * 60.0 / pixel_scale);
+    if (!(nx >= 1.0 && ny >= 1.0 && nx <= 1e9 && ny <= 1e9))
+        throw Error("the field is not a sensible number of pixels (" + std::to_string(nx) +
+                    " x " + std::to_string(ny) + ")");
+    FieldGeometry g;
+    g.nx = int(nx);
+    g.ny = int(ny);
+    g.pixel_scale = pixel_scale;
+    g.wcs = tan_wcs(ra, dec, pixel_scale, 0.5 + nx / 2.0, 0.5 + ny / 2.0);
+    return g;
+}
+
 FieldGeometry read_field_geometry(const std::string& path) {
     FitsReader fits(path, FitsStart::first_image);
     FieldGeometry g;

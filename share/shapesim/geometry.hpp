@@ -70,6 +70,12 @@ struct FieldGeometry {
     double area_arcmin2() const;
 };
 
+/// A north-up field of `width` × `height` arcmin at `pixel_scale` arcsec per pixel, centred on
+/// (`ra`, `dec`) degrees (CRPIX at the centre of the pixel grid). Throws Error unless the sizes
+/// give between 1 and 10⁹ pixels a side.
+FieldGeometry make_field(double width_arcmin, double height_arcmin, double pixel_scale,
+                         double ra, double dec);
+
 /// The geometry of the first image HDU of `path` (cfitsio syntax `file.fits[EXT]` allowed);
 /// the image must have a TAN WCS. Pixels are not read.
 FieldGeometry read_field_geometry(const std::string& path);

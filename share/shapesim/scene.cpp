@@ -1,0 +1,272 @@
+#include "shapesim/scene.hpp"
+
+#include "shapesim/basis1d.hpp"
+#include "shapesim/convolve.hpp"
+#include "shapesim/error.hpp"
+#include "shapesim/polar.hpp"
+#include "shapesim/rng.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <thread>
+
+namespace shapesim {
+
+namespace {
+
+constexpr double pi = 3.14159265358979323846;
+// Cramér's bound |φ_n(u)| ≤ 1.086435 π^{−1/4}, rounded up.
+const double hermite_bound = 1.0865 * std::pow(pi, -0.25);
+
+// Rows [first, last) of `count` split into `parts` contiguous bands: band `k`.
+std::pair<long, long> band(long count, int parts, int k) {
+    const long first = count * k / parts, last = count * (k + 1) / parts;
+    return {first, last};
+}
+
+template <class Work>
+void in_bands(long rows, int threads, const Work& work) {
+    const int parts = int(std::max<long>(1, std::min<long>(threads, rows)));
+    std::vector<std::thread> pool;
+    for (int k = 1; k < parts; ++k)
+        pool.emplace_back([&, k] {
+            const auto [a, b] = band(rows, parts, k);
+            work(a, b);
+        });
+    const auto [a, b] = band(rows, parts, 0);
+    work(a, b);
+    for (auto& t : pool) t.join();
+}
+
+}  // namespace
+
+void SceneOptions::validate() const {
+    auto check = [](bool ok, const char* field, const char* why) {
+        if (!ok) throw Error(why, "", 0, field);
+    };
+    check(truncation > 0.0 && truncation < 1.0, "truncation", "must be in (0, 1)");
+    check(noise_rms >= 0.0 && std::isfinite(noise_rms), "noise_rms", "must be ≥ 0");
+    check(noise_correlation >= 1.0 && std::isfinite(noise_correlation), "noise_correlation",
+          "must be ≥ 1");
+    check(gain >= 0.0 && std::isfinite(gain), "gain", "must be ≥ 0");
+    check(std::isfinite(sky), "sky", "must be finite");
+    check(lensing_tolerance >= 1e-14 && lensing_tolerance < 1.0, "lensing_tolerance",
+          "must be in [1e-14, 1)");
+    check(threads >= 1, "threads", "must be ≥ 1");
+}
+
+double stamp_radius(const CartesianModel& model, double threshold) {
+    const int n = model.n_max + 1;
+    const double beta = model.beta_pix;
+    std::vector<double> rows(std::size_t(n), 0.0), columns(std::size_t(n), 0.0);
+    for (int n1 = 0; n1 < n; ++n1)
+        for (int n2 = 0; n2 < n; ++n2) {
+            rows[std::size_t(n1)] += std::abs(model.b(n1, n2));
+            columns[std::size_t(n2)] += std::abs(model.b(n1, n2));
+        }
+    std::vector<double> phi(static_cast<std::size_t>(n));
+    // Bound on a pixel wholly beyond R in x (or y): (C/β) Σ_n S_n T_n(R), T_n = |φ_n(R/β)| past
+    // φ_n's last turning point √(2n+1) (it only falls from there), else C.
+    auto bound = [&](double r) {
+        const double u = r / beta;
+        hermite_functions(u, model.n_max, phi.data());
+        double sx = 0.0, sy = 0.0;
+        for (int k = 0; k < n; ++k) {
+            const double t = u >= std::sqrt(2.0 * k + 1.0) ? std::abs(phi[std::size_t(k)])
+                                                           : hermite_bound;
+            sx += rows[std::size_t(k)] * t;
+            sy += columns[std::size_t(k)] * t;
+        }
+        return hermite_bound / beta * std::max(sx, sy);
+    };
+    if (bound(0.0) <= threshold) return 0.0;
+    double lo = 0.0, hi = beta * std::sqrt(2.0 * model.n_max + 1.0);
+    while (bound(hi) > threshold) {
+        lo = hi;
+        hi += beta;
+        if (hi > 1e6) return hi;  // never in practice: the tail is Gaussian
+    }
+    while (hi - lo > 0.01) {
+        const double mid = 0.5 * (lo + hi);
+        (bound(mid) > threshold ? lo : hi) = mid;
+    }
+    return hi;
+}
+
+double truncation_threshold(const CartesianModel& model, const SceneOptions& options) {
+    if (!options.noise_free && options.noise_rms > 0.0) return options.truncation * options.noise_rms;
+    std::vector<double> phi(std::size_t(model.n_max) + 1);
+    hermite_functions(0.0, model.n_max, phi.data());
+    double centre = 0.0;
+    for (int n1 = 0; n1 <= model.n_max; ++n1)
+        for (int n2 = 0; n2 <= model.n_max; ++n2)
+            centre += model.b(n1, n2) * phi[std::size_t(n1)] * phi[std::size_t(n2)];
+    centre = std::abs(centre) / model.beta_pix;
+    if (!(centre > 0.0)) {  // a model with a hole at its centre: its mean surface brightness
+        centre = std::abs(moments(model).flux) / (4.0 * pi * model.beta_pix * model.beta_pix);
+    }
+    return options.truncation * centre;
+}
+
+PreparedObject prepare_object(const ObjectRecord& record, double field_pixel_scale,
+                              const SceneKernels& kernels, const SceneOptions& options,
+                              ConvolveWorkspace* workspace) {
+    if (!record.x || !record.y)
+        throw Error("no x, y: give positions in the field (shapesim-sample --like)", "", 0, "x");
+    PreparedObject p;
+    p.id = record.id;
+    p.kind = record.kind;
+    CartesianModel model;
+    if (record.has_shape()) {
+        ShapeletModel m = record.to_model(*record.x, *record.y);
+        if (record.pixel_scale != field_pixel_scale)
+            m = dilate(m, record.pixel_scale / field_pixel_scale);
+        if (options.lensing) {
+            ProjectionOptions po;
+            po.tolerance = options.lensing_tolerance;
+            const Projection lensed = lens(m, *options.lensing, po);
+            m = lensed.model;
+            p.lensing_error = lensed.relative_error;
+        }
+        p.intrinsic = moments(m);
+        p.flux = p.intrinsic->flux;
+        model = to_cartesian(m);
+        if (kernels.galaxy) {
+            ConvolveWorkspace local;
+            model = convolve(model, *kernels.galaxy, workspace ? *workspace : local);
+        }
+    } else {
+        if (!kernels.star)
+            throw Error("a point source needs a PSF (--psf)", "", 0, "coeffs");
+        model = *kernels.star;
+        model.b *= record.flux;
+        model.x = *record.x;
+        model.y = *record.y;
+        p.flux = record.flux;
+    }
+    p.radius = stamp_radius(model, truncation_threshold(model, options));
+    p.drawn = p.radius > 0.0;
+    // Columns whose pixel [i − ½, i + ½] meets (x − R, x + R): i from ⌊x − R − ½⌋ + 1 to
+    // ⌈x + R + ½⌉ − 1 (FITS), 0-based from there.
+    const long i0 = long(std::floor(model.x - p.radius - 0.5)) + 1;
+    const long i1 = long(std::ceil(model.x + p.radius + 0.5)) - 1;
+    const long j0 = long(std::floor(model.y - p.radius - 0.5)) + 1;
+    const long j1 = long(std::ceil(model.y + p.radius + 0.5)) - 1;
+    p.window = PixelWindow{int(i0 - 1), int(j0 - 1), int(i1 - i0 + 1), int(j1 - j0 + 1)};
+    p.model = std::move(model);
+    return p;
+}
+
+ImageArray paint(const std::vector<PreparedObject>& objects, const Tile& window,
+                 const SceneOptions& options) {
+    const long nx = window.x1 - window.x0 + 1, ny = window.y1 - window.y0 + 1;
+    require(nx > 0 && ny > 0, "empty window");
+    ImageArray image = ImageArray::Zero(ny, nx);
+    in_bands(ny, options.threads, [&](long first, long last) {
+        RenderWorkspace ws;
+        ImageArray stamp;
+        // Band rows in field 0-based coordinates: [window.y0 − 1 + first, … + last).
+        const long row_lo = window.y0 - 1 + first, row_hi = window.y0 - 1 + last;
+        const long col_lo = window.x0 - 1, col_hi = window.x1;
+        for (const PreparedObject& o : objects) {
+            if (!o.drawn) continue;
+            const PixelWindow& w = o.window;
+            const long r0 = std::max<long>(w.row0, row_lo), r1 = std::min<long>(w.row0 + w.ny, row_hi);
+            const long c0 = std::max<long>(w.column0, col_lo), c1 = std::min<long>(w.column0 + w.nx, col_hi);
+            if (r0 >= r1 || c0 >= c1) continue;
+            // The whole stamp, whatever the window, then its overlap.
+            stamp.setZero(w.ny, w.nx);
+            CartesianModel local = o.model;
+            local.x -= w.column0;
+            local.y -= w.row0;
+            add_to_image(local, stamp, PixelWindow{0, 0, w.nx, w.ny}, ws);
+            image.block(r0 - (window.y0 - 1), c0 - (window.x0 - 1), r1 - r0, c1 - c0) +=
+                stamp.block(r0 - w.row0, c0 - w.column0, r1 - r0, c1 - c0);
+        }
+    });
+    return image;
+}
+
+double correlated_noise_kernel_edge(double factor) {
+    require(factor >= 1.0 && std::isfinite(factor), "the correlated-noise factor must be ≥ 1");
+    // F(e) = 1 + (3e + e²)/(1 + 2e²) for 4×4 block sums; it rises from 1 at e = 0 to its
+    // maximum near e = 0.9.
+    auto f = [](double e) { return 1.0 + (3.0 * e + e * e) / (1.0 + 2.0 * e * e); };
+    if (factor == 1.0) return 0.0;
+    double lo = 0.0, hi = 0.9;
+    if (factor > f(hi))
+        throw Error("a correlated-noise factor above " + std::to_string(f(hi)) +
+                    " needs a wider kernel than 3×3");
+    for (int k = 0; k < 100; ++k) {
+        const double mid = 0.5 * (lo + hi);
+        (f(mid) < factor ? lo : hi) = mid;
+    }
+    return 0.5 * (lo + hi);
+}
+
+void add_noise(ImageArray& image, const Tile& window, long field_nx, const SceneOptions& options) {
+    if (options.noise_free) return;
+    const long nx = window.x1 - window.x0 + 1, ny = window.y1 - window.y0 + 1;
+    require(image.rows() == ny && image.cols() == nx, "add_noise: image and window differ");
+    const double e = options.noise_correlation > 1.0
+                         ? correlated_noise_kernel_edge(options.noise_correlation)
+                         : 0.0;
+    const double norm = 1.0 / std::sqrt(1.0 + 2.0 * e * e);
+    const double k1[3] = {e * norm, norm, e * norm};
+    const bool correlated = e > 0.0;
+    const double sigma = options.noise_rms;
+    // White noise of field pixel (row R, column C), R, C ≥ −1: Box–Muller on the pair of C
+    // (keys offset so that the margin −1 stays in range).
+    auto white_row = [&](long row, long c_first, long count, double* out) {
+        RandomStream r(options.seed, std::uint64_t(row + 1), "background noise");
+        const long first = c_first + 2, last = c_first + 2 + count;  // keys ≥ 1
+        for (long pair = first / 2; pair * 2 < last; ++pair) {
+            r.seek(std::uint64_t(pair) * 2);
+            const double u1 = r.uniform_open(), u2 = r.uniform();
+            const double radius = std::sqrt(-2.0 * std::log(u1));
+            const double angle = 2.0 * pi * u2;
+            const long even = pair * 2, odd = even + 1;
+            if (even >= first) out[even - first] = radius * std::cos(angle);
+            if (odd < last) out[odd - first] = radius * std::sin(angle);
+        }
+    };
+    in_bands(ny, options.threads, [&](long first, long last) {
+        std::vector<double> w[3], row_noise(static_cast<std::size_t>(nx));
+        for (auto& v : w) v.resize(std::size_t(nx) + 2);
+        for (long j = first; j < last; ++j) {
+            const long row = window.y0 - 1 + j;  // field 0-based
+            double* pixels = &image(j, 0);
+            // Photon noise (and the sky level) first: it follows the noise-free signal.
+            for (long i = 0; i < nx; ++i) {
+                const double s = pixels[i] + options.sky;
+                double value = s;
+                if (options.gain > 0.0 && s > 0.0) {
+                    const long col = window.x0 - 1 + i;
+                    RandomStream photon(options.seed,
+                                        std::uint64_t(row) * std::uint64_t(field_nx) +
+                                            std::uint64_t(col),
+                                        "photon");
+                    const double mean = s * options.gain;
+                    value = double(photon.poisson(mean)) / options.gain;
+                }
+                pixels[i] = value;
+            }
+            if (!(sigma > 0.0)) continue;
+            if (!correlated) {
+                white_row(row, window.x0 - 1, nx, row_noise.data());
+                for (long i = 0; i < nx; ++i) pixels[i] += sigma * row_noise[std::size_t(i)];
+                continue;
+            }
+            for (int a = 0; a < 3; ++a) white_row(row - 1 + a, window.x0 - 2, nx + 2, w[a].data());
+            for (long i = 0; i < nx; ++i) {
+                double v = 0.0;
+                for (int a = 0; a < 3; ++a)
+                    v += k1[a] * (k1[0] * w[a][std::size_t(i)] + k1[1] * w[a][std::size_t(i) + 1] +
+                                  k1[2] * w[a][std::size_t(i) + 2]);
+                pixels[i] += sigma * v;
+            }
+        }
+    });
+}
+
+}  // namespace shapesim
