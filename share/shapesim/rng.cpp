@@ -111,4 +111,41 @@ std::uint64_t RandomStream::poisson(double mean) {
     }
 }
 
+Ziggurat::Ziggurat() {
+    constexpr double r = 3.442619855899, v = 9.91256303526217e-3;
+    auto f = [](double x) { return std::exp(-0.5 * x * x); };
+    x_[0] = v / f(r);
+    x_[1] = r;
+    for (int i = 1; i < 127; ++i) x_[i + 1] = std::sqrt(-2.0 * std::log(v / x_[i] + f(x_[i])));
+    x_[128] = 0.0;
+    for (int i = 0; i <= 128; ++i) f_[i] = f(x_[i]);
+}
+
+const Ziggurat& Ziggurat::instance() {
+    static const Ziggurat table;
+    return table;
+}
+
+double Ziggurat::slow(int layer, double x, RandomStream& more) const {
+    constexpr double r = 3.442619855899;
+    for (;;) {
+        if (layer == 0) {
+            // The tail beyond R (Marsaglia 1964): x = −ln(u₁)/R, accept when −2 ln u₂ > x².
+            for (;;) {
+                const double t = -std::log(more.uniform_open()) / r;
+                const double y = -std::log(more.uniform_open());
+                if (2.0 * y > t * t) return r + t;
+            }
+        }
+        // The wedge of layer i between f(x_i) and f(x_{i+1}): accept under the curve.
+        if (f_[layer] + more.uniform() * (f_[layer + 1] - f_[layer]) < std::exp(-0.5 * x * x))
+            return x;
+        // Rejected: a fresh layer and abscissa from `more`.
+        const std::uint64_t word = more.next_u64();
+        layer = int(word & 127);
+        x = double(word >> 11) * 0x1.0p-53 * x_[layer];
+        if (x < x_[layer + 1]) return x;
+    }
+}
+
 }  // namespace shapesim

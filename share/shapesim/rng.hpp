@@ -113,4 +113,30 @@ private:
     std::array<std::uint64_t, 4> buffer_{};
 };
 
+/// Standard normal deviates by the ziggurat (Marsaglia & Tsang 2000; 128 layers, R =
+/// 3.442619855899, layer area V = 9.91256303526217e-3), one 64-bit word per deviate: 7 bits
+/// pick the layer, 1 the sign, 53 the abscissa. The word alone decides 97.3% of the time; the
+/// wedge and tail tests draw what they need from `more()`, a RandomStream& the caller supplies
+/// (called only then). With a word fixed per pixel and `more` keyed by the pixel, noise is a
+/// pure function of the pixel — the same in any tile — at a few ns per deviate.
+class Ziggurat {
+public:
+    template <class More>
+    double operator()(std::uint64_t word, More&& more) const {
+        const int layer = int(word & 127);
+        const double sign = (word & 128) ? -1.0 : 1.0;
+        const double u = double(word >> 11) * 0x1.0p-53;  // [0, 1)
+        const double x = u * x_[layer];
+        if (x < x_[layer + 1]) return sign * x;  // wholly under the curve
+        return sign * slow(layer, x, more());
+    }
+    static const Ziggurat& instance();
+
+private:
+    Ziggurat();
+    double slow(int layer, double x, RandomStream& more) const;
+    double x_[129];  ///< x_[0]: base-layer width V/f(R); x_[1] = R; x_[128] = 0
+    double f_[129];  ///< e^{−x²/2} at x_[i] (f_[0] unused)
+};
+
 }  // namespace shapesim

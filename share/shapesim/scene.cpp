@@ -7,6 +7,7 @@
 #include "shapesim/rng.hpp"
 
 #include <algorithm>
+#include <optional>
 #include <cmath>
 #include <thread>
 
@@ -53,6 +54,7 @@ void SceneOptions::validate() const {
     check(lensing_tolerance >= 1e-14 && lensing_tolerance < 1.0, "lensing_tolerance",
           "must be in [1e-14, 1)");
     check(threads >= 1, "threads", "must be ≥ 1");
+    check(photon_tolerance >= 0.0 && photon_tolerance < 1.0, "photon_tolerance", "must be in [0, 1)");
 }
 
 double stamp_radius(const CartesianModel& model, double threshold) {
@@ -215,24 +217,35 @@ void add_noise(ImageArray& image, const Tile& window, long field_nx, const Scene
     const double k1[3] = {e * norm, norm, e * norm};
     const bool correlated = e > 0.0;
     const double sigma = options.noise_rms;
-    // White noise of field pixel (row R, column C), R, C ≥ −1: Box–Muller on the pair of C
-    // (keys offset so that the margin −1 stays in range).
+    const Ziggurat& zig = Ziggurat::instance();
+    // White noise of field pixel (row R ≥ −1, column C ≥ −2): word C + 2 of the row's stream;
+    // the rare ziggurat retries from a stream keyed by the pixel.
+    const std::uint64_t stride = std::uint64_t(field_nx) + 4;
     auto white_row = [&](long row, long c_first, long count, double* out) {
         RandomStream r(options.seed, std::uint64_t(row + 1), "background noise");
-        const long first = c_first + 2, last = c_first + 2 + count;  // keys ≥ 1
-        for (long pair = first / 2; pair * 2 < last; ++pair) {
-            r.seek(std::uint64_t(pair) * 2);
-            const double u1 = r.uniform_open(), u2 = r.uniform();
-            const double radius = std::sqrt(-2.0 * std::log(u1));
-            const double angle = 2.0 * pi * u2;
-            const long even = pair * 2, odd = even + 1;
-            if (even >= first) out[even - first] = radius * std::cos(angle);
-            if (odd < last) out[odd - first] = radius * std::sin(angle);
+        r.seek(std::uint64_t(c_first + 2));
+        for (long k = 0; k < count; ++k) {
+            const std::uint64_t key = std::uint64_t(row + 1) * stride + std::uint64_t(c_first + 2 + k);
+            std::optional<RandomStream> more;
+            out[k] = zig(r.next_u64(), [&]() -> RandomStream& {
+                if (!more) more.emplace(options.seed, key, "background noise retry");
+                return *more;
+            });
         }
     };
+    // Photon noise only where it adds at least `photon_tolerance` of the background variance:
+    // elsewhere it would change nothing measurable (all pixels when there is no background).
+    const double photon_floor = options.photon_tolerance * sigma * sigma;
     in_bands(ny, options.threads, [&](long first, long last) {
-        std::vector<double> w[3], row_noise(static_cast<std::size_t>(nx));
-        for (auto& v : w) v.resize(std::size_t(nx) + 2);
+        if (first >= last) return;
+        // Rolling white rows R − 1, R, R + 1 with a column of margin each side.
+        std::vector<double> rows[3];
+        for (auto& v : rows) v.resize(std::size_t(nx) + 2);
+        const long row_first = window.y0 - 1 + first;
+        if (correlated) {
+            white_row(row_first - 1, window.x0 - 2, nx + 2, rows[1].data());
+            white_row(row_first, window.x0 - 2, nx + 2, rows[2].data());
+        }
         for (long j = first; j < last; ++j) {
             const long row = window.y0 - 1 + j;  // field 0-based
             double* pixels = &image(j, 0);
@@ -240,29 +253,31 @@ void add_noise(ImageArray& image, const Tile& window, long field_nx, const Scene
             for (long i = 0; i < nx; ++i) {
                 const double s = pixels[i] + options.sky;
                 double value = s;
-                if (options.gain > 0.0 && s > 0.0) {
+                if (options.gain > 0.0 && s > 0.0 && s / options.gain >= photon_floor) {
                     const long col = window.x0 - 1 + i;
                     RandomStream photon(options.seed,
                                         std::uint64_t(row) * std::uint64_t(field_nx) +
                                             std::uint64_t(col),
                                         "photon");
-                    const double mean = s * options.gain;
-                    value = double(photon.poisson(mean)) / options.gain;
+                    value = double(photon.poisson(s * options.gain)) / options.gain;
                 }
                 pixels[i] = value;
             }
             if (!(sigma > 0.0)) continue;
             if (!correlated) {
-                white_row(row, window.x0 - 1, nx, row_noise.data());
-                for (long i = 0; i < nx; ++i) pixels[i] += sigma * row_noise[std::size_t(i)];
+                white_row(row, window.x0 - 1, nx, rows[0].data());
+                for (long i = 0; i < nx; ++i) pixels[i] += sigma * rows[0][std::size_t(i)];
                 continue;
             }
-            for (int a = 0; a < 3; ++a) white_row(row - 1 + a, window.x0 - 2, nx + 2, w[a].data());
+            std::swap(rows[0], rows[1]);
+            std::swap(rows[1], rows[2]);
+            white_row(row + 1, window.x0 - 2, nx + 2, rows[2].data());
             for (long i = 0; i < nx; ++i) {
                 double v = 0.0;
-                for (int a = 0; a < 3; ++a)
-                    v += k1[a] * (k1[0] * w[a][std::size_t(i)] + k1[1] * w[a][std::size_t(i) + 1] +
-                                  k1[2] * w[a][std::size_t(i) + 2]);
+                for (int a = 0; a < 3; ++a) {
+                    const double* w = rows[a].data() + i;
+                    v += k1[a] * (k1[0] * w[0] + k1[1] * w[1] + k1[2] * w[2]);
+                }
                 pixels[i] += sigma * v;
             }
         }

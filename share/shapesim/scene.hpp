@@ -17,14 +17,16 @@
 // Tiles: the image is a window of the field (pixels x0…x1, y0…y1). Each object's stamp is
 // always rendered whole (the same matrix products whatever the window) and its overlap with
 // the window added, objects in input order: a tile's pixels equal the whole image's bit for
-// bit. Noise is keyed by the field pixel (RandomStream(seed, row, "background noise"), pixel
-// pairs by Box–Muller; photon noise from RandomStream(seed, pixel index, "photon")), so it is
-// tile-invariant too. Threads split the window into bands of rows; each band adds the same
+// bit. Noise is keyed by the field pixel (word C of RandomStream(seed, row, "background
+// noise") through the ziggurat, its rare retries keyed by the pixel; photon noise from
+// RandomStream(seed, pixel index, "photon")), so it is tile-invariant too. Threads split the window into bands of rows; each band adds the same
 // objects in the same order, so the result does not depend on the thread count.
 //
 // Noise (add_noise):
 //   - photon noise of the objects (and of the sky level, when given): Poisson counts at
-//     `gain` electrons per image unit, (N − λ)/gain, where λ = (signal + sky)·gain > 0;
+//     `gain` electrons per image unit, N/gain with N ~ Poisson(λ), λ = (signal + sky)·gain,
+//     wherever its variance (signal + sky)/gain is ≥ `photon_tolerance` × the background's
+//     (a pixel left out has its variance low by less than that fraction);
 //   - a Gaussian background of rms `noise_rms`, white, or correlated as drizzling correlates
 //     it: white noise convolved with the separable 3×3 kernel [e, 1, e]⊗[e, 1, e] normalised
 //     to Σk² = 1 (per-pixel variance kept), e chosen so that 4×4 block sums have the measured
@@ -53,6 +55,9 @@ struct SceneOptions {
     double noise_correlation = 1.0;  ///< F of the background (1: white)
     double gain = 0.0;          ///< electrons per image unit for photon noise (0: none)
     double sky = 0.0;           ///< sky level added, image units per pixel
+    /// Photon noise is drawn where its variance s/gain is at least this fraction of the
+    /// background variance (everywhere when there is no background).
+    double photon_tolerance = 1e-3;
     bool noise_free = false;    ///< no noise at all (the truncation then follows the peak)
     std::uint64_t seed = 0;
     std::optional<Lensing> lensing;
