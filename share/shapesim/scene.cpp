@@ -221,16 +221,28 @@ void add_noise(ImageArray& image, const Tile& window, long field_nx, const Scene
     // White noise of field pixel (row R ≥ −1, column C ≥ −2): word C + 2 of the row's stream;
     // the rare ziggurat retries from a stream keyed by the pixel.
     const std::uint64_t stride = std::uint64_t(field_nx) + 4;
+    // The words straight from Philox blocks (as RandomStream lays them out: counter {block,
+    // purpose}, key {seed, row + 1}), four pixels per block; retries from a stream keyed by
+    // the pixel.
+    const std::uint64_t purpose = fnv1a_64("background noise");
+    auto retry = [&](long row, long column, std::uint64_t word) {
+        RandomStream more(options.seed, std::uint64_t(row + 1) * stride + std::uint64_t(column),
+                          "background noise retry");
+        return zig(word, [&]() -> RandomStream& { return more; });
+    };
     auto white_row = [&](long row, long c_first, long count, double* out) {
-        RandomStream r(options.seed, std::uint64_t(row + 1), "background noise");
-        r.seek(std::uint64_t(c_first + 2));
-        for (long k = 0; k < count; ++k) {
-            const std::uint64_t key = std::uint64_t(row + 1) * stride + std::uint64_t(c_first + 2 + k);
-            std::optional<RandomStream> more;
-            out[k] = zig(r.next_u64(), [&]() -> RandomStream& {
-                if (!more) more.emplace(options.seed, key, "background noise retry");
-                return *more;
-            });
+        const std::array<std::uint64_t, 2> key{options.seed, std::uint64_t(row + 1)};
+        const long first = c_first + 2, last = first + count;  // word indices, ≥ 0
+        for (long block = first / 4; block * 4 < last; ++block) {
+            const std::array<std::uint64_t, 4> words =
+                philox_block({std::uint64_t(block), purpose, 0, 0}, key);
+            for (long lane = 0; lane < 4; ++lane) {
+                const long c = block * 4 + lane;
+                if (c < first || c >= last) continue;
+                const std::uint64_t w = words[std::size_t(lane)];
+                const double z = zig.fast(w);
+                out[c - first] = std::isnan(z) ? retry(row, c, w) : z;
+            }
         }
     };
     // Photon noise only where it adds at least `photon_tolerance` of the background variance:

@@ -23,29 +23,9 @@ using namespace shapesim;
 
 namespace {
 
-Morphology make_morphology(bool heavy) {
-    // The HDF cut's smoothed models: n_max 0 ×147, 2 ×2, 3 ×4, 4 ×2, 5, 6 ×3, 7 (of 160).
-    auto hdf_order = [](int i) {
-        static const int tail[13] = {2, 2, 3, 3, 3, 3, 4, 4, 5, 6, 6, 6, 7};
-        const int k = i % 160;
-        return k < 147 ? 0 : tail[k - 147];
-    };
-    std::vector<ShapeletRecord> records;
-    for (int i = 0; records.size() < 200; ++i) {
-        ShapeletModel model =
-            test::random_model(heavy ? i % 16 : hdf_order(i), 1.0 + 4.0 * ((i * 37) % 100) / 100.0,
-                               0.0, 0.0, 1000 + unsigned(i), true, 0.2);
-        if (flux(model) <= 0.0) continue;
-        ShapeletRecord r = ShapeletRecord::from_model(model, 0.04, std::to_string(i));
-        r.mag = 22.0 + 7.0 * ((i * 61) % 100) / 100.0;
-        r.extra["zero_point"] = 25.0;
-        records.push_back(r);
-    }
-    return build_morphology(records, SmoothOptions{});
-}
-
 const Morphology& bench_morphology(bool heavy = false) {
-    static const Morphology hdf = make_morphology(false), many = make_morphology(true);
+    static const Morphology hdf = test::synthetic_morphology(false),
+                            many = test::synthetic_morphology(true);
     return heavy ? many : hdf;
 }
 

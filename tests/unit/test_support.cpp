@@ -2,6 +2,7 @@
 
 #include "shapesim/basis1d.hpp"
 #include "shapesim/decompose.hpp"
+#include "shapesim/morphology.hpp"
 #include "shapesim/moments.hpp"
 #include "shapesim/fits_io.hpp"
 #include "shapesim/jsonl.hpp"
@@ -330,6 +331,27 @@ MeanRms mean_rms(const std::vector<double>& v, const std::vector<double>& key,
     r.rms = std::sqrt(sum2 / double(r.n));
     r.error = r.rms / std::sqrt(double(r.n));
     return r;
+}
+
+Morphology synthetic_morphology(bool heavy) {
+    // The HDF cut's smoothed models: n_max 0 ×147, 2 ×2, 3 ×4, 4 ×2, 5, 6 ×3, 7 (of 160).
+    auto hdf_order = [](int i) {
+        static const int tail[13] = {2, 2, 3, 3, 3, 3, 4, 4, 5, 6, 6, 6, 7};
+        const int k = i % 160;
+        return k < 147 ? 0 : tail[k - 147];
+    };
+    std::vector<ShapeletRecord> records;
+    for (int i = 0; records.size() < 200; ++i) {
+        ShapeletModel model =
+            test::random_model(heavy ? i % 16 : hdf_order(i), 1.0 + 4.0 * ((i * 37) % 100) / 100.0,
+                               0.0, 0.0, 1000 + unsigned(i), true, 0.2);
+        if (flux(model) <= 0.0) continue;
+        ShapeletRecord r = ShapeletRecord::from_model(model, 0.04, std::to_string(i));
+        r.mag = 22.0 + 7.0 * ((i * 61) % 100) / 100.0;
+        r.extra["zero_point"] = 25.0;
+        records.push_back(r);
+    }
+    return build_morphology(records, SmoothOptions{});
 }
 
 }  // namespace shapesim::test

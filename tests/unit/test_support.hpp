@@ -6,6 +6,7 @@
 #include "shapesim/convolve.hpp"
 #include "shapesim/image.hpp"
 #include "shapesim/model.hpp"
+#include "shapesim/morphology.hpp"
 #include "shapesim/records.hpp"
 
 #include <cstdint>
@@ -130,5 +131,10 @@ struct MeanRms {
 };
 MeanRms mean_rms(const std::vector<double>& v, const std::vector<double>& key,
                  const std::function<bool(double)>& keep);
+
+/// A morphology of 200 galaxy-like random models (random_model, amplitude 0.2), β 1–5 px at
+/// 0.04″, magnitudes 22–29 (zero point 25), default λ's: with the HDF cut's n_max mix (147 of
+/// 160 at 0, the rest 2–7), or `heavy`: n_max = k mod 16.
+Morphology synthetic_morphology(bool heavy);
 
 }  // namespace shapesim::test
