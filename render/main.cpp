@@ -2,6 +2,7 @@
 // DESIGN §3, §6). The work is in the library: scene.hpp (lensing, convolution, stamps,
 // painting, noise), convolve.hpp, transform.hpp, render.hpp.
 #include "shapesim/app/atomic_file.hpp"
+#include "shapesim/app/field_options.hpp"
 #include "shapesim/app/options.hpp"
 #include "shapesim/app/run_main.hpp"
 #include "shapesim/convolve.hpp"
@@ -41,8 +42,8 @@ const char* const description =
 
 struct Settings {
     std::string input = "-", psf, galaxy_psf, truth, noise_like;
-    std::vector<double> size, tile, shear;
-    double area = 0.0, pixel_scale = 0.0398, ra = 0.0, dec = 0.0;
+    app::FieldOptions field;
+    std::vector<double> shear;
     double kappa = 0.0, exposure = 1.0;
     int bitpix = -32, difference_order = -1;
     SceneOptions scene;
@@ -103,19 +104,8 @@ int run(int argc, const char* const argv[]) {
          "convolved with the difference kernel psf / galaxy-psf, or not at all when equal")
         ("difference-order", po::value(&s.difference_order)->value_name("N"),
          "order of the difference kernel (default: the PSF's)");
-    options.group("Field (default: --like)").add_options()
-        ("area", po::value(&s.area)->value_name("ARCMIN2")->notifier(in_range("area", 1e-9, 1e9)),
-         "a square field of this area")
-        ("size", po::value(&s.size)->value_name("ARCMIN")->multitoken(),
-         "a field W H arcmin (one value: square)")
-        ("pixel-scale", po::value(&s.pixel_scale)->default_value(0.0398)
-             ->notifier(in_range("pixel-scale", 1e-6, 3600.0)), "arcsec per pixel with --area/--size")
-        ("ra", po::value(&s.ra)->default_value(0.0)->notifier(in_range("ra", -360.0, 360.0)),
-         "field centre RA, degrees")
-        ("dec", po::value(&s.dec)->default_value(0.0)->notifier(in_range("dec", -90.0, 90.0)),
-         "field centre Dec, degrees")
-        ("tile", po::value(&s.tile)->value_name("X0 Y0 X1 Y1")->multitoken(),
-         "render only these field pixels (FITS, inclusive); the WCS follows");
+    s.field.declare(options, "Field (default: --like)",
+                    "render only these field pixels (FITS, inclusive); the WCS follows");
     options.group("Accuracy").add_options()
         ("truncation", po::value(&o.truncation)->default_value(1e-3)
              ->notifier(in_range("truncation", 1e-12, 0.5)),
@@ -176,30 +166,8 @@ int run(int argc, const char* const argv[]) {
     }
 
     // The field and the window.
-    const int field_kinds = int(!options.common().like.empty()) + int(options.given("area")) +
-                            int(options.given("size"));
-    if (field_kinds != 1) throw po::error("give exactly one of --like, --area, --size");
-    FieldGeometry field;
-    if (!options.common().like.empty()) {
-        field = read_field_geometry(options.common().like);
-    } else if (options.given("area")) {
-        field = make_field(std::sqrt(s.area), std::sqrt(s.area), s.pixel_scale, s.ra, s.dec);
-    } else {
-        if (s.size.empty() || s.size.size() > 2) throw po::error("--size takes W [H] arcmin");
-        field = make_field(s.size[0], s.size.size() == 2 ? s.size[1] : s.size[0], s.pixel_scale,
-                           s.ra, s.dec);
-    }
-    Tile window{1, 1, field.nx, field.ny};
-    if (options.given("tile")) {
-        if (s.tile.size() != 4) throw po::error("--tile takes four numbers: X0 Y0 X1 Y1");
-        for (double v : s.tile)
-            if (v != std::floor(v) || !(std::abs(v) < 2e9)) throw po::error("--tile: whole pixels");
-        window = Tile{long(s.tile[0]), long(s.tile[1]), long(s.tile[2]), long(s.tile[3])};
-        if (window.x0 < 1 || window.y0 < 1 || window.x1 > field.nx || window.y1 > field.ny ||
-            window.x1 < window.x0 || window.y1 < window.y0)
-            throw po::error("--tile: must lie within the field's 1.." + std::to_string(field.nx) +
-                            " x 1.." + std::to_string(field.ny) + " pixels");
-    }
+    const FieldGeometry field = s.field.field(options);
+    const Tile window = s.field.window(options, field, true).value_or(Tile{1, 1, field.nx, field.ny});
 
     // Noise and kernels.
     if (!s.noise_like.empty()) std::tie(o.noise_rms, o.noise_correlation) = noise_of(s.noise_like);

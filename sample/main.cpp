@@ -1,6 +1,7 @@
 // shapesim-sample: the morphology model (shapesim-smooth) → new objects over a sky field as
 // shapesim.object/1 records on stdout (paper §4.1–4.2; DESIGN §4, §6). The work is in the
 // library: morphology.hpp (the draws), sample.hpp (the field, stars, tiles).
+#include "shapesim/app/field_options.hpp"
 #include "shapesim/app/options.hpp"
 #include "shapesim/app/run_main.hpp"
 #include "shapesim/error.hpp"
@@ -33,8 +34,8 @@ const char* const description =
 
 struct Settings {
     std::string model;
-    double area = 0.0, pixel_scale = 0.0398, ra = 0.0, dec = 0.0, margin = 0.5;
-    std::vector<double> size, tile;
+    app::FieldOptions field;
+    double margin = 0.5;
     std::string star_histogram;
     std::uint64_t count = 0, star_count = 0;
     SampleOptions sample;
@@ -74,20 +75,9 @@ int run(int argc, const char* const argv[]) {
     options.hidden().add_options()("model", po::value(&s.model)->required(),
                                    "morphology model (shapesim-smooth)");
     options.positional("model", 1);
+    s.field.declare(options, "Field (default: --like)",
+                    "only the objects reaching these field pixels (FITS, inclusive)");
     options.group("Field (default: --like)").add_options()
-        ("area", po::value(&s.area)->value_name("ARCMIN2")->notifier(in_range("area", 1e-9, 1e9)),
-         "a square field of this area")
-        ("size", po::value(&s.size)->value_name("ARCMIN")->multitoken(),
-         "a field W H arcmin (one value: square)")
-        ("pixel-scale", po::value(&s.pixel_scale)->default_value(0.0398)
-             ->notifier(in_range("pixel-scale", 1e-6, 3600.0)),
-         "arcsec per pixel with --area/--size (the HDF's by default)")
-        ("ra", po::value(&s.ra)->default_value(0.0)->notifier(in_range("ra", -360.0, 360.0)),
-         "field centre RA, degrees, with --area/--size")
-        ("dec", po::value(&s.dec)->default_value(0.0)->notifier(in_range("dec", -90.0, 90.0)),
-         "field centre Dec, degrees")
-        ("tile", po::value(&s.tile)->value_name("X0 Y0 X1 Y1")->multitoken(),
-         "only the objects reaching these field pixels (FITS, inclusive)")
         ("margin", po::value(&s.margin)->default_value(0.5)->notifier(in_range("margin", 0.0, 3600.0)),
          "arcsec added to every object's reach for the tile test (PSF wings)");
     options.group("Galaxies").add_options()
@@ -113,35 +103,8 @@ int run(int argc, const char* const argv[]) {
     if (!options.parse(argc, argv)) return 0;
     const app::Log log("shapesim-sample", options.common().verbosity);
 
-    // The field.
-    const int field_kinds = int(!options.common().like.empty()) + int(options.given("area")) +
-                            int(options.given("size"));
-    if (field_kinds != 1) throw po::error("give exactly one of --like, --area, --size");
-    FieldGeometry field;
-    if (!options.common().like.empty()) {
-        field = read_field_geometry(options.common().like);
-    } else {
-        double w = 0.0, h = 0.0;
-        if (options.given("area")) {
-            w = h = std::sqrt(s.area);
-        } else {
-            if (s.size.empty() || s.size.size() > 2) throw po::error("--size takes W [H] arcmin");
-            w = s.size[0];
-            h = s.size.size() == 2 ? s.size[1] : w;
-            if (!(w > 0.0 && h > 0.0 && w < 1e5 && h < 1e5))
-                throw po::error("--size: must be > 0 arcmin");
-        }
-        field = make_field(w, h, s.pixel_scale, s.ra, s.dec);
-    }
-    std::optional<Tile> tile;
-    if (options.given("tile")) {
-        if (s.tile.size() != 4) throw po::error("--tile takes four numbers: X0 Y0 X1 Y1");
-        for (double v : s.tile)
-            if (v != std::floor(v) || !(std::abs(v) < 2e9)) throw po::error("--tile: whole pixels");
-        tile = Tile{long(s.tile[0]), long(s.tile[1]), long(s.tile[2]), long(s.tile[3])};
-        if (tile->x1 < tile->x0 || tile->y1 < tile->y0)
-            throw po::error("--tile: X1 >= X0 and Y1 >= Y0 needed");
-    }
+    const FieldGeometry field = s.field.field(options);
+    const std::optional<Tile> tile = s.field.window(options, field, false);
 
     const Morphology morphology = read_morphology(s.model);
     if (!options.given("zero-point")) {

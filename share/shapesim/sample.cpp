@@ -93,6 +93,20 @@ PixelPosition uniform_position(RandomStream& r, const FieldGeometry& field) {
     return p;
 }
 
+// A record of object `prefix``k` of `kind` at pixel position `p` of the field.
+ObjectRecord placed(const char* prefix, std::uint64_t k, const char* kind, const PixelPosition& p,
+                    const FieldGeometry& field) {
+    ObjectRecord o;
+    o.id = prefix + std::to_string(k);
+    o.kind = kind;
+    const SkyPosition sky = field.wcs.pixel_to_sky(p.x, p.y);
+    o.ra = sky.ra;
+    o.dec = sky.dec;
+    o.x = p.x;
+    o.y = p.y;
+    return o;
+}
+
 }  // namespace
 
 SampleSummary sample_field(const Morphology& morphology, const FieldGeometry& field,
@@ -128,14 +142,7 @@ SampleSummary sample_field(const Morphology& morphology, const FieldGeometry& fi
         const double reach = model_reach(g.model.beta_pix, g.model.n_max) + options.margin;
         if (tile && !tile->reaches(p.x, p.y, reach)) continue;
         summary.redraws += std::uint64_t(g.redraws);
-        ObjectRecord o;
-        o.id = "g" + std::to_string(k);
-        o.kind = "galaxy";
-        const SkyPosition sky = field.wcs.pixel_to_sky(p.x, p.y);
-        o.ra = sky.ra;
-        o.dec = sky.dec;
-        o.x = p.x;
-        o.y = p.y;
+        ObjectRecord o = placed("g", k, "galaxy", p, field);
         o.mag = g.mag;
         o.flux = g.flux;
         o.beta = g.beta;
@@ -163,14 +170,7 @@ SampleSummary sample_field(const Morphology& morphology, const FieldGeometry& fi
         const PixelPosition p = uniform_position(where, field);
         if (tile && !tile->reaches(p.x, p.y, options.margin)) continue;
         RandomStream stream(options.seed, k, "star");
-        ObjectRecord o;
-        o.id = "s" + std::to_string(k);
-        o.kind = "star";
-        const SkyPosition sky = field.wcs.pixel_to_sky(p.x, p.y);
-        o.ra = sky.ra;
-        o.dec = sky.dec;
-        o.x = p.x;
-        o.y = p.y;
+        ObjectRecord o = placed("s", k, "star", p, field);
         o.mag = options.stars.magnitude(stream.uniform());
         o.flux = std::pow(10.0, -0.4 * (*o.mag - options.zero_point));
         o.extra["reach"] = options.margin;
