@@ -30,3 +30,21 @@ check_version() {
   [ "$(wc -l <<<"$out")" -eq 1 ] || fail "$prog --version: expected one line, got: $out"
   grep -q "^$prog (shapesim) ." <<<"$out" || fail "$prog --version: got: $out"
 }
+
+# The shipped HDF-N cut, and its catalogues made by the programs under test, in the current
+# directory: hdf_sources (sources.jsonl, stamps.fits), hdf_models (+ shapelets.jsonl),
+# hdf_morphology (+ morph.json). Each fails the test when a program does.
+HDF_DATA=$(cd "$(dirname "${BASH_SOURCE[0]}")/../../share/data/hdfn" && pwd)
+HDF_IMAGE=$HDF_DATA/hdfn_f814w_v2.fits
+hdf_sources() {
+  "$BIN/shapesim-detect" "$HDF_IMAGE" --weight "$HDF_DATA/hdfn_f814w_v2_weight.fits" \
+    --zero-point 22.08 --stamps stamps.fits -q >sources.jsonl || fail "shapesim-detect failed"
+}
+hdf_models() {
+  hdf_sources
+  "$BIN/shapesim-decompose" -q -j 2 <sources.jsonl >shapelets.jsonl || fail "shapesim-decompose failed"
+}
+hdf_morphology() {
+  hdf_models
+  "$BIN/shapesim-smooth" -q <shapelets.jsonl >morph.json || fail "shapesim-smooth failed"
+}

@@ -5,10 +5,7 @@
 source "$(dirname "${BASH_SOURCE[0]}")/../lib.sh"
 data=$(cd ../../../share/data/hdfn && pwd)
 cd "$TMPDIR"
-"$BIN/shapesim-detect" "$data/hdfn_f814w_v2.fits" --weight "$data/hdfn_f814w_v2_weight.fits" \
-  --zero-point 22.08 --stamps stamps.fits -q >src.jsonl || fail "detect failed"
-"$BIN/shapesim-decompose" -q -j 2 <src.jsonl >shp.jsonl || fail "decompose failed"
-"$BIN/shapesim-smooth" -q <shp.jsonl >morph.json || fail "smooth failed"
+hdf_morphology
 "$EXAMPLES/perturbations" morph.json fig.pgm 500 >table.md 2>err || fail "perturbations: $(cat err)"
 [ "$(grep -c '^| [0-9]' table.md)" -eq 5 ] || fail "expected five k rows: $(cat table.md)"
 python3 - <<'PY' || fail "the diagnostic does not behave: $(cat table.md)"

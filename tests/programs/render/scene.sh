@@ -10,12 +10,10 @@ tools=$(cd ../tools && pwd)
 hdf=$data/hdfn_f814w_v2.fits
 
 cd "$TMPDIR"
-"$BIN/shapesim-detect" "$hdf" --weight "$data/hdfn_f814w_v2_weight.fits" \
-  --zero-point 22.08 --stamps stamps.fits -q >sources.jsonl || fail "shapesim-detect failed"
-"$BIN/shapesim-decompose" -q -j 2 <sources.jsonl >shapelets.jsonl || fail "decompose failed"
+hdf_models
 "$BIN/shapesim-decompose" -q --psf-image "$data/wfpc2_f814w_tinytim_psf.fits" --like "$hdf" \
   --psf-box 0.0996 0.05 >psf.jsonl || fail "decompose --psf-image failed"
-"$BIN/shapesim-smooth" -q <shapelets.jsonl >morph.json || fail "smooth failed"
+"$BIN/shapesim-smooth" -q <shapelets.jsonl >morph.json || fail "shapesim-smooth failed"
 "$BIN/shapesim-sample" morph.json --like "$hdf" --seed 5 --star-count 3 -q >objects.jsonl ||
   fail "sample failed"
 

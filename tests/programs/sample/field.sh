@@ -9,10 +9,7 @@ data=$(cd ../../../share/data/hdfn && pwd)
 hdf=$data/hdfn_f814w_v2.fits
 
 cd "$TMPDIR"
-"$BIN/shapesim-detect" "$hdf" --weight "$data/hdfn_f814w_v2_weight.fits" \
-  --zero-point 22.08 --stamps stamps.fits -q >sources.jsonl || fail "shapesim-detect failed"
-"$BIN/shapesim-decompose" -q -j 2 <sources.jsonl >shapelets.jsonl || fail "shapesim-decompose failed"
-"$BIN/shapesim-smooth" -q <shapelets.jsonl >morph.json || fail "shapesim-smooth failed"
+hdf_morphology
 "$BIN/shapesim-smooth" -q --delta <shapelets.jsonl >delta.json || fail "shapesim-smooth --delta failed"
 
 # A 4× larger field than the cut (its pixel scale and a 1024² square) for the statistics.

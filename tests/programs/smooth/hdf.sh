@@ -7,9 +7,7 @@ prog=shapesim-smooth
 data=$(cd ../../../share/data/hdfn && pwd)
 
 cd "$TMPDIR"
-"$BIN/shapesim-detect" "$data/hdfn_f814w_v2.fits" --weight "$data/hdfn_f814w_v2_weight.fits" \
-  --zero-point 22.08 --stamps stamps.fits -q >sources.jsonl || fail "shapesim-detect failed"
-"$BIN/shapesim-decompose" -q -j 2 <sources.jsonl >shapelets.jsonl || fail "shapesim-decompose failed"
+hdf_models
 
 "$BIN/$prog" -q <shapelets.jsonl >morph.json || fail "exit $?"
 "$BIN/$prog" -q <shapelets.jsonl >again.json || fail "second run failed"
