@@ -1,0 +1,168 @@
+#include "shapesim/app/detection_run.hpp"
+
+#include "shapesim/error.hpp"
+#include "shapesim/fits_io.hpp"
+#include "shapesim/jsonl.hpp"
+#include "shapesim/psf.hpp"
+#include "shapesim/records.hpp"
+
+#include <cmath>
+#include <memory>
+
+namespace shapesim::app {
+
+void DetectionSettings::declare(ProgramOptions& options) {
+    DetectionSettings& s = *this;
+    options.hidden().add_options()("image", po::value(&s.image)->required(), "input image");
+    options.positional("image", 1);
+    options.group("Input").add_options()
+        ("weight", po::value(&s.weight)->value_name("FILE"),
+         "noise map of the image (same size; cfitsio [HDU] syntax allowed)")
+        ("weight-type", po::value(&s.weight_type)->value_name("TYPE")->default_value("weight"),
+         "what --weight holds: weight (inverse variance), rms or variance")
+        ("pixel-scale", po::value(&s.pixel_scale)->value_name("ARCSEC")
+             ->notifier(in_range("pixel-scale", 1e-6, 3600.0)),
+         "pixel scale when the header has no WCS (arcsec/pixel)")
+        ("ra", po::value(&s.ra)->value_name("DEG")->notifier(in_range("ra", 0.0, 360.0)),
+         "with --pixel-scale: RA of the image centre (north-up TAN WCS)")
+        ("dec", po::value(&s.dec)->value_name("DEG")->notifier(in_range("dec", -90.0, 90.0)),
+         "with --pixel-scale: Dec of the image centre")
+        ("zero-point", po::value(&s.zero_point)->value_name("MAG"),
+         "AB magnitude of one image unit (default: header MAGZPT/ZP/PHOTFLAM…, else 0)");
+    DetectionOptions& d = s.detection;
+    options.group("Detection (SExtractor parameters)").add_options()
+        ("detect-thresh", po::value(&d.detect_thresh)->default_value(1.3)
+             ->notifier(in_range("detect-thresh", 1e-3, 1e6)), "DETECT_THRESH, σ")
+        ("analysis-thresh", po::value(&d.analysis_thresh)->default_value(0.9)
+             ->notifier(in_range("analysis-thresh", 1e-3, 1e6)), "ANALYSIS_THRESH, σ")
+        ("min-area", po::value(&d.min_area)->default_value(5)
+             ->notifier(in_range("min-area", 1, 1 << 30)), "DETECT_MINAREA, pixels")
+        ("deblend-nthresh", po::value(&d.deblend_nthresh)->default_value(32)
+             ->notifier(in_range("deblend-nthresh", 1, 1024)), "DEBLEND_NTHRESH")
+        ("deblend-mincont", po::value(&d.deblend_mincont)->default_value(0.03)
+             ->notifier(in_range("deblend-mincont", 0.0, 1.0)), "DEBLEND_MINCONT")
+        ("clean-param", po::value(&d.clean_param)->default_value(1.0)
+             ->notifier(in_range("clean-param", 1e-6, 1e6)), "CLEAN_PARAM")
+        ("no-clean", po::bool_switch(&s.no_clean), "CLEAN N")
+        ("back-size", po::value(&d.back_size)->default_value(64)
+             ->notifier(in_range("back-size", 1, 1 << 20)), "BACK_SIZE, pixels")
+        ("back-filter-size", po::value(&d.back_filter_size)->default_value(3)
+             ->notifier(in_range("back-filter-size", 1, 1024)), "BACK_FILTERSIZE, tiles")
+        ("filter", po::value(&s.filter)->value_name("FILE")->default_value("default"),
+         "detection filter: a SExtractor .conv file, or 'default' (3×3 pyramid)")
+        ("filter-mode", po::value(&s.filter_mode)->default_value("conv"),
+         "conv (SExtractor) or matched (libsep's noise-aware matched filter)")
+        ("no-weight-rescale", po::bool_switch(&s.no_rescale),
+         "use the weight map as given (default: scale it to the measured rms)")
+        ("gain", po::value(&d.gain)->default_value(0.0)
+             ->notifier(in_range("gain", 0.0, 1e30)),
+         "GAIN, e- per image unit, for Poisson errors (0: none)");
+    options.group("Stars").add_options()
+        ("psf-fwhm", po::value(&s.psf_fwhm)->value_name("ARCSEC")->default_value(0.15)
+             ->notifier(in_range("psf-fwhm", 1e-6, 3600.0)),
+         "Gaussian PSF for the stellarity (SEEING_FWHM), unless --psf-image/--psf-model")
+        ("psf-image", po::value(&s.psf_image)->value_name("FILE"),
+         "PSF image (finer or equal sampling) for the stellarity")
+        ("psf-pixel-scale", po::value(&s.psf_pixel_scale)->value_name("ARCSEC")
+             ->notifier(in_range("psf-pixel-scale", 1e-6, 3600.0)),
+         "pixel scale of --psf-image (default: its PIXSCALE keyword)")
+        ("psf-box", po::value(&s.psf_box)->value_name("ARCSEC")->multitoken(),
+         "convolve --psf-image with square boxes of these widths first (the detector "
+         "pixel, a drizzle drop: a subsampled TinyTim PSF lacks both)")
+        ("psf-model", po::value(&s.psf_model)->value_name("FILE"),
+         "PSF as a shapesim.shapelet/1 record (first line of FILE)")
+        ("star-threshold", po::value(&s.star_threshold)->default_value(0.97)
+             ->notifier(in_range("star-threshold", 0.0, 1.0)),
+         "objects with stellarity above this are stars");
+}
+
+DetectionRun DetectionSettings::run(const ProgramOptions& options, const Log& log) {
+    DetectionSettings& s = *this;
+    s.detection.clean = !s.no_clean;
+    s.detection.rescale_weight = !s.no_rescale;
+    if (s.filter_mode == "matched") s.detection.filter_mode = FilterMode::matched;
+    else if (s.filter_mode != "conv")
+        throw po::error("--filter-mode: must be conv or matched, got '" + s.filter_mode + "'");
+    if (s.filter != "default") s.detection.filter = read_filter_kernel(s.filter);
+    if (options.given("ra") != options.given("dec"))
+        throw po::error("--ra and --dec go together");
+    if (!s.psf_image.empty() && !s.psf_model.empty())
+        throw po::error("--psf-image and --psf-model exclude each other");
+    // The image, its geometry and zero point.
+    FitsReader fits(s.image, FitsStart::first_image);
+    DetectionRun r;
+    r.image = fits.read_image();
+    const ImageArray& image = r.image;
+    SourceContext& context = r.context;
+    context.image = s.image;
+    context.star_threshold = s.star_threshold;
+    if (has_wcs(fits)) {
+        context.wcs = read_wcs(fits);
+        context.pixel_scale = context.wcs->pixel_scale_arcsec();
+        if (options.given("pixel-scale") &&
+            std::abs(s.pixel_scale / context.pixel_scale - 1.0) > 1e-3)
+            log.warn("--pixel-scale ", s.pixel_scale, " differs from the header WCS (",
+                     context.pixel_scale, "\"/pixel); using the header");
+    } else if (options.given("pixel-scale")) {
+        context.pixel_scale = s.pixel_scale;
+        if (options.given("ra"))
+            context.wcs = tan_wcs(s.ra, s.dec, s.pixel_scale, (image.cols() + 1) / 2.0,
+                                  (image.rows() + 1) / 2.0);
+    } else {
+        throw Error("no WCS in the header: give --pixel-scale (and --ra/--dec for sky "
+                    "positions)", fits.place());
+    }
+    if (options.given("zero-point")) context.zero_point = s.zero_point;
+    else if (auto zp = header_zero_point(fits)) context.zero_point = *zp;
+    else log.info("no zero point given or in the header: magnitudes use zero point 0");
+
+    std::unique_ptr<ImageArray> inverse_variance;
+    if (!s.weight.empty()) {
+        FitsReader weight_fits(s.weight, FitsStart::first_image);
+        inverse_variance = std::make_unique<ImageArray>(inverse_variance_from(
+            weight_fits.read_image(), parse_noise_map_type(s.weight_type), weight_fits.place()));
+        if (inverse_variance->rows() != image.rows() || inverse_variance->cols() != image.cols())
+            throw Error("weight map is " + std::to_string(inverse_variance->cols()) + "×" +
+                            std::to_string(inverse_variance->rows()) + " pixels, the image " +
+                            std::to_string(image.cols()) + "×" + std::to_string(image.rows()),
+                        weight_fits.place());
+    }
+
+    // The point-source locus for the stellarity.
+    PointSourceLocus& locus = r.locus;
+    if (!s.psf_image.empty()) {
+        const PsfImage psf = read_psf_image(
+            s.psf_image, options.given("psf-pixel-scale") ? std::optional(s.psf_pixel_scale)
+                                                          : std::nullopt);
+        locus = image_point_source_locus(convolve_boxes(psf.pixels, psf.pixel_scale, s.psf_box),
+                                         psf.pixel_scale, context.pixel_scale);
+    } else if (!s.psf_model.empty()) {
+        JsonlReader reader(s.psf_model, {ShapeletRecord::schema});
+        ShapeletRecord record;
+        if (!reader.next_record(record)) throw Error("no PSF record", s.psf_model);
+        ShapeletModel model = record.to_model();
+        // To image pixels: β scales with the pixel-scale ratio; coefficients are per pixel
+        // but the stellarity only needs the shape (flux is normalised out).
+        model.beta_pix = record.beta / context.pixel_scale;
+        locus = model_point_source_locus(model);
+    } else {
+        locus = gaussian_point_source_locus(s.psf_fwhm / context.pixel_scale);
+    }
+    log.verbose("point-source locus: FWHM ", locus.fwhm, " px, core fraction ", locus.ratio,
+                " ± ", locus.scatter, " (r ", locus.r_core, " / ", locus.r_outer, " px)");
+
+    r.field = detect_sources(image, inverse_variance.get(), s.detection);
+    const DetectionResult& field = r.field;
+    log.info(field.objects.size(), " objects above ", s.detection.detect_thresh,
+             "σ (background rms ", field.background_rms, ", weight scale ", field.weight_scale,
+             ", correlated-noise factor ", field.noise_correlation, ")");
+
+    context.noise_correlation = field.noise_correlation;
+    if (inverse_variance && (field.weight_scale > 100.0 || field.weight_scale < 0.01))
+        log.warn("the weight map's noise differs from the measured rms by a factor ",
+                 1.0 / std::sqrt(field.weight_scale), " (is --weight-type ", s.weight_type,
+                 " right?)");
+    return r;
+}
+
+}  // namespace shapesim::app

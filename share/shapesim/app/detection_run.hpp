@@ -1,0 +1,41 @@
+// Detection as shapesim-detect runs it, for every program that detects (shapesim-detect,
+// shapesim-measure): the same options, the same defaults, the same steps — read the image,
+// its WCS, zero point and noise map; build the point-source locus; detect_sources().
+#pragma once
+
+#include "shapesim/app/log.hpp"
+#include "shapesim/app/options.hpp"
+#include "shapesim/detect.hpp"
+#include "shapesim/sources.hpp"
+#include "shapesim/stellarity.hpp"
+
+#include <string>
+#include <vector>
+
+namespace shapesim::app {
+
+/// The detected field and what its records need.
+struct DetectionRun {
+    ImageArray image;        ///< the input image as read
+    SourceContext context;   ///< geometry, zero point, noise correlation (stamps left empty)
+    PointSourceLocus locus;  ///< the PSF's point-source locus for the stellarity
+    DetectionResult field;   ///< detections, segmentation, background-subtracted image
+};
+
+struct DetectionSettings {
+    std::string image, weight, weight_type = "weight", filter = "default", filter_mode = "conv";
+    std::string psf_image, psf_model;
+    double pixel_scale = 0.0, ra = 0.0, dec = 0.0, zero_point = 0.0;
+    double psf_fwhm = 0.15, psf_pixel_scale = 0.0, star_threshold = 0.97;
+    std::vector<double> psf_box;
+    bool no_clean = false, no_rescale = false;
+    DetectionOptions detection;
+
+    /// The positional IMAGE and the groups "Input", "Detection (SExtractor parameters)" and
+    /// "Stars".
+    void declare(ProgramOptions& options);
+    /// Check the values and run the detection (Error / po::error on bad input).
+    DetectionRun run(const ProgramOptions& options, const Log& log);
+};
+
+}  // namespace shapesim::app
