@@ -1,0 +1,43 @@
+// One galaxy's morphology record (shapesim.morph/1, DESIGN §2, §5) from a detected field:
+// SExtractor-style photometry and shape from detection (detect.hpp, sources.hpp), e1, e2
+// (paper eqs. 6–7), and the statistics of morphometry.hpp on a statmorph-style cutout.
+//
+// Cutout: the object's segment bounding box, centred, half-size max(⌊2.5·max(dx, dy)/2⌋, 24)
+// pixels, clipped to the image (statmorph's cutout_extent 2.5, min_cutout_size 48), from the
+// background-subtracted image, the segmentation and the bad-pixel mask.
+//
+// Record fields: id (the label), x, y, mag (Kron), fwhm, a, b, theta, e1, e2, r_petro
+// (pixels, η = 0.2, about the asymmetry centre), c, a_sym, s (clumpiness ×10 as in Conselice
+// 2003 and the paper), gini, m20; extra: kind, stellarity, r20, r80, smoothness (statmorph's
+// S), sky_sigma, x_asym, y_asym (FITS), snr (Kron). A statistic that cannot be computed is
+// left out. Flags say when a statistic is unreliable:
+//   small     r_p < `min_petrosian` pixels (2): the PSF, not the galaxy, sets C, A, S
+//   faint     Kron S/N < `min_snr` (10): A and S are noise-dominated
+//   crowded   more than `max_neighbour_fraction` (10%) of the 1.5 r_p aperture belongs to
+//             other segments
+//   no_sky    no clean sky box in the cutout: A and S without their background terms
+// plus morphometry's own flags and the detection's (blended, truncated, …).
+#pragma once
+
+#include "shapesim/detect.hpp"
+#include "shapesim/morphometry.hpp"
+#include "shapesim/records.hpp"
+
+namespace shapesim {
+
+struct MeasureOptions {
+    MorphometryOptions morphometry;
+    double cutout_extent = 2.5;
+    int min_cutout = 48;
+    double min_petrosian = 2.0;
+    double min_snr = 10.0;
+    double max_neighbour_fraction = 0.1;
+};
+
+/// The record of `object` of `field`; `source` is its detection record (shapesim-detect's
+/// fields: mag, stellarity, kind, flags). Throws Error when the statistics cannot start (no
+/// positive flux in the segment).
+MorphRecord measure_object(const DetectionResult& field, const Detection& object,
+                           const SourceRecord& source, const MeasureOptions& options = {});
+
+}  // namespace shapesim
