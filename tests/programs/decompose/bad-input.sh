@@ -9,11 +9,10 @@
 #    object, the object skipped, the others written, exit 0.
 source "$(dirname "${BASH_SOURCE[0]}")/../lib.sh"
 prog=shapesim-decompose
-data=$(cd ../../../share/data/hdfn && pwd)
 
 cd "$TMPDIR"
-"$BIN/shapesim-detect" "$data/hdfn_f814w_v2.fits" --weight "$data/hdfn_f814w_v2_weight.fits" \
-  --zero-point 22.08 --stamps stamps.fits -q >all.jsonl || fail "shapesim-detect failed"
+hdf_sources
+mv sources.jsonl all.jsonl
 head -n 4 all.jsonl >four.jsonl
 [ "$(wc -l <four.jsonl)" -eq 4 ] || fail "fewer than 4 sources from shapesim-detect"
 # The records name stamps.fits relative to here; a good run first.

@@ -3,11 +3,9 @@
 # shipped HDF-N cut (after shapesim-detect) write identical records and --models files.
 source "$(dirname "${BASH_SOURCE[0]}")/../lib.sh"
 prog=shapesim-decompose
-data=$(cd ../../../share/data/hdfn && pwd)
 
 cd "$TMPDIR"
-"$BIN/shapesim-detect" "$data/hdfn_f814w_v2.fits" --weight "$data/hdfn_f814w_v2_weight.fits" \
-  --zero-point 22.08 --stamps stamps.fits -q >sources.jsonl || fail "shapesim-detect failed"
+hdf_sources
 [ -s sources.jsonl ] || fail "no sources from shapesim-detect"
 for j in 1 2; do
   "$BIN/$prog" -q -j "$j" --stamps stamps.fits --models "models$j.fits" <sources.jsonl \

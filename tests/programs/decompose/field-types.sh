@@ -6,11 +6,10 @@
 # zero_point is no zero point: every record written, that one without "mag".
 source "$(dirname "${BASH_SOURCE[0]}")/../lib.sh"
 prog=shapesim-decompose
-data=$(cd ../../../share/data/hdfn && pwd)
 
 cd "$TMPDIR"
-"$BIN/shapesim-detect" "$data/hdfn_f814w_v2.fits" --weight "$data/hdfn_f814w_v2_weight.fits" \
-  --zero-point 22.08 --stamps stamps.fits -q >all.jsonl || fail "shapesim-detect failed"
+hdf_sources
+mv sources.jsonl all.jsonl
 head -n 8 all.jsonl >eight.jsonl
 [ "$(wc -l <eight.jsonl)" -eq 8 ] || fail "fewer than 8 sources from shapesim-detect"
 bad_id=$(sed -n 5p eight.jsonl | grep -o '^{"schema":"[^"]*","id":"[^"]*"' |
