@@ -15,6 +15,7 @@ packages=(
   libgtest-dev              # unit tests
   libbenchmark-dev          # make bench
   source-extractor          # SExtractor, the cross-check of shapesim-detect (tests, bench)
+  gnuplot-nox               # shapesim-measure --compare figures
 )
 
 missing=()

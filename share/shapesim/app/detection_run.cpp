@@ -11,9 +11,12 @@
 
 namespace shapesim::app {
 
-void DetectionSettings::declare(ProgramOptions& options) {
+void DetectionSettings::declare(ProgramOptions& options, bool image_required) {
     DetectionSettings& s = *this;
-    options.hidden().add_options()("image", po::value(&s.image)->required(), "input image");
+    if (image_required)
+        options.hidden().add_options()("image", po::value(&s.image)->required(), "input image");
+    else
+        options.hidden().add_options()("image", po::value(&s.image), "input image");
     options.positional("image", 1);
     options.group("Input").add_options()
         ("weight", po::value(&s.weight)->value_name("FILE"),

@@ -31,9 +31,9 @@ struct DetectionSettings {
     bool no_clean = false, no_rescale = false;
     DetectionOptions detection;
 
-    /// The positional IMAGE and the groups "Input", "Detection (SExtractor parameters)" and
-    /// "Stars".
-    void declare(ProgramOptions& options);
+    /// The positional IMAGE (required unless `image_required` is false) and the groups
+    /// "Input", "Detection (SExtractor parameters)" and "Stars".
+    void declare(ProgramOptions& options, bool image_required = true);
     /// Check the values and run the detection (Error / po::error on bad input).
     DetectionRun run(const ProgramOptions& options, const Log& log);
 };

@@ -1,0 +1,51 @@
+#!/usr/bin/env bash
+# shapesim-measure --compare: a catalogue against itself gives KS D = 0, p = 1 and Wasserstein 0
+# for every statistic, two identical Table rows and the seven figures (when gnuplot is there);
+# a copy with 1.5× larger galaxies is told apart in size, not in magnitude; empty,
+# single-object and wrong-typed catalogues give one clear line.
+source "$(dirname "${BASH_SOURCE[0]}")/../lib.sh"
+prog=shapesim-measure
+cd "$TMPDIR"
+"$BIN/$prog" "$HDF_IMAGE" --weight "$HDF_DATA/hdfn_f814w_v2_weight.fits" --zero-point 22.08 \
+  -j 2 -q >hdf.jsonl || fail "measuring the HDF failed"
+"$BIN/$prog" --compare a=hdf.jsonl b=hdf.jsonl --out same -q 2>err || fail "exit $?: $(cat err)"
+python3 - <<'PY' || fail "self-comparison is not null: $(cat same/distances.md)"
+rows = [l.strip().strip("|").split("|") for l in open("same/distances.md")][2:]
+assert len(rows) == 9, len(rows)
+for r in rows:
+    d, p, w = (x.strip() for x in r[4:7])
+    assert d == "0.000" and float(p) == 1.0 and float(w) == 0.0, r
+table = [l.split("|")[2:] for l in open("same/table.md") if l.startswith("| a ") or l.startswith("| b ")]
+assert len(table) == 2 and table[0] == table[1], table
+PY
+if command -v gnuplot >/dev/null; then
+  for f in counts size size_mag ellipticity c_a c_rp a_s; do
+    [ "$(head -c 4 "same/$f.png" | tail -c 3)" = "PNG" ] || fail "same/$f.png is not a PNG"
+  done
+fi
+# A copy with every galaxy 1.5× larger is told apart in size (and not in magnitude).
+python3 -c 'import json
+with open("large.jsonl", "w") as out:
+    for line in open("hdf.jsonl"):
+        r = json.loads(line)
+        if "fwhm" in r: r["fwhm"] *= 1.5
+        out.write(json.dumps(r) + "\n")'
+"$BIN/$prog" --compare hdf=hdf.jsonl large=large.jsonl --out scaled -q || fail "scaled run failed"
+grep '^| fwhm_arcsec | large ' scaled/distances.md | awk -F'|' '{ exit !($7 < 0.001) }' ||
+  fail "1.5x larger sizes are not rejected: $(grep '^| fwhm' scaled/distances.md)"
+grep '^| mag | large ' scaled/distances.md | awk -F'|' '{ exit !($7 > 0.99) }' ||
+  fail "magnitudes differ: $(grep '^| mag' scaled/distances.md)"
+# Bad input.
+: >empty.jsonl
+rc=0; "$BIN/$prog" --compare a=hdf.jsonl b=empty.jsonl --out bad >out 2>err || rc=$?
+expect_error "$rc" 1 'empty.jsonl: no records to compare'
+head -n 1 hdf.jsonl >one.jsonl
+"$BIN/$prog" --compare a=hdf.jsonl one=one.jsonl --out single -q || fail "a one-object catalogue fails"
+sed -n 3p hdf.jsonl | sed 's/"c":[-0-9.e]*/"c":"nan"/' >typed.jsonl
+rc=0; "$BIN/$prog" --compare a=hdf.jsonl b=typed.jsonl --out bad >out 2>err || rc=$?
+expect_error "$rc" 1 'typed.jsonl:1: c'
+rc=0; "$BIN/$prog" --compare a=hdf.jsonl --out bad >out 2>err || rc=$?
+expect_error "$rc" 2 'at least two catalogues'
+rc=0; "$BIN/$prog" --compare hdf.jsonl b=hdf.jsonl >out 2>err || rc=$?
+expect_error "$rc" 2 'NAME=FILE'
+exit 0

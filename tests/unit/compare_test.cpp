@@ -1,0 +1,74 @@
+// Catalogue comparison (compare.hpp): KS p-values uniform for one population and small for two,
+// Wasserstein of a shift, bootstrap errors, the Kolmogorov tail.
+#include "shapesim/compare.hpp"
+
+#include "shapesim/error.hpp"
+#include "shapesim/rng.hpp"
+
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <iostream>
+
+using namespace shapesim;
+
+namespace {
+
+std::vector<double> normal_sample(std::uint64_t seed, std::uint64_t id, int n, double shift) {
+    RandomStream r(seed, id, "compare test");
+    std::vector<double> v;
+    for (int k = 0; k < n; ++k) v.push_back(shift + r.gaussian());
+    return v;
+}
+
+}  // namespace
+
+// The Kolmogorov tail at known points (Q(0.5) = 0.9639, Q(1) = 0.2700, Q(1.36) = 0.0494).
+TEST(Compare, KolmogorovTail) {
+    EXPECT_NEAR(kolmogorov_q(0.5), 0.963945, 1e-5);
+    EXPECT_NEAR(kolmogorov_q(1.0), 0.269999, 1e-5);
+    EXPECT_NEAR(kolmogorov_q(1.36), 0.049392, 1e-4);
+    EXPECT_EQ(kolmogorov_q(0.0), 1.0);
+}
+
+// Two samples of one population, 400 times: p-values uniform (5% below 0.05 within binomial
+// error, mean 0.5); a 0.5σ shift at n = 200 is rejected every time.
+TEST(Compare, KsPValuesAreUniformForOnePopulationAndSmallForTwo) {
+    int below = 0, rejected = 0;
+    double mean_p = 0.0;
+    const int repeats = 400;
+    for (int k = 0; k < repeats; ++k) {
+        const KsResult same = ks_two_sample(normal_sample(1, 2 * std::uint64_t(k), 200, 0.0),
+                                            normal_sample(1, 2 * std::uint64_t(k) + 1, 150, 0.0));
+        mean_p += same.p_value / repeats;
+        if (same.p_value < 0.05) ++below;
+        const KsResult other = ks_two_sample(normal_sample(2, std::uint64_t(k), 200, 0.0),
+                                             normal_sample(3, std::uint64_t(k), 200, 0.5));
+        if (other.p_value < 0.01) ++rejected;
+    }
+    std::cout << "  [measured] fraction p < 0.05 = " << double(below) / repeats
+              << ", mean p = " << mean_p << ", rejected at 1% = " << double(rejected) / repeats << "\n";
+    EXPECT_NEAR(double(below) / repeats, 0.05, 3.0 * std::sqrt(0.05 * 0.95 / repeats));
+    EXPECT_NEAR(mean_p, 0.5, 0.05);
+    EXPECT_GT(double(rejected) / repeats, 0.9);
+    EXPECT_THROW(ks_two_sample({}, {1.0}), Error);
+}
+
+// Wasserstein: a sample and its copy shifted by δ are δ apart; identical samples 0.
+TEST(Compare, WassersteinOfAShift) {
+    const std::vector<double> a = normal_sample(4, 0, 300, 0.0);
+    std::vector<double> b = a;
+    for (double& x : b) x += 0.37;
+    EXPECT_NEAR(wasserstein_1d(a, b), 0.37, 1e-12);
+    EXPECT_NEAR(wasserstein_1d(a, a), 0.0, 1e-15);
+    EXPECT_NEAR(wasserstein_1d({0.0}, {1.0, 3.0}), 2.0, 1e-15);
+}
+
+// The bootstrap error of a mean is σ/√n (to 10%), and reproducible.
+TEST(Compare, BootstrapErrorOfTheMean) {
+    const std::vector<double> v = normal_sample(5, 0, 400, 1.0);
+    const double e = bootstrap_error(v, mean_of, 1000, 9);
+    EXPECT_NEAR(e, rms_of(v) / std::sqrt(400.0), 0.1 * rms_of(v) / 20.0);
+    EXPECT_EQ(e, bootstrap_error(v, mean_of, 1000, 9));
+    EXPECT_NEAR(median_of_values({3.0, 1.0, 2.0, 10.0}), 2.5, 1e-15);
+}
