@@ -8,6 +8,7 @@ extern "C" {        // sep.h has no C++ guards
 }
 
 #include <algorithm>
+#include <array>
 #include <cerrno>
 #include <cstring>
 #include <cmath>
@@ -78,49 +79,34 @@ sep_image sep_view(const ImageArray& data, const ImageArray* sigma, const std::u
     return im;
 }
 
-// FWHM from a Gaussian core (SExtractor's FWHM_IMAGE idea): for I = P exp(−r²/2s²) the area
-// above level t is A(t) = 2π s² ln(P/t), linear in ln t; a least-squares slope over eight
-// isophotes between the analysis threshold and the peak gives s, and FWHM = 2√(2 ln 2) s.
-double gaussian_core_fwhm(const std::vector<double>& values, double low, double peak) {
-    if (!(peak > low) || !(low > 0.0)) return std::numeric_limits<double>::quiet_NaN();
-    constexpr int levels = 8;
-    double sx = 0, sy = 0, sxx = 0, sxy = 0;
-    int used = 0;
-    for (int k = 0; k < levels; ++k) {
-        const double level = low * std::pow(peak / low, double(k) / levels);
-        const double area = double(std::count_if(values.begin(), values.end(),
-                                                 [&](double v) { return v > level; }));
-        if (area <= 0.0) continue;
-        const double t = std::log(level);
-        sx += t;
-        sy += area;
-        sxx += t * t;
-        sxy += t * area;
-        ++used;
+// FWHM_IMAGE as SExtractor 2.25 computes it (its analyse.c, examineiso): over the object's
+// pixels brighter than t0 = max(peak/5, the lowest detection threshold among them), a
+// least-squares fit of ln I = c − k r² (r from the isophotal barycentre), each pixel weighted
+// by I² (a fit to I itself, linearised); k is kept ≥ 1/(13 a b) (FWHM at most ≈ 6σ of the
+// object's own moments); FWHM = 2√(ln 2)/√k, less SExtractor's undersampling correction
+// 1/(4 FWHM).
+double sextractor_fwhm(const std::vector<std::array<double, 3>>& pixels, double peak,
+                       double threshold, double a, double b) {
+    const double t0 = std::max(peak / 5.0, threshold);
+    if (!(t0 > 0.0)) return 0.0;
+    double s = 0.0, sx = 0.0, sy = 0.0, sxx = 0.0, sxy = 0.0;
+    for (const auto& [value, dx, dy] : pixels) {
+        if (!(value > t0)) continue;
+        const double w = value * value, d2 = dx * dx + dy * dy, l = std::log(value);
+        s += w;
+        sx += d2 * w;
+        sxx += d2 * d2 * w;
+        sy += l * w;
+        sxy += l * d2 * w;
     }
-    if (used < 2) return std::numeric_limits<double>::quiet_NaN();
-    const double denominator = used * sxx - sx * sx;
-    if (!(denominator > 0.0)) return std::numeric_limits<double>::quiet_NaN();
-    const double slope = -(used * sxy - sx * sy) / denominator;  // 2π s²
-    if (!(slope > 0.0)) return std::numeric_limits<double>::quiet_NaN();
-    return std::sqrt(4.0 * std::log(2.0) * slope / pi);
-}
-
-// The image convolved with the (sum-normalised) detection filter at one pixel, bad pixels
-// and the outside of the image counting as zero.
-double filtered_value(const DetectionResult& result, const FilterKernel& filter, int pixel) {
-    const int nx = int(result.image.cols()), ny = int(result.image.rows());
-    const int i0 = pixel % nx, j0 = pixel / nx;
-    double sum = 0.0, norm = 0.0;
-    for (int b = 0; b < filter.ny; ++b)
-        for (int a = 0; a < filter.nx; ++a) {
-            const double w = filter.values[std::size_t(b * filter.nx + a)];
-            norm += w;
-            const int i = i0 + a - filter.nx / 2, j = j0 + b - filter.ny / 2;
-            if (i < 0 || j < 0 || i >= nx || j >= ny) continue;
-            sum += w * result.image(j, i);
-        }
-    return norm != 0.0 ? sum / norm : sum;
+    const double det = s * sxx - sx * sx;
+    if (!(std::abs(det) > 0.0)) return 0.0;
+    double k = -(s * sxy - sx * sy) / det;
+    const double k_min = 1.0 / (13.0 * a * b);
+    if (k < k_min) k = k_min;
+    double fwhm = 1.6651 / std::sqrt(k);
+    if (fwhm > 0.0) fwhm -= 1.0 / (4.0 * fwhm);
+    return fwhm;
 }
 
 // Correlated-noise factor from 4×4 blocks of sky (see DetectionResult::noise_correlation):
@@ -508,7 +494,7 @@ DetectionResult detect_sources(const ImageArray& image, const ImageArray* invers
 
     // Measurements.
     result.objects.reserve(std::size_t(cat.nobj));
-    std::vector<double> values;
+    std::vector<std::array<double, 3>> pixels;
     for (int k = 0; k < cat.nobj; ++k) {
         Detection d;
         d.label = k + 1;
@@ -539,20 +525,19 @@ DetectionResult detect_sources(const ImageArray& image, const ImageArray* invers
         if (cat.flag[k] & SEP_OBJ_TRUNC) d.flags.push_back("truncated");
         if (cat.flag[k] & SEP_OBJ_SINGU) d.flags.push_back("singular");
 
-        // Isophotal area above the analysis threshold on the image; the isophotes for the
-        // FWHM on the filtered image, between the detection threshold and the filtered peak,
-        // as SExtractor does (the filter suppresses the noise peaks that would bias it).
-        values.clear();
-        double filtered_peak = 0.0;
+        // Isophotal area above the analysis threshold on the image; the FWHM from the
+        // object's pixels (SExtractor's fit, above), the threshold its lowest per pixel.
+        pixels.clear();
+        double lowest = std::numeric_limits<double>::infinity();
+        const int nx = int(result.image.cols());
         for (int p = 0; p < cat.npix[k]; ++p) {
             const int pixel = cat.pix[k][p];
-            if (result.image.data()[pixel] > options.analysis_thresh * result.sigma.data()[pixel])
-                ++d.iso_area;
-            const double f = filtered_value(result, options.filter, pixel);
-            values.push_back(f);
-            filtered_peak = std::max(filtered_peak, f);
+            const double value = result.image.data()[pixel], sigma = result.sigma.data()[pixel];
+            if (value > options.analysis_thresh * sigma) ++d.iso_area;
+            lowest = std::min(lowest, options.detect_thresh * sigma);
+            pixels.push_back({value, double(pixel % nx) - cat.x[k], double(pixel / nx) - cat.y[k]});
         }
-        d.fwhm = gaussian_core_fwhm(values, options.detect_thresh * d.sigma, filtered_peak);
+        d.fwhm = sextractor_fwhm(pixels, cat.peak[k], lowest, cat.a[k], cat.b[k]);
 
         // Kron radius within 6 a (SExtractor), then the AUTO ellipse, each on a cutout with
         // the neighbours mirrored out.

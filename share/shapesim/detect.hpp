@@ -16,8 +16,8 @@
 //      DETECT_MINAREA pixels, deblended over DEBLEND_NTHRESH levels with DEBLEND_MINCONT and
 //      cleaned (CLEAN_PARAM). The objects' pixels give the segmentation map.
 //   5. Per object: isophotal barycentre, second moments → a, b, θ; peak; isophotal area above
-//      ANALYSIS_THRESH·σ on the unfiltered image; FWHM from a Gaussian-core fit to the
-//      isophotal areas; Kron ("AUTO") flux in an ellipse of PHOT_AUTOPARAMS (2.5 r_Kron,
+//      ANALYSIS_THRESH·σ on the unfiltered image; FWHM as SExtractor 2.25 fits it (ln I
+//      against r² over the pixels above max(peak/5, threshold), weights I²); Kron ("AUTO") flux in an ellipse of PHOT_AUTOPARAMS (2.5 r_Kron,
 //      at least 3.5) a × b, neighbours' pixels replaced by their mirror images (MASK_TYPE
 //      CORRECT); flux error from σ, times the measured correlated-noise factor (drizzling
 //      correlates neighbouring pixels, so √Σσ² alone understates it), plus Poisson with GAIN.

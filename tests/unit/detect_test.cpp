@@ -454,9 +454,9 @@ TEST(DetectSynthetic, ConstantPedestalIsRemovedByTheBackground) {
 }
 
 TEST(DetectSynthetic, FwhmOfStars) {
-    // Stars of σ = 1.5 px. The FWHM comes from isophotes of the filtered image, whose
-    // pyramid kernel adds 0.5 px² per axis, and the pixel adds 1/12:
-    // FWHM = 2.355 √(1.5² + 1/12 + 0.5) = 3.98 px (3.60 px without the filter).
+    // Stars of σ = 1.5 px, fitted as SExtractor 2.25 does on the image's own pixels: the pixel
+    // adds 1/12 px² (F = 2.3548 √(1.5² + 1/12) = 3.597 px), then SExtractor's undersampling
+    // correction takes 1/(4F) off: 3.528 px.
     const test::SyntheticField f = test::synthetic_field(256, 256, 32.0, 2000.0, 2.0e4, 1.0, 3,
                                                          1.5, 1);
     const DetectionResult r = detect_sources(f.image, &f.weight, DetectionOptions{});
@@ -468,7 +468,8 @@ TEST(DetectSynthetic, FwhmOfStars) {
     }
     report("star_fwhm_median", median(fwhm));
     report("star_fwhm_madsigma", mad_sigma(fwhm));
-    EXPECT_NEAR(median(fwhm), fwhm_per_sigma * std::sqrt(2.25 + 1.0 / 12 + 0.5), 0.2);
+    const double full = fwhm_per_sigma * std::sqrt(2.25 + 1.0 / 12);
+    EXPECT_NEAR(median(fwhm), full - 1.0 / (4.0 * full), 0.02);
 }
 
 // An object exactly along y (a bar 3 × 16 px: its xy moment is exactly 0): libsep stores θ as
