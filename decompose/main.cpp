@@ -9,17 +9,16 @@
 #include "shapesim/fits_io.hpp"
 #include "shapesim/geometry.hpp"
 #include "shapesim/jsonl.hpp"
+#include "shapesim/parallel.hpp"
 #include "shapesim/psf.hpp"
 #include "shapesim/records.hpp"
 
-#include <atomic>
 #include <exception>
 #include <iostream>
 #include <map>
 #include <memory>
 #include <optional>
 #include <set>
-#include <thread>
 
 namespace {
 
@@ -239,40 +238,32 @@ int run(int argc, const char* const argv[]) {
              " read in ", log.elapsed(), " s");
 
     std::vector<Outcome> outcomes(jobs.size());
-    std::atomic<std::size_t> next{0};
-    auto worker = [&] {
-        for (std::size_t k = next++; k < jobs.size(); k = next++) {
-            const Job& job = jobs[k];
-            Outcome& out = outcomes[k];
-            try {
-                DecomposeOptions fit = s.fit;
-                fit.noise_correlation = job.noise_correlation;
-                MaskArray mask = (job.stamp.mask != 0.0).cast<std::uint8_t>();
-                const double x = job.source.x - (job.stamp.x0 - 1);
-                const double y = job.source.y - (job.stamp.y0 - 1);
-                const double beta = std::max(job.source.a.value_or(1.0), 0.5);
-                out.decomposition = decompose(job.stamp.image, job.stamp.weight, &mask, x, y,
-                                              beta, fit);
-                out.record = shapelet_record(job.source, *out.decomposition, job.stamp,
-                                             job.pixel_scale, job.zero_point);
-                const ShapeletModel& m = out.decomposition->fit.model;
-                if (near_bright_star(out.record->x, out.record->y,
-                                     m.beta_pix * std::sqrt(m.n_max + 1.0), job.source.flux,
-                                     stars))
-                    out.record->flags.push_back("bright_star");
-            } catch (const Error& e) {
-                out.error = e.message();
-            } catch (const std::exception& e) {
-                // Never let a worker's exception terminate the program.
-                out.error = std::string("internal error: ") + e.what();
-            }
+    parallel_for(jobs.size(), options.common().threads, [&](std::size_t k, int) {
+        const Job& job = jobs[k];
+        Outcome& out = outcomes[k];
+        try {
+            DecomposeOptions fit = s.fit;
+            fit.noise_correlation = job.noise_correlation;
+            MaskArray mask = (job.stamp.mask != 0.0).cast<std::uint8_t>();
+            const double x = job.source.x - (job.stamp.x0 - 1);
+            const double y = job.source.y - (job.stamp.y0 - 1);
+            const double beta = std::max(job.source.a.value_or(1.0), 0.5);
+            out.decomposition = decompose(job.stamp.image, job.stamp.weight, &mask, x, y,
+                                          beta, fit);
+            out.record = shapelet_record(job.source, *out.decomposition, job.stamp,
+                                         job.pixel_scale, job.zero_point);
+            const ShapeletModel& m = out.decomposition->fit.model;
+            if (near_bright_star(out.record->x, out.record->y,
+                                 m.beta_pix * std::sqrt(m.n_max + 1.0), job.source.flux,
+                                 stars))
+                out.record->flags.push_back("bright_star");
+        } catch (const Error& e) {
+            out.error = e.message();
+        } catch (const std::exception& e) {
+            // Never let a worker's exception terminate the program.
+            out.error = std::string("internal error: ") + e.what();
         }
-    };
-    const int threads = std::max(1, std::min<int>(options.common().threads, int(jobs.size())));
-    std::vector<std::thread> pool;
-    for (int t = 1; t < threads; ++t) pool.emplace_back(worker);
-    worker();
-    for (auto& t : pool) t.join();
+    });
 
     std::unique_ptr<FitsWriter> models;
     if (!s.models.empty()) models = std::make_unique<FitsWriter>(s.models, "shapesim-decompose");

@@ -9,9 +9,9 @@
 #include "shapesim/error.hpp"
 #include "shapesim/jsonl.hpp"
 #include "shapesim/measure.hpp"
+#include "shapesim/parallel.hpp"
 #include "shapesim/stellarity.hpp"
 
-#include <atomic>
 #include <cerrno>
 #include <cstdio>
 #include <cstdlib>
@@ -132,7 +132,6 @@ int run_compare(const CompareSettings& c, const app::Log& log) {
         distances.commit();
     }
     // Figures: data per catalogue, one gnuplot script, run when gnuplot is there.
-    const char* kinds[] = {"counts", "size", "size_mag", "ellipticity", "c_a", "c_rp", "a_s"};
     for (std::size_t k = 0; k < catalogues.size(); ++k) {
         app::AtomicTextFile data(c.out + "/" + catalogues[k].name + ".dat");
         auto& o = data.stream();
@@ -190,7 +189,6 @@ int run_compare(const CompareSettings& c, const app::Log& log) {
              "FILE using ($1 <= " + scut + " ? $6 : NaN):5 with points pt 7 ps 0.6 title 'NAME'");
         script.commit();
     }
-    (void)kinds;
     if (std::system("command -v gnuplot >/dev/null 2>&1") == 0) {
         const std::string command = "gnuplot '" + c.out + "/figures.gp'";
         if (std::system(command.c_str()) != 0) throw Error("gnuplot failed on the figures", c.out + "/figures.gp");
@@ -246,6 +244,7 @@ int run(int argc, const char* const argv[]) {
     const app::DetectionRun detected = detection.run(options, log);
     const DetectionResult& field = detected.field;
     struct Job {
+        const Detection* object;
         SourceRecord source;
         std::optional<MorphRecord> record;
         std::string error;
@@ -255,25 +254,16 @@ int run(int argc, const char* const argv[]) {
         const CoreFraction core = core_fraction(field, object, detected.locus);
         const double star = stellarity(core, detected.locus);
         if (star > detection.star_threshold && !stars) continue;
-        jobs.push_back({source_record(object, core, star, nullptr, detected.context), {}, {}});
+        jobs.push_back({&object, source_record(object, core, star, nullptr, detected.context), {}, {}});
     }
-    std::atomic<std::size_t> next{0};
-    auto worker = [&] {
-        for (std::size_t k = next++; k < jobs.size(); k = next++) {
-            try {
-                const Detection& object = field.objects[std::size_t(std::stoi(jobs[k].source.id) - 1)];
-                jobs[k].record = measure_object(field, object, jobs[k].source, measure);
-                jobs[k].record->extra["pixel_scale"] = detected.context.pixel_scale;
-            } catch (const std::exception& e) {
-                jobs[k].error = e.what();
-            }
+    parallel_for(jobs.size(), options.common().threads, [&](std::size_t k, int) {
+        try {
+            jobs[k].record = measure_object(field, *jobs[k].object, jobs[k].source, measure);
+            jobs[k].record->extra["pixel_scale"] = detected.context.pixel_scale;
+        } catch (const std::exception& e) {
+            jobs[k].error = e.what();
         }
-    };
-    const int threads = std::max(1, std::min<int>(options.common().threads, int(jobs.size())));
-    std::vector<std::thread> pool;
-    for (int t = 1; t < threads; ++t) pool.emplace_back(worker);
-    worker();
-    for (auto& t : pool) t.join();
+    });
 
     JsonlWriter out(std::cout, "-");
     long skipped = 0;

@@ -5,22 +5,23 @@
 #include "shapesim/app/field_options.hpp"
 #include "shapesim/app/options.hpp"
 #include "shapesim/app/run_main.hpp"
+#include "shapesim/compare.hpp"
 #include "shapesim/convolve.hpp"
 #include "shapesim/error.hpp"
 #include "shapesim/fits_io.hpp"
 #include "shapesim/geometry.hpp"
 #include "shapesim/jsonl.hpp"
 #include "shapesim/polar.hpp"
+#include "shapesim/parallel.hpp"
+#include "shapesim/psf.hpp"
 #include "shapesim/records.hpp"
 #include "shapesim/scene.hpp"
 
 #include <algorithm>
-#include <atomic>
 #include <chrono>
 #include <cmath>
 #include <fstream>
 #include <iostream>
-#include <thread>
 
 namespace {
 
@@ -49,21 +50,6 @@ struct Settings {
     SceneOptions scene;
 };
 
-// The shapelet record in `path` (first line; "psf" or any id) as a model at `pixel_scale`,
-// unit flux.
-ShapeletModel read_psf(const std::string& path, double pixel_scale) {
-    JsonlReader reader(path, {ShapeletRecord::schema});
-    ShapeletRecord r;
-    if (!reader.next_record(r)) throw Error("no PSF record", path);
-    ShapeletModel m = r.to_model();
-    if (r.pixel_scale != pixel_scale) m = dilate(m, r.pixel_scale / pixel_scale);
-    const double f = moments(m).flux;
-    if (!(f > 0.0)) throw Error("the PSF has no positive flux", path, reader.line());
-    for (auto& c : m.coeffs) c /= f;
-    m.x = m.y = 0.0;
-    return m;
-}
-
 // Median noise_rms and noise_correlation of shapesim-detect's records.
 std::pair<double, double> noise_of(const std::string& path) {
     JsonlReader reader(path, {SourceRecord::schema});
@@ -78,11 +64,7 @@ std::pair<double, double> noise_of(const std::string& path) {
         }
     }
     if (rms.empty()) throw Error("no noise_rms in the records", path);
-    auto median = [](std::vector<double> v) {
-        std::nth_element(v.begin(), v.begin() + std::ptrdiff_t(v.size() / 2), v.end());
-        return v[v.size() / 2];
-    };
-    return {median(rms), factor.empty() ? 1.0 : std::max(1.0, median(factor))};
+    return {median_of_values(rms), factor.empty() ? 1.0 : std::max(1.0, median_of_values(factor))};
 }
 
 int run(int argc, const char* const argv[]) {
@@ -178,13 +160,13 @@ int run(int argc, const char* const argv[]) {
     SceneKernels kernels;
     std::string kernel_note = "none";
     if (!s.psf.empty()) {
-        const ShapeletModel psf = read_psf(s.psf, field.pixel_scale);
+        const ShapeletModel psf = read_psf_model(s.psf, field.pixel_scale);
         kernels.star = to_cartesian(psf);
         if (s.galaxy_psf.empty()) {
             kernels.galaxy = kernels.star;
             kernel_note = "the PSF";
         } else {
-            const ShapeletModel old = read_psf(s.galaxy_psf, field.pixel_scale);
+            const ShapeletModel old = read_psf_model(s.galaxy_psf, field.pixel_scale);
             if (old.n_max == psf.n_max && old.beta_pix == psf.beta_pix && old.coeffs == psf.coeffs) {
                 kernel_note = "none (the models hold this PSF)";
             } else {
@@ -216,24 +198,16 @@ int run(int argc, const char* const argv[]) {
     const auto t_prepare = clock::now();
     std::vector<PreparedObject> prepared(records.size());
     std::vector<std::string> errors(records.size());
-    std::atomic<std::size_t> next{0};
-    auto worker = [&] {
-        ConvolveWorkspace ws;
-        for (std::size_t k = next++; k < records.size(); k = next++) {
-            try {
-                prepared[k] = prepare_object(records[k], field.pixel_scale, kernels, o, &ws);
-                prepared[k].index = k;
-            } catch (const std::exception& e) {
-                errors[k] = e.what();
-            }
+    std::vector<ConvolveWorkspace> workspaces(std::size_t(std::max(1, o.threads)));
+    parallel_for(records.size(), o.threads, [&](std::size_t k, int t) {
+        try {
+            prepared[k] = prepare_object(records[k], field.pixel_scale, kernels, o,
+                                         &workspaces[std::size_t(t)]);
+            prepared[k].index = k;
+        } catch (const std::exception& e) {
+            errors[k] = e.what();
         }
-    };
-    {
-        std::vector<std::thread> pool;
-        for (int t = 1; t < o.threads; ++t) pool.emplace_back(worker);
-        worker();
-        for (auto& t : pool) t.join();
-    }
+    });
     for (std::size_t k = 0; k < records.size(); ++k)
         if (!errors[k].empty()) throw Error("object " + records[k].id + ": " + errors[k], reader.name());
     // Only what reaches the window.

@@ -11,9 +11,7 @@
 #include "shapesim/sample.hpp"
 
 #include <cmath>
-#include <fstream>
 #include <iostream>
-#include <sstream>
 
 namespace {
 
@@ -40,29 +38,6 @@ struct Settings {
     std::uint64_t count = 0, star_count = 0;
     SampleOptions sample;
 };
-
-Morphology read_morphology(const std::string& path) {
-    std::ifstream file;
-    std::istream* in = &std::cin;
-    if (path != "-") {
-        file.open(path);
-        if (!file) throw Error("cannot open", path);
-        in = &file;
-    }
-    std::stringstream text;
-    text << in->rdbuf();
-    Json doc;
-    try {
-        doc = Json::parse(text.str());
-    } catch (const Json::exception& e) {
-        throw Error(std::string("invalid JSON: ") + e.what(), path);
-    }
-    try {
-        return Morphology::from_json(doc);
-    } catch (const Error& e) {
-        throw e.at(path, 0);
-    }
-}
 
 int run(int argc, const char* const argv[]) {
     app::ProgramOptions options("shapesim-sample", "[OPTION]... MODEL", description,
@@ -106,7 +81,7 @@ int run(int argc, const char* const argv[]) {
     const FieldGeometry field = s.field.field(options);
     const std::optional<Tile> tile = s.field.window(options, field, false);
 
-    const Morphology morphology = read_morphology(s.model);
+    const Morphology morphology = Morphology::read(s.model);
     if (!options.given("zero-point")) {
         if (!morphology.zero_point)
             throw po::error("the model has no zero point: give --zero-point");

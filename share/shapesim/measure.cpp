@@ -74,7 +74,7 @@ MorphRecord measure_object(const DetectionResult& field, const Detection& object
     // Reliability.
     if (!(m.r_petro >= options.min_petrosian)) r.flags.push_back("small");
     if (snr < options.min_snr) r.flags.push_back("faint");
-    if (std::isfinite(m.r_petro_centroid)) {
+    if (std::isfinite(m.r_petro)) {
         const double radius = options.morphometry.petro_extent * m.r_petro;
         long inside = 0, other = 0;
         for (long j = 0; j < labels.rows(); ++j)

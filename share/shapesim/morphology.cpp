@@ -6,6 +6,9 @@
 #include "shapesim/transform.hpp"
 
 #include <algorithm>
+#include <fstream>
+#include <iostream>
+#include <sstream>
 #include <cmath>
 #include <limits>
 
@@ -283,6 +286,29 @@ Morphology Morphology::from_json(const Json& doc) {
     if (doc.contains("provenance")) m.provenance = doc.at("provenance");
     m.prepare();
     return m;
+}
+
+Morphology Morphology::read(const std::string& path) {
+    std::ifstream file;
+    std::istream* in = &std::cin;
+    if (path != "-") {
+        file.open(path);
+        if (!file) throw Error("cannot open", path);
+        in = &file;
+    }
+    std::stringstream text;
+    text << in->rdbuf();
+    Json doc;
+    try {
+        doc = Json::parse(text.str());
+    } catch (const Json::exception& e) {
+        throw Error(std::string("invalid JSON: ") + e.what(), path);
+    }
+    try {
+        return from_json(doc);
+    } catch (const Error& e) {
+        throw e.at(path, 0);
+    }
 }
 
 std::vector<double> parent_table(const Morphology& morphology, double mag_limit) {

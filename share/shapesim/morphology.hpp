@@ -95,6 +95,9 @@ struct Morphology {
     Json to_json() const;
     /// Throws Error naming the field on a wrong schema or value.
     static Morphology from_json(const Json& document);
+    /// The model in file `path` ("-": stdin); Error naming the file on unreadable or invalid
+    /// input.
+    static Morphology read(const std::string& path);
     /// Fill every point's derived modulus and phase (build_morphology and from_json do;
     /// call it again after changing a shape).
     void prepare();

@@ -3,6 +3,8 @@
 #include "shapesim/fits_io.hpp"
 
 #include "shapesim/error.hpp"
+#include "shapesim/jsonl.hpp"
+#include "shapesim/transform.hpp"
 #include "shapesim/lsq.hpp"
 #include "shapesim/moments.hpp"
 #include "shapesim/resample.hpp"
@@ -315,6 +317,19 @@ ShapeletRecord psf_record(const PsfModel& psf, double pixel_scale, std::string i
     if (std::isfinite(psf.flux_outside_stamp))
         r.extra["psf_flux_outside_stamp"] = psf.flux_outside_stamp;
     return r;
+}
+
+ShapeletModel read_psf_model(const std::string& path, double pixel_scale) {
+    JsonlReader reader(path, {ShapeletRecord::schema});
+    ShapeletRecord record;
+    if (!reader.next_record(record)) throw Error("no PSF record", path);
+    ShapeletModel model = record.to_model();
+    if (record.pixel_scale != pixel_scale) model = dilate(model, record.pixel_scale / pixel_scale);
+    const double f = flux(model);
+    if (!(f > 0.0)) throw Error("the PSF has no positive flux", path, reader.line());
+    for (auto& c : model.coeffs) c /= f;
+    model.x = model.y = 0.0;
+    return model;
 }
 
 }  // namespace shapesim

@@ -111,6 +111,12 @@ struct PsfImage {
 /// its header's PIXSCALE (TinyTim's keyword). Error naming the file when neither is there.
 PsfImage read_psf_image(const std::string& path, std::optional<double> pixel_scale);
 
+/// The PSF shapelet record of `path` (its first line, e.g. shapesim-decompose's PSF mode) as
+/// a model in pixels of `pixel_scale` arcsec (β rescaled, flux kept), normalised to unit flux
+/// and centred at (0, 0). Error naming the file and line when there is no record or its flux
+/// is not positive.
+ShapeletModel read_psf_model(const std::string& path, double pixel_scale);
+
 /// `fine` (at `fine_scale` arcsec per pixel) convolved with square boxes `boxes_arcsec` wide,
 /// in turn (box_convolve): the detector pixel and a drizzle drop a subsampled PSF lacks.
 /// Error for a width that is not finite and > 0.

@@ -6,10 +6,10 @@
 // One row per object; the three panels of a row share one asinh stretch set by the data
 // (sky at 10% grey, the data's peak at white), so a residual that looks like the sky's noise
 // is one the model has taken up completely. Convert with e.g. `convert OUT.pgm OUT.png`.
-#include "shapesim/app/atomic_file.hpp"
 #include "shapesim/app/run_main.hpp"
 #include "shapesim/error.hpp"
 #include "shapesim/fits_io.hpp"
+#include "grey_canvas.hpp"
 
 #include <algorithm>
 #include <cmath>
@@ -57,42 +57,22 @@ int run(int argc, const char* const argv[]) {
     }
     const int gap = 2;
     const int nx = (3 * width + 2 * gap) * zoom, ny = int(rows.size()) * (height + gap) * zoom;
-    std::vector<unsigned char> pixels(std::size_t(nx) * std::size_t(ny), 0);
+    examples::GreyCanvas canvas(nx, ny);
     for (std::size_t r = 0; r < rows.size(); ++r) {
+        // One asinh(I/σ) stretch per row, σ from the data's MAD: sky (0) at 10% grey, the
+        // data's peak at white.
         const ImageArray& data = rows[r].panel[0];
-        // Noise from the data's median absolute deviation; stretch asinh(I/σ).
-        std::vector<double> values(data.data(), data.data() + data.size());
-        std::nth_element(values.begin(), values.begin() + std::ptrdiff_t(values.size() / 2),
-                         values.end());
-        const double median = values[values.size() / 2];
-        for (double& v : values) v = std::abs(v - median);
-        std::nth_element(values.begin(), values.begin() + std::ptrdiff_t(values.size() / 2),
-                         values.end());
-        const double sigma = std::max(1.4826 * values[values.size() / 2], 1e-30);
+        const double sigma = examples::mad_sigma(data);
         const double top = std::asinh(std::max(data.maxCoeff() / sigma, 1.0));
-        const double bottom = -0.1 / 0.9 * top;  // sky (0) at 10% grey
+        const examples::AsinhStretch stretch{sigma, -0.1 / 0.9 * top, top};
         for (int k = 0; k < 3; ++k) {
             const ImageArray& p = rows[r].panel[k];
-            for (Eigen::Index j = 0; j < p.rows(); ++j)
-                for (Eigen::Index i = 0; i < p.cols(); ++i) {
-                    const double v = std::isfinite(p(j, i)) ? std::asinh(p(j, i) / sigma) : bottom;
-                    const double t = std::clamp((v - bottom) / (top - bottom), 0.0, 1.0);
-                    const auto grey = static_cast<unsigned char>(std::lround(255.0 * t));
-                    // FITS rows run upward; image rows downward.
-                    const int x0 = (k * (width + gap) + int(i)) * zoom;
-                    const int y0 = (int(r) * (height + gap) + (height - 1 - int(j))) * zoom;
-                    for (int b = 0; b < zoom; ++b)
-                        for (int a = 0; a < zoom; ++a)
-                            pixels[std::size_t(y0 + b) * std::size_t(nx) + std::size_t(x0 + a)] =
-                                grey;
-                }
+            // Panels bottom-aligned in their row.
+            canvas.paste(p, k * (width + gap) * zoom,
+                         (int(r) * (height + gap) + height - int(p.rows())) * zoom, zoom, stretch);
         }
     }
-    app::AtomicTextFile out(argv[3]);
-    out.stream() << "P5\n" << nx << " " << ny << "\n255\n";
-    out.stream().write(reinterpret_cast<const char*>(pixels.data()),
-                       std::streamsize(pixels.size()));
-    out.commit();
+    canvas.write(argv[3]);
     return 0;
 }
 

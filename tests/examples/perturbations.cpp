@@ -14,18 +14,16 @@
 // OUT.pgm: one galaxy — the parent of highest n_max whose own model has no hole — in rows of k = 0, 1, 2, 4, 8 and six
 // draws each, turned back to the parent's own orientation, one asinh stretch for all, the
 // background at 30% grey so negative holes show dark.
-#include "shapesim/app/atomic_file.hpp"
 #include "shapesim/app/run_main.hpp"
 #include "shapesim/error.hpp"
 #include "shapesim/morphology.hpp"
 #include "shapesim/render.hpp"
 #include "shapesim/transform.hpp"
+#include "grey_canvas.hpp"
 
 #include <algorithm>
 #include <cmath>
-#include <fstream>
 #include <iostream>
-#include <sstream>
 
 using namespace shapesim;
 
@@ -51,11 +49,7 @@ int run(int argc, const char* const argv[]) {
         std::cerr << "usage: perturbations MORPH.json OUT.pgm [DRAWS] [PIXEL_SCALE]\n";
         return 2;
     }
-    std::ifstream in(argv[1]);
-    if (!in) throw Error("cannot open", argv[1]);
-    std::stringstream text;
-    text << in.rdbuf();
-    const Morphology morph = Morphology::from_json(Json::parse(text.str()));
+    const Morphology morph = Morphology::read(argv[1]);
     const int draws = argc >= 4 ? std::max(1, std::atoi(argv[3])) : 2000;
     const double scale = argc >= 5 ? std::atof(argv[4]) : 0.03985;
     require(scale > 0.0, "pixel scale must be > 0");
@@ -138,27 +132,13 @@ int run(int argc, const char* const argv[]) {
     const double soft = peak / 20.0;  // asinh knee
     const double top = std::asinh(peak / soft), bottom = -0.3 / 0.7 * top;
     const int nx = (columns * (side + gap)) * zoom, ny = int(rows.size()) * (side + gap) * zoom;
-    std::vector<unsigned char> pixels(std::size_t(nx) * std::size_t(ny), 0);
+    examples::GreyCanvas canvas(nx, ny);
+    const examples::AsinhStretch stretch{soft, bottom, top};
     for (std::size_t r = 0; r < rows.size(); ++r)
-        for (int c = 0; c < columns; ++c) {
-            const ImageArray& p = rows[r][std::size_t(c)];
-            for (int j = 0; j < side; ++j)
-                for (int i = 0; i < side; ++i) {
-                    const double v = std::asinh(p(j, i) / soft);
-                    const double t = std::clamp((v - bottom) / (top - bottom), 0.0, 1.0);
-                    const auto grey = static_cast<unsigned char>(std::lround(255.0 * t));
-                    const int x0 = (c * (side + gap) + i) * zoom;
-                    const int y0 = (int(r) * (side + gap) + (side - 1 - j)) * zoom;
-                    for (int b = 0; b < zoom; ++b)
-                        for (int a = 0; a < zoom; ++a)
-                            pixels[std::size_t(y0 + b) * std::size_t(nx) + std::size_t(x0 + a)] =
-                                grey;
-                }
-        }
-    app::AtomicTextFile out(argv[2]);
-    out.stream() << "P5\n" << nx << " " << ny << "\n255\n";
-    out.stream().write(reinterpret_cast<const char*>(pixels.data()), std::streamsize(pixels.size()));
-    out.commit();
+        for (int c = 0; c < columns; ++c)
+            canvas.paste(rows[r][std::size_t(c)], c * (side + gap) * zoom,
+                         int(r) * (side + gap) * zoom, zoom, stretch);
+    canvas.write(argv[2]);
     std::cerr << "perturbations: parent " << parent.id << " (n_max " << parent.n_max << ", mag "
               << parent.mag << ") in rows k = 0, 1, 2, 4, 8\n";
     return 0;

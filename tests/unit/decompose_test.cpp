@@ -21,15 +21,6 @@ void report(const std::string& name, double value) {
     ::testing::Test::RecordProperty(name, std::to_string(value));
 }
 
-ShapeletModel galaxy(int n_max, double beta, int side, unsigned seed, double flux) {
-    return test::centred_galaxy(n_max, beta, side, seed, flux);
-}
-
-ImageArray noisy(const ShapeletModel& model, int side, double sigma, std::uint64_t seed,
-                 std::uint64_t id) {
-    return test::noisy_stamp(model, side, sigma, seed, id);
-}
-
 }  // namespace
 
 TEST(DecomposeChi2, EffectiveDegreesOfFreedom) {
@@ -59,7 +50,7 @@ TEST(DecomposeOptions, RefusesOutOfRangeValues) {
 TEST(DecomposeSynthetic, NoiseFreeModelIsRecovered) {
     const int side = 41;
     // β = 3 ≥ θ_min·√7 = 2.65: the truth is inside the optimiser's constraints.
-    const ShapeletModel truth = galaxy(6, 3.0, side, 3, 1000.0);
+    const ShapeletModel truth = test::centred_galaxy(6, 3.0, side, 3, 1000.0);
     const ImageArray image = render_stamp(truth, side, side);
     const ImageArray weight = ImageArray::Constant(side, side, 1e6);  // σ = 1e-3
     // At this S/N (peak/σ ≈ 2e4) χ²_r resolves β to 1e-5 and the centre to 1e-5 px: the
@@ -122,10 +113,10 @@ TEST(DecomposeSynthetic, RecentringDoesNotWanderAtTheTopOrder) {
     int over = 0;
     double worst = 0.0;
     for (unsigned seed = 0; seed < 4; ++seed) {
-        const ShapeletModel truth = galaxy(8, 3.75, side, 40 + seed, 1.0);
+        const ShapeletModel truth = test::centred_galaxy(8, 3.75, side, 40 + seed, 1.0);
         const ImageArray clean = render_stamp(truth, side, side);
         const double sigma = clean.maxCoeff() / 100.0;  // peak S/N 100
-        const ImageArray image = noisy(truth, side, sigma, 9, seed);
+        const ImageArray image = test::noisy_stamp(truth, side, sigma, 9, seed);
         const ImageArray weight = ImageArray::Constant(side, side, 1.0 / (sigma * sigma));
         const Decomposition d =
             decompose(image, weight, nullptr, truth.x, truth.y, 3.75, DecomposeOptions{});
@@ -141,9 +132,9 @@ TEST(DecomposeSynthetic, RecentringDoesNotWanderAtTheTopOrder) {
 // β stays inside the resolution and stamp constraints at the order chosen.
 TEST(DecomposeSynthetic, BetaRespectsTheConstraints) {
     const int side = 25;
-    const ShapeletModel truth = galaxy(4, 2.0, side, 9, 1.0);
+    const ShapeletModel truth = test::centred_galaxy(4, 2.0, side, 9, 1.0);
     const double sigma = 1e-3;
-    const ImageArray image = noisy(truth, side, sigma, 3, 1);
+    const ImageArray image = test::noisy_stamp(truth, side, sigma, 3, 1);
     const ImageArray weight = ImageArray::Constant(side, side, 1.0 / (sigma * sigma));
     DecomposeOptions o;
     o.theta_min = 0.8;
@@ -197,11 +188,11 @@ TEST(DecomposeErrors, AllMaskedOrBadStartThrows) {
 
 TEST(DecomposeRecord, ShiftsToTheParentAndCarriesTheSource) {
     const int side = 31;
-    const ShapeletModel truth = galaxy(4, 2.5, side, 5, 50.0);
+    const ShapeletModel truth = test::centred_galaxy(4, 2.5, side, 5, 50.0);
     const double sigma = 0.01;
     Stamp stamp;
     stamp.id = "17";
-    stamp.image = noisy(truth, side, sigma, 5, 17);
+    stamp.image = test::noisy_stamp(truth, side, sigma, 5, 17);
     stamp.weight = ImageArray::Constant(side, side, 1.0 / (sigma * sigma));
     stamp.mask = ImageArray::Zero(side, side);
     stamp.x0 = 101;

@@ -140,13 +140,8 @@ DetectionRun DetectionSettings::run(const ProgramOptions& options, const Log& lo
         locus = image_point_source_locus(convolve_boxes(psf.pixels, psf.pixel_scale, s.psf_box),
                                          psf.pixel_scale, context.pixel_scale);
     } else if (!s.psf_model.empty()) {
-        JsonlReader reader(s.psf_model, {ShapeletRecord::schema});
-        ShapeletRecord record;
-        if (!reader.next_record(record)) throw Error("no PSF record", s.psf_model);
-        ShapeletModel model = record.to_model();
-        // To image pixels: β scales with the pixel-scale ratio; coefficients are per pixel
-        // but the stellarity only needs the shape (flux is normalised out).
-        model.beta_pix = record.beta / context.pixel_scale;
+        // The stellarity needs the shape in image pixels; the flux is normalised out.
+        const ShapeletModel model = read_psf_model(s.psf_model, context.pixel_scale);
         locus = model_point_source_locus(model);
     } else {
         locus = gaussian_point_source_locus(s.psf_fwhm / context.pixel_scale);
