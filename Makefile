@@ -2,10 +2,13 @@
 # Fragments (share/module.mk, <prog>/module.mk, tests/module.mk) append to the lists below
 # and hold rules only for their own outputs.
 #
+#   make reproduce       install what is missing, build, and reproduce the paper on the shipped
+#                        HDF data into out/reproduce/ (pipelines/reproduce.mk; OUT=, SEED=, AREA=)
 #   make                 build the library and every program into bin/
 #   make test            unit tests (GoogleTest) and program tests
 #   make bench           Google Benchmark: run time and the error it buys
 #   make stress          orders past 100, extreme beta, NaN-riddled and 8192² inputs
+#   make slurm-test      a 4-tile survey through a one-node Slurm cluster = make -j (root; CI)
 #   make install PREFIX=/usr/local
 #   make WERROR=1        warnings are errors (CI)
 #   make test SAN=1      unit tests under AddressSanitizer + UBSan (objects in build-san/)
@@ -50,7 +53,7 @@ include detect/module.mk decompose/module.mk smooth/module.mk sample/module.mk
 include render/module.mk measure/module.mk
 include tests/module.mk
 
-.PHONY: all deps test unit-test program-test bench stress install clean
+.PHONY: all deps test unit-test program-test bench stress install clean reproduce slurm-test
 all: $(PROGRAMS:%=$(BIN)/%)
 
 # Every first target installs what is missing (as root) or prints the apt line.
@@ -85,6 +88,14 @@ $(BUILD)/share/shapesim/version.o: $(BUILD)/version.stamp
 $(BUILD)/share/shapesim/version.o: CPPFLAGS += -DSHAPESIM_VERSION='"$(VERSION)"'
 .PHONY: FORCE
 FORCE:
+
+# The paper end to end (pipelines/reproduce.mk); make variables (OUT, SEED, AREA, THREADS) pass on.
+reproduce: deps all examples
+	$(MAKE) --no-print-directory -f pipelines/reproduce.mk BIN=$(BIN) EXAMPLES=$(BUILD)/examples
+
+# A 4-tile survey on a throw-away one-node Slurm cluster equals make -j (CI; root; installs Slurm).
+slurm-test: all
+	tests/slurm/survey.sh
 
 install: all
 	install -d $(DESTDIR)$(PREFIX)/bin $(DESTDIR)$(PREFIX)/lib \

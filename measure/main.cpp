@@ -47,7 +47,7 @@ const char* const description =
 // --compare: the Table, the distances and the figures.
 struct CompareSettings {
     std::vector<std::string> inputs;
-    std::string out = "compare";
+    std::string out = "compare", paper;
     TableCuts cuts;
 };
 
@@ -81,6 +81,19 @@ int run_compare(const CompareSettings& c, const app::Log& log) {
         catalogues.push_back(std::move(cat));
     }
     if (catalogues.size() < 2) throw po::error("--compare needs at least two catalogues");
+    std::vector<TableRow> rows;
+    for (const Catalogue& cat : catalogues) rows.push_back(table_row(cat, c.cuts));
+    if (!c.paper.empty()) {
+        JsonlReader reader(c.paper, {"shapesim.table_row/1"});
+        Json record;
+        while (reader.next(record)) {
+            try {
+                rows.push_back(table_row_from_json(record));
+            } catch (const Error& e) {
+                throw reader.locate(e);
+            }
+        }
+    }
     if (::mkdir(c.out.c_str(), 0777) != 0 && errno != EEXIST)
         throw Error("cannot create the output folder", c.out);
 
@@ -89,9 +102,8 @@ int run_compare(const CompareSettings& c, const app::Log& log) {
         auto& o = table.stream();
         o << "| catalogue | N (I ≤ " << c.cuts.mag_counts << ") | ⟨C⟩ | rms C | ⟨A⟩ | rms A | ⟨S⟩ | rms S"
           << " | rms e | FWHM median (″) | FWHM sd (″) |\n|---|---|---|---|---|---|---|---|---|---|---|\n";
-        for (const Catalogue& cat : catalogues) {
-            const TableRow t = table_row(cat, c.cuts);
-            o << "| " << t.name << " | " << t.galaxies << " | " << format(t.c_mean, t.c_mean_err)
+        for (const TableRow& t : rows) {
+            o << "| " << t.name << " | " << (t.galaxies >= 0 ? std::to_string(t.galaxies) : "–") << " | " << format(t.c_mean, t.c_mean_err)
               << " | " << format(t.c_rms, t.c_rms_err) << " | " << format(t.a_mean, t.a_mean_err)
               << " | " << format(t.a_rms, t.a_rms_err) << " | " << format(t.s_mean, t.s_mean_err)
               << " | " << format(t.s_rms, t.s_rms_err) << " | " << format(t.e_rms, t.e_rms_err)
@@ -207,10 +219,13 @@ int run(int argc, const char* const argv[]) {
     MeasureOptions measure;
     CompareSettings compare;
     bool stars = false;
+    double mag_limit = 0.0;
     detection.declare(options, false);
     using app::in_range;
     options.group("Statistics").add_options()
         ("with-stars", po::bool_switch(&stars), "also measure the stars (kind \"star\")")
+        ("mag-limit", po::value(&mag_limit)->value_name("MAG")->notifier(in_range("mag-limit", -100.0, 100.0)),
+         "leave out objects fainter than this Kron magnitude (and those without one)")
         ("min-petrosian", po::value(&measure.min_petrosian)->default_value(2.0)
              ->notifier(in_range("min-petrosian", 0.0, 1e6)),
          "flag \"small\" below this Petrosian radius, pixels")
@@ -226,6 +241,9 @@ int run(int argc, const char* const argv[]) {
          "compare measured catalogues (the first is the reference) instead of measuring")
         ("out", po::value(&compare.out)->value_name("DIR")->default_value("compare"),
          "folder for table.md, distances.md and the figures")
+        ("paper", po::value(&compare.paper)->value_name("FILE"),
+         "published rows to add to the Table (JSON lines: name, c_mean, c_rms, ...; e.g.\n"
+         "share/data/paper/massey2004_table.jsonl)")
         ("mag-counts", po::value(&compare.cuts.mag_counts)->default_value(29.0),
          "magnitude limit for counts, sizes and ellipticities")
         ("mag-ca", po::value(&compare.cuts.mag_ca)->default_value(26.0),
@@ -250,11 +268,18 @@ int run(int argc, const char* const argv[]) {
         std::string error;
     };
     std::vector<Job> jobs;
+    long too_faint = 0;
     for (const Detection& object : field.objects) {
         const CoreFraction core = core_fraction(field, object, detected.locus);
         const double star = stellarity(core, detected.locus);
         if (star > detection.star_threshold && !stars) continue;
-        jobs.push_back({&object, source_record(object, core, star, nullptr, detected.context), {}, {}});
+        SourceRecord source = source_record(object, core, star, nullptr, detected.context);
+        // Fainter than every cut of the comparison: not worth the statistics (nor a record).
+        if (options.given("mag-limit") && !(source.mag && *source.mag <= mag_limit)) {
+            ++too_faint;
+            continue;
+        }
+        jobs.push_back({&object, std::move(source), {}, {}});
     }
     parallel_for(jobs.size(), options.common().threads, [&](std::size_t k, int) {
         try {
@@ -276,6 +301,7 @@ int run(int argc, const char* const argv[]) {
         out.write(job.record->to_json());
     }
     log.info(out.count(), " objects measured", skipped ? ", " + std::to_string(skipped) + " skipped" : "",
+             too_faint ? ", " + std::to_string(too_faint) + " fainter than --mag-limit left out" : "",
              " in ", log.elapsed(), " s");
     return 0;
 }

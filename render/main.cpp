@@ -119,7 +119,8 @@ int run(int argc, const char* const argv[]) {
         ("noise-free", po::bool_switch(&o.noise_free), "no noise");
     options.group("Output").add_options()
         ("truth", po::value(&s.truth)->value_name("FILE"),
-         "write what was drawn (JSON lines: position, true flux and shape, stamp)")
+         "write what was drawn, for the objects centred in the image or --tile (JSON lines:\n"
+         "position, true flux and shape, stamp)")
         ("bitpix", po::value(&s.bitpix)->default_value(-32), "-32 or -64");
     if (!options.parse(argc, argv)) return 0;
     const app::Log log("shapesim-render", options.common().verbosity);
@@ -254,12 +255,14 @@ int run(int argc, const char* const argv[]) {
     FitsWriter fits(output, "shapesim-render");
     fits.write_image(image, spec);
 
-    // The truth catalogue: every object drawn in the window.
+    // The truth catalogue: the objects centred in the window, so the truths of a grid of tiles
+    // hold every object once (stamps reaching in from outside are drawn, not listed).
     std::unique_ptr<app::AtomicTextFile> truth;
     if (!s.truth.empty()) {
         truth = std::make_unique<app::AtomicTextFile>(s.truth);
         JsonlWriter out(truth->stream(), s.truth);
         for (const PreparedObject& p : in_window) {
+            if (!window.owns(p.model.x, p.model.y)) continue;
             Json t = Json::object();
             t["schema"] = "shapesim.truth/1";
             t["id"] = p.id;
@@ -293,7 +296,8 @@ int run(int argc, const char* const argv[]) {
              " x ", window.y1 - window.y0 + 1, " pixels; galaxy kernel: ", kernel_note,
              "; read ", seconds(t_read, t_prepare), " s, prepare (lens, convolve) ",
              seconds(t_prepare, t_paint), " s, paint ", seconds(t_paint, t_noise), " s, noise ",
-             seconds(t_noise, t_write), " s, write ", seconds(t_write, t_end), " s");
+             seconds(t_noise, t_write), " s, write ", seconds(t_write, t_end), " s; peak memory ",
+             app::Log::peak_memory_mib(), " MiB");
     return 0;
 }
 

@@ -28,7 +28,8 @@ const char* const description =
     "Examples:\n"
     "  shapesim-sample morphology.pdf.json --like hdf.fits --seed 7 > objects.jsonl\n"
     "  shapesim-sample morphology.pdf.json --area 6 --seed 7 > objects6.jsonl   # 6 arcmin^2\n"
-    "  shapesim-sample morphology.pdf.json --like hdf.fits --tile 1 1 256 256 > tile.jsonl";
+    "  shapesim-sample morphology.pdf.json --like hdf.fits --tile 1 1 256 256 > tile.jsonl\n"
+    "  shapesim-sample --area 6 --tile-grid 1024   # the tiles: 'IX IY X0 Y0 X1 Y1' lines";
 
 struct Settings {
     std::string model;
@@ -36,6 +37,7 @@ struct Settings {
     double margin = 0.5;
     std::string star_histogram;
     std::uint64_t count = 0, star_count = 0;
+    std::vector<long> tile_grid;
     SampleOptions sample;
 };
 
@@ -47,17 +49,20 @@ int run(int argc, const char* const argv[]) {
     Settings s;
     SampleOptions& o = s.sample;
     using app::in_range;
-    options.hidden().add_options()("model", po::value(&s.model)->required(),
+    options.hidden().add_options()("model", po::value(&s.model),
                                    "morphology model (shapesim-smooth)");
     options.positional("model", 1);
     s.field.declare(options, "Field (default: --like)",
                     "only the objects reaching these field pixels (FITS, inclusive)");
     options.group("Field (default: --like)").add_options()
+        ("tile-grid", po::value(&s.tile_grid)->value_name("W [H]")->multitoken(),
+         "print the field's grid of W x H pixel tiles, one 'IX IY X0 Y0 X1 Y1' line each (the\n"
+         "--tile arguments; IX, IY from 0), and exit; no MODEL needed")
         ("margin", po::value(&s.margin)->default_value(0.5)->notifier(in_range("margin", 0.0, 3600.0)),
          "arcsec added to every object's reach for the tile test (PSF wings)");
     options.group("Galaxies").add_options()
         ("density", po::value(&o.density)->default_value(700.0)
-             ->notifier(in_range("density", 0.0, 1e8)), "galaxies per arcmin^2 (Poisson)")
+             ->notifier(in_range("density", 0.0, 1e8)), "galaxies per arcmin^2 (Poisson; default: the model's real field, else 700)")
         ("count", po::value(&s.count), "exactly this many galaxies instead")
         ("mag-limit", po::value(&o.mag_limit)->default_value(29.0)
              ->notifier(in_range("mag-limit", -100.0, 100.0)), "nothing fainter")
@@ -79,6 +84,22 @@ int run(int argc, const char* const argv[]) {
     const app::Log log("shapesim-sample", options.common().verbosity);
 
     const FieldGeometry field = s.field.field(options);
+    if (options.given("tile-grid")) {
+        if (s.tile_grid.empty() || s.tile_grid.size() > 2 || s.tile_grid.front() < 1 || s.tile_grid.back() < 1)
+            throw po::error("--tile-grid takes W [H], whole numbers of pixels >= 1");
+        const long w = s.tile_grid.front(), h = s.tile_grid.back();
+        const long columns = (field.nx + w - 1) / w;
+        const std::vector<Tile> tiles = tile_grid(field.nx, field.ny, w, h);
+        for (std::size_t k = 0; k < tiles.size(); ++k) {
+            const Tile& t = tiles[k];
+            std::cout << long(k) % columns << ' ' << long(k) / columns << ' ' << t.x0 << ' ' << t.y0 << ' '
+                      << t.x1 << ' ' << t.y1 << '\n';
+        }
+        std::cout.flush();
+        if (!std::cout) throw Error("cannot write the tile grid", "stdout");
+        return 0;
+    }
+    if (s.model.empty()) throw po::error("give the morphology MODEL (from shapesim-smooth)");
     const std::optional<Tile> tile = s.field.window(options, field, false);
 
     const Morphology morphology = Morphology::read(s.model);
@@ -87,6 +108,9 @@ int run(int argc, const char* const argv[]) {
             throw po::error("the model has no zero point: give --zero-point");
         o.zero_point = *morphology.zero_point;
     }
+    // The real field's density at this magnitude limit, when smooth recorded it (--like).
+    if (!options.given("density") && morphology.source_field)
+        o.density = morphology.source_field->density(o.mag_limit);
     o.seed = options.common().seed;
     if (options.given("count")) o.count = s.count;
     if (options.given("star-count")) o.star_count = s.star_count;
@@ -98,7 +122,7 @@ int run(int argc, const char* const argv[]) {
     const SampleSummary summary =
         sample_field(morphology, field, o, tile, [&](const ObjectRecord& r) { out.write(r.to_json()); });
     log.info(summary.galaxies, " galaxies and ", summary.stars, " stars over ",
-             field.area_arcmin2(), " arcmin^2 (", field.nx, " x ", field.ny, " pixels); ",
+             field.area_arcmin2(), " arcmin^2 (", o.density, " per arcmin^2; ", field.nx, " x ", field.ny, " pixels); ",
              summary.galaxies_out, " galaxies and ", summary.stars_out, " stars written",
              tile ? " (in the tile)" : "", "; ", summary.redraws, " perturbations redrawn; ",
              log.elapsed(), " s");

@@ -3,6 +3,7 @@
 #include "shapesim/app/options.hpp"
 #include "shapesim/app/run_main.hpp"
 #include "shapesim/error.hpp"
+#include "shapesim/geometry.hpp"
 #include "shapesim/jsonl.hpp"
 #include "shapesim/morphology.hpp"
 #include "shapesim/records.hpp"
@@ -28,11 +29,15 @@ const char* const description =
     "\n"
     "Example:\n"
     "  shapesim-smooth < shapelets.jsonl > morphology.pdf.json\n"
-    "  shapesim-smooth --delta < shapelets.jsonl > delta.pdf.json   # the delta-function PDF";
+    "  shapesim-smooth --delta < shapelets.jsonl > delta.pdf.json   # the delta-function PDF\n"
+    "  shapesim-smooth --like hdf.fits < shapelets.jsonl > morphology.pdf.json   # + its density\n"
+    "\n"
+    "With --like (or --area), the model also records the real field's area and every input\n"
+    "galaxy's magnitude, kept or not, and shapesim-sample then draws the real galaxy density.";
 
 struct Settings {
     std::string input = "-", require = "converged", reject = "edge,bright_star,noise", weight_field;
-    double k = 4.0, phase = 15.0, beta = 0.0, mag = 0.0, modulus = 0.0, mag_limit = 0.0;
+    double k = 4.0, phase = 15.0, beta = 0.0, mag = 0.0, modulus = 0.0, mag_limit = 0.0, area = 0.0;
     bool delta = false;
 };
 
@@ -43,7 +48,7 @@ bool has(const std::vector<std::string>& flags, const std::string& flag) {
 int run(int argc, const char* const argv[]) {
     app::ProgramOptions options("shapesim-smooth", "[OPTION]...", description,
                                 app::Common::quiet | app::Common::verbose | app::Common::config |
-                                    app::Common::print_params);
+                                    app::Common::like | app::Common::print_params);
     Settings s;
     using app::in_range;
     options.group("Input").add_options()
@@ -55,6 +60,8 @@ int run(int argc, const char* const argv[]) {
          "drop records carrying any of these flags")
         ("mag-limit", po::value(&s.mag_limit)->value_name("MAG"),
          "drop records fainter than this")
+        ("area", po::value(&s.area)->value_name("ARCMIN2")->notifier(in_range("area", 1e-9, 1e9)),
+         "area of the real field the records come from (or --like its image)")
         ("weight-field", po::value(&s.weight_field)->value_name("NAME"),
          "parent-selection weight from this numeric record field (default: all 1)");
     options.group("Smoothing").add_options()
@@ -83,6 +90,14 @@ int run(int argc, const char* const argv[]) {
     const std::vector<std::string> required = app::split_list(s.require),
                                    rejected = app::split_list(s.reject);
 
+    std::optional<SourceField> source_field;
+    if (!options.common().like.empty() && options.given("area"))
+        throw po::error("give --like or --area, not both");
+    if (!options.common().like.empty())
+        source_field = SourceField{read_field_geometry(options.common().like).area_arcmin2(), {}};
+    else if (options.given("area"))
+        source_field = SourceField{s.area, {}};
+
     JsonlReader reader(s.input, {ShapeletRecord::schema});
     std::vector<ShapeletRecord> kept;
     std::vector<double> weights;
@@ -101,6 +116,8 @@ int run(int argc, const char* const argv[]) {
         // The input's identity for the provenance: FNV-1a over the records' compact dumps.
         hash ^= fnv1a_64(record.dump());
         hash *= 0x100000001b3ULL;
+        if (source_field && r.mag && record.value("kind", std::string("galaxy")) != "star")
+            source_field->mags.push_back(*r.mag);
         std::string why;
         for (const auto& f : required)
             if (!has(r.flags, f)) why = "not " + f;
@@ -132,6 +149,10 @@ int run(int argc, const char* const argv[]) {
                     " read; see --require, --reject, --mag-limit)", reader.name());
     Morphology morphology = build_morphology(kept, smooth);
     for (std::size_t i = 0; i < weights.size(); ++i) morphology.points[i].weight = weights[i];
+    if (source_field) {
+        std::sort(source_field->mags.begin(), source_field->mags.end());
+        morphology.source_field = std::move(source_field);
+    }
     char hex[17];
     std::snprintf(hex, sizeof hex, "%016llx", static_cast<unsigned long long>(hash));
     Json dropped_json = Json::object();

@@ -16,6 +16,7 @@ packages=(
   libbenchmark-dev          # make bench
   source-extractor          # SExtractor, the cross-check of shapesim-detect (tests, bench)
   gnuplot-nox               # shapesim-measure --compare figures
+  netpbm                    # make reproduce: the figures as PNG (pnmtopng, pnmscale)
 )
 
 missing=()

@@ -149,4 +149,32 @@ TableRow table_row(const Catalogue& catalogue, const TableCuts& cuts) {
     return t;
 }
 
+TableRow table_row_from_json(const Json& row) {
+    if (!row.is_object() || !row.contains("name") || !row.at("name").is_string())
+        throw Error("missing or not a string", "", 0, "name");
+    constexpr double nan = std::numeric_limits<double>::quiet_NaN();
+    TableRow t;
+    t.name = row.at("name").get<std::string>();
+    t.galaxies = -1;
+    for (double* v : {&t.c_mean, &t.c_mean_err, &t.c_rms, &t.c_rms_err, &t.a_mean, &t.a_mean_err,
+                      &t.a_rms, &t.a_rms_err, &t.s_mean, &t.s_mean_err, &t.s_rms, &t.s_rms_err,
+                      &t.e_rms, &t.e_rms_err, &t.fwhm_median, &t.fwhm_median_err, &t.fwhm_sd,
+                      &t.fwhm_sd_err})
+        *v = nan;
+    const std::pair<const char*, double*> fields[] = {
+        {"c_mean", &t.c_mean}, {"c_rms", &t.c_rms}, {"a_mean", &t.a_mean}, {"a_rms", &t.a_rms},
+        {"s_mean", &t.s_mean}, {"s_rms", &t.s_rms}, {"e_rms", &t.e_rms},
+        {"fwhm_median", &t.fwhm_median}, {"fwhm_sd", &t.fwhm_sd}};
+    for (const auto& [name, value] : fields) {
+        if (!row.contains(name)) continue;
+        if (!row.at(name).is_number()) throw Error("not a number", "", 0, name);
+        *value = row.at(name).get<double>();
+    }
+    if (row.contains("n")) {
+        if (!row.at("n").is_number_integer()) throw Error("not a whole number", "", 0, "n");
+        t.galaxies = row.at("n").get<long>();
+    }
+    return t;
+}
+
 }  // namespace shapesim

@@ -67,4 +67,9 @@ struct TableCuts {
 };
 TableRow table_row(const Catalogue& catalogue, const TableCuts& cuts);
 
+/// A published row to print alongside (the paper's own numbers): a JSON object with "name"
+/// and any of the TableRow value names ("n", "c_mean", "c_rms", …, "fwhm_sd"); what is absent,
+/// and every error, is NaN (n: −1). Throws Error naming the field on a wrong type.
+TableRow table_row_from_json(const Json& row);
+
 }  // namespace shapesim

@@ -417,8 +417,7 @@ FitsWriter::FitsWriter(const std::string& path, const std::string& program,
                                 std::to_string(CFITSIO_MINOR) + "." + std::to_string(CFITSIO_MICRO);
     write_keyword(impl_->f, {"PROGRAM", program, "program that wrote this file"}, path);
     write_keyword(impl_->f, {"VERSION", version(), "shapesim version (git describe)"}, path);
-    fits_write_date(impl_->f, &status);
-    check(status, path, "DATE");
+    // No DATE card: the same inputs and seed must give the same bytes (DESIGN §6), whenever run.
     write_keyword(impl_->f, {"CFITSIO", cfitsio, "cfitsio version"}, path);
     for (const auto& key : primary_keywords) write_keyword(impl_->f, key, path);
     write_history(impl_->f, primary_history, path);

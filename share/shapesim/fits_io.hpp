@@ -11,9 +11,9 @@
 // status passes one helper that turns it into shapesim::Error with cfitsio's own text.
 //
 // Output: FitsWriter writes a multi-extension file atomically (app/atomic_file): HDU 0 is
-// empty and carries provenance (PROGRAM, VERSION, DATE, CFITSIO, caller's keywords such as
-// the options); each image goes into its own extension with EXTNAME, BUNIT, TAN WCS, extra
-// keywords and HISTORY. Float images are BITPIX −32 (or −64 where precision is the point).
+// empty and carries provenance (PROGRAM, VERSION, CFITSIO, caller's keywords such as the
+// options; no DATE, so reruns are bit-identical); each image goes into its own extension
+// with EXTNAME, BUNIT, TAN WCS, extra keywords and HISTORY. Float images are BITPIX −32 (or −64 where precision is the point).
 //
 // Stamps (DESIGN §2): one MEF file; per object an image HDU `<id>.image`, a weight (inverse
 // variance) HDU `<id>.weight` and a mask HDU `<id>.mask` (non-zero = pixel owned by a
@@ -150,8 +150,8 @@ struct FitsImageSpec {
 class FitsWriter {
 public:
     /// Start `path` (checked writable; `.gz` and `[...]` refused). HDU 0 gets PROGRAM
-    /// (`program`), VERSION (version.hpp), DATE, CFITSIO, then `primary_keywords` (e.g.
-    /// the options, as HIERARCH) and `primary_history`.
+    /// (`program`), VERSION (version.hpp), CFITSIO (no DATE: reruns give the same bytes), then
+    /// `primary_keywords` (e.g. the options, as HIERARCH) and `primary_history`.
     FitsWriter(const std::string& path, const std::string& program,
                const std::vector<FitsKeyword>& primary_keywords = {},
                const std::vector<std::string>& primary_history = {});

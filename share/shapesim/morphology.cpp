@@ -186,6 +186,11 @@ void Morphology::prepare() {
     }
 }
 
+double SourceField::density(double mag_limit) const {
+    const auto n = std::upper_bound(mags.begin(), mags.end(), mag_limit) - mags.begin();
+    return double(n) / area_arcmin2;
+}
+
 Json Morphology::to_json() const {
     Json doc = Json::object();
     doc["schema"] = schema;
@@ -211,6 +216,8 @@ Json Morphology::to_json() const {
                        {"shape", shape}});
     }
     doc["points"] = pts;
+    if (source_field)
+        doc["source_field"] = {{"area_arcmin2", source_field->area_arcmin2}, {"mags", source_field->mags}};
     doc["provenance"] = provenance;
     return doc;
 }
@@ -282,6 +289,21 @@ Morphology Morphology::from_json(const Json& doc) {
             p.shape.push_back(v);
         }
         m.points.push_back(std::move(p));
+    }
+    if (doc.contains("source_field")) {
+        const Json& f = doc.at("source_field");
+        SourceField field;
+        field.area_arcmin2 = number(f, "area_arcmin2", "source_field.");
+        if (!(field.area_arcmin2 > 0.0)) throw Error("must be > 0", "", 0, "source_field.area_arcmin2");
+        if (!f.contains("mags") || !f.at("mags").is_array())
+            throw Error("must be an array of numbers", "", 0, "source_field.mags");
+        for (const Json& v : f.at("mags")) {
+            if (!v.is_number() || !std::isfinite(v.get<double>()))
+                throw Error("must be finite numbers", "", 0, "source_field.mags");
+            field.mags.push_back(v.get<double>());
+        }
+        std::sort(field.mags.begin(), field.mags.end());
+        m.source_field = std::move(field);
     }
     if (doc.contains("provenance")) m.provenance = doc.at("provenance");
     m.prepare();

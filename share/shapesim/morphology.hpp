@@ -83,6 +83,16 @@ struct SmoothOptions {
     void validate() const;
 };
 
+/// The real field the models came from: its area and the magnitude of every galaxy detected
+/// in it (all of them, kept as models or not), so that a simulation can draw the real number
+/// density at any magnitude limit.
+struct SourceField {
+    double area_arcmin2 = 0.0;
+    std::vector<double> mags;  ///< sorted
+    /// Galaxies per arcmin² with mag ≤ `mag_limit`.
+    double density(double mag_limit) const;
+};
+
 /// The morphology model that `shapesim-smooth` writes and `shapesim-sample` reads.
 struct Morphology {
     static constexpr const char* schema = "shapesim.morphology/1";
@@ -90,6 +100,7 @@ struct Morphology {
     std::vector<MorphologyPoint> points;
     SmoothingLengths lambda;
     std::optional<double> zero_point;    ///< of the magnitudes (when every input agreed)
+    std::optional<SourceField> source_field;  ///< when smooth was told the real field's area
     Json provenance = Json::object();    ///< input hash, options, program version
 
     Json to_json() const;

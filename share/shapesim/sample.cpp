@@ -81,6 +81,19 @@ bool Tile::reaches(double x, double y, double radius) const {
     return dx * dx + dy * dy <= radius * radius;
 }
 
+bool Tile::owns(double x, double y) const {
+    return x >= double(x0) - 0.5 && x < double(x1) + 0.5 && y >= double(y0) - 0.5 && y < double(y1) + 0.5;
+}
+
+std::vector<Tile> tile_grid(long field_nx, long field_ny, long width, long height) {
+    if (width < 1 || height < 1) throw Error("tile sides must be at least 1 pixel");
+    std::vector<Tile> tiles;
+    for (long y0 = 1; y0 <= field_ny; y0 += height)
+        for (long x0 = 1; x0 <= field_nx; x0 += width)
+            tiles.push_back({x0, y0, std::min(x0 + width - 1, field_nx), std::min(y0 + height - 1, field_ny)});
+    return tiles;
+}
+
 namespace {
 
 constexpr double degree = 3.14159265358979323846 / 180.0;

@@ -62,7 +62,14 @@ struct Tile {
     long x0 = 1, y0 = 1, x1 = 1, y1 = 1;
     /// Whether a circle of `radius` pixels about (x, y) meets the window's pixel area.
     bool reaches(double x, double y, double radius) const;
+    /// Whether (x, y) lies in the window's pixels, [x0 − ½, x1 + ½) × [y0 − ½, y1 + ½): each
+    /// point of a field belongs to exactly one tile of a grid.
+    bool owns(double x, double y) const;
 };
+
+/// The field cut into tiles of `width` × `height` pixels, row by row from (1, 1); the last
+/// column and row of tiles take what is left. Throws Error unless both sides are ≥ 1.
+std::vector<Tile> tile_grid(long field_nx, long field_ny, long width, long height);
 
 /// Counts of what sample_field() drew and emitted.
 struct SampleSummary {

@@ -72,3 +72,22 @@ TEST(Compare, BootstrapErrorOfTheMean) {
     EXPECT_EQ(e, bootstrap_error(v, mean_of, 1000, 9));
     EXPECT_NEAR(median_of_values({3.0, 1.0, 2.0, 10.0}), 2.5, 1e-15);
 }
+
+// A published row: the values given, NaN (and n = −1) for the rest; a wrong type is named.
+TEST(Compare, PublishedTableRow) {
+    const TableRow t = table_row_from_json(Json::parse(R"({"name":"paper","c_mean":3.11,"e_rms":0.64})"));
+    EXPECT_EQ(t.name, "paper");
+    EXPECT_EQ(t.c_mean, 3.11);
+    EXPECT_EQ(t.e_rms, 0.64);
+    EXPECT_EQ(t.galaxies, -1);
+    EXPECT_TRUE(std::isnan(t.c_mean_err));
+    EXPECT_TRUE(std::isnan(t.a_mean));
+    EXPECT_EQ(table_row_from_json(Json::parse(R"({"name":"x","n":12})")).galaxies, 12);
+    try {
+        table_row_from_json(Json::parse(R"({"name":"x","c_rms":"0.4"})"));
+        FAIL() << "accepted a string";
+    } catch (const Error& e) {
+        EXPECT_NE(std::string(e.what()).find("c_rms"), std::string::npos) << e.what();
+    }
+    EXPECT_THROW(table_row_from_json(Json::parse(R"({"c_mean":1})")), Error);
+}

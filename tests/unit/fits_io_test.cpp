@@ -189,7 +189,7 @@ TEST_F(FitsTest, MefRoundTripWithKeywordsWcsAndHistory) {
     EXPECT_EQ(fits.required_string("PROGRAM"), "shapesim-test");
     EXPECT_EQ(fits.required_string("VERSION"), version());
     EXPECT_EQ(fits.required_string("CFITSIO").substr(0, 2), "4.");
-    EXPECT_TRUE(fits.has_key("DATE"));
+    EXPECT_FALSE(fits.has_key("DATE"));  // a creation time would break bit-identical reruns
     EXPECT_EQ(fits.required_int("SEED"), 7);
     EXPECT_EQ(fits.required_string("OPT_LIKE"), "hdf.fits");
     EXPECT_EQ(fits.list_hdus().size(), 3u);

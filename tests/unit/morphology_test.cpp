@@ -146,9 +146,21 @@ TEST(Morphology, SmoothingLengthsMatchBruteForce) {
     EXPECT_EQ(morph.lambda.phase_deg, 15.0);
     ASSERT_TRUE(morph.zero_point.has_value());
     EXPECT_EQ(*morph.zero_point, 25.0);
-    // The JSON document round-trips.
+    // The JSON document round-trips, with the real field's magnitudes too.
     const Morphology back = Morphology::from_json(morph.to_json());
     EXPECT_EQ(back.to_json(), morph.to_json());
+    Morphology with_field = morph;
+    with_field.source_field = SourceField{0.5, {24.0, 26.5, 28.0, 29.0, 29.5}};
+    const Morphology field_back = Morphology::from_json(with_field.to_json());
+    ASSERT_TRUE(field_back.source_field.has_value());
+    EXPECT_EQ(field_back.to_json(), with_field.to_json());
+    // Galaxies per arcmin² brighter than the limit, the limit included.
+    EXPECT_EQ(field_back.source_field->density(29.0), 8.0);
+    EXPECT_EQ(field_back.source_field->density(23.0), 0.0);
+    EXPECT_EQ(field_back.source_field->density(30.0), 10.0);
+    Json bad = with_field.to_json();
+    bad["source_field"]["area_arcmin2"] = 0.0;
+    EXPECT_THROW(Morphology::from_json(bad), Error);
 }
 
 // Each axis's perturbation, divided by its λ, follows the Epanechnikov kernel (KS test at

@@ -150,3 +150,32 @@ TEST(Sample, TileReachIsTheDistanceToThePixelArea) {
     EXPECT_TRUE(t.reaches(23.5, 34.5, 5.0));   // corner: distance 5
     EXPECT_FALSE(t.reaches(23.5, 34.5, 4.99));
 }
+
+// The grid covers the field exactly once, and every point belongs to exactly one tile (the
+// rule the truth catalogues of tiles are cut by).
+TEST(Sample, TileGridPartitionsTheField) {
+    const std::vector<Tile> grid = tile_grid(602, 452, 320, 240);
+    ASSERT_EQ(grid.size(), 4u);
+    EXPECT_EQ(grid[1].x0, 321);
+    EXPECT_EQ(grid[1].x1, 602);
+    EXPECT_EQ(grid[3].y1, 452);
+    std::vector<int> covered(602 * 452, 0);
+    for (const Tile& t : grid)
+        for (long y = t.y0; y <= t.y1; ++y)
+            for (long x = t.x0; x <= t.x1; ++x) ++covered[std::size_t((y - 1) * 602 + (x - 1))];
+    EXPECT_TRUE(std::all_of(covered.begin(), covered.end(), [](int c) { return c == 1; }));
+    RandomStream r(3, 0, "tile grid test");
+    for (int k = 0; k < 10000; ++k) {
+        // Points on the field's pixel area, edges and pixel boundaries included.
+        double x = 0.5 + 602.0 * r.uniform(), y = 0.5 + 452.0 * r.uniform();
+        if (k % 4 == 0) x = std::floor(x) + 0.5;
+        if (k % 8 == 0) y = std::floor(y) + 0.5;
+        x = std::min(x, 602.4999);
+        y = std::min(y, 452.4999);
+        const auto owners = std::count_if(grid.begin(), grid.end(), [&](const Tile& t) { return t.owns(x, y); });
+        ASSERT_EQ(owners, 1) << x << ", " << y;
+    }
+    EXPECT_EQ(tile_grid(100, 100, 100, 100).size(), 1u);
+    EXPECT_EQ(tile_grid(100, 100, 1000, 7).size(), 15u);
+    EXPECT_THROW(tile_grid(100, 100, 0, 10), Error);
+}

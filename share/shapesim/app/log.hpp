@@ -6,6 +6,8 @@
 // the exit code; what downstream must act on belongs in a record's `flags`, not here.
 #pragma once
 
+#include <sys/resource.h>
+
 #include <chrono>
 #include <iostream>
 #include <sstream>
@@ -49,6 +51,12 @@ public:
         return std::chrono::duration<double>(std::chrono::steady_clock::now() - start_).count();
     }
     Verbosity verbosity() const { return verbosity_; }
+    /// The process's peak resident memory so far, MiB (for "peak memory" in a stage line).
+    static double peak_memory_mib() {
+        rusage usage{};
+        getrusage(RUSAGE_SELF, &usage);
+        return double(usage.ru_maxrss) / 1024.0;  // Linux reports KiB
+    }
 
 private:
     // Build the whole line first and write it with one call, so lines from several threads

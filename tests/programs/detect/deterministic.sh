@@ -1,6 +1,6 @@
 #!/usr/bin/env bash
 # Two runs of shapesim-detect on the same input give the same bytes: stdout, --stars, and the
-# --stamps and --segmentation files up to their DATE card (file creation time).
+# --stamps and --segmentation files (which carry no creation time).
 source "$(dirname "${BASH_SOURCE[0]}")/../lib.sh"
 prog=shapesim-detect
 data=$(cd ../../../share/data/hdfn && pwd)
@@ -17,8 +17,6 @@ cd "$TMPDIR"
 [ -s a/out.jsonl ] || fail "no output"
 cmp a/out.jsonl b/out.jsonl || fail "stdout differs between runs"
 cmp a/stars.jsonl b/stars.jsonl || fail "--stars differs between runs"
-undated() { LC_ALL=C sed "s/DATE    = '[-0-9T:]*'/DATE    = ''/g" "$1"; }
 for f in stamps.fits seg.fits; do
-  [ "$(wc -c <a/$f)" -eq "$(wc -c <b/$f)" ] || fail "$f: sizes differ between runs"
-  cmp <(undated a/$f) <(undated b/$f) || fail "$f differs between runs (beyond DATE)"
+  cmp a/$f b/$f || fail "$f differs between runs"
 done

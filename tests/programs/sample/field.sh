@@ -85,6 +85,32 @@ for r in map(json.loads, open("delta.jsonl")):
         assert abs(math.hypot(re, im) - a00 * math.hypot(pr, pi)) <= 1e-12 * a00, r["id"]
 PY
 
+# The real field's density: smooth --like records the HDF's area and every galaxy's magnitude;
+# sample then draws as many galaxies per arcmin² as the HDF has brighter than --mag-limit.
+"$BIN/shapesim-smooth" -q --like "$hdf" <shapelets.jsonl >dense.json || fail "smooth --like failed"
+"$BIN/$prog" dense.json --size 0.6797 --pixel-scale 0.03985 --seed 7 >d.jsonl 2>err || fail "exit $?: $(cat err)"
+python3 - <<'PY' || fail "the drawn density is not the HDF's"
+import json, math
+f = json.load(open("dense.json"))["source_field"]
+real = sum(1 for l in open("shapelets.jsonl") if json.loads(l).get("mag", 99) <= 29)
+assert abs(f["area_arcmin2"] - (512 * 0.03985001130010063 / 60) ** 2) < 1e-6, f["area_arcmin2"]
+assert sum(1 for m in f["mags"] if m <= 29) == real, real
+density = real / f["area_arcmin2"]
+n = sum(1 for l in open("d.jsonl"))
+expect = density * (1024 * 0.03985 / 60) ** 2
+assert abs(n - expect) < 5 * math.sqrt(expect), (n, expect)
+PY
+grep -q "per arcmin^2" err || fail "the density is not reported: $(cat err)"
+
+# The tile grid: whole tiles from (1, 1), the last column and row take what is left.
+"$BIN/$prog" --size 0.4 0.3 --pixel-scale 0.03985 --tile-grid 320 240 >grid.txt || fail "--tile-grid failed"
+[ "$(cat grid.txt | tr '\n' ';')" = "0 0 1 1 320 240;1 0 321 1 602 240;0 1 1 241 320 452;1 1 321 241 602 452;" ] ||
+  fail "--tile-grid: $(cat grid.txt)"
+rc=0; "$BIN/$prog" --area 1 --tile-grid 0 >out 2>err || rc=$?
+expect_error "$rc" 2 'tile-grid'
+rc=0; "$BIN/$prog" --area 1 >out 2>err || rc=$?
+expect_error "$rc" 2 'MODEL'
+
 # Bad input.
 rc=0; "$BIN/$prog" nosuch.json --area 1 >out 2>err || rc=$?
 expect_error "$rc" 1 'nosuch.json: cannot open'

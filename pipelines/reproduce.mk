@@ -1,0 +1,157 @@
+# The paper end to end on the shipped HDF-N cut (Massey et al. 2004; DESIGN §1): detect →
+# decompose (galaxies and the PSF) → smooth → sample → render → measure → compare, into one
+# folder with a report. `make reproduce` runs it after building the programs; by hand:
+#
+#   make -f pipelines/reproduce.mk [OUT=out/reproduce] [SEED=7] [AREA=6] [THREADS=2]
+#
+# Make reruns only what changed: a new SEED re-samples, re-renders and re-measures the
+# simulations, and leaves detection, the fits and the morphology model alone. Parameters are
+# prerequisites through small files in $(OUT)/params/ that change only when their value does.
+# Every run appends to $(OUT)/pipeline.log: the date, the programs' version, the inputs'
+# SHA-256, each command with the programs' own timing lines, and the total wall time.
+
+SHELL := bash
+.SHELLFLAGS := -o pipefail -ec
+.DELETE_ON_ERROR:
+.SUFFIXES:
+.DEFAULT_GOAL := all
+
+# The repository, as a prefix: empty when make runs from it, its absolute path otherwise.
+SELF := $(lastword $(MAKEFILE_LIST))
+ROOT := $(abspath $(dir $(SELF))/..)
+R    := $(if $(filter $(CURDIR),$(ROOT)),,$(ROOT)/)
+
+BIN      ?= $(R)bin
+EXAMPLES ?= $(R)build/examples
+DATA     ?= $(R)share/data/hdfn
+PAPER    ?= $(R)share/data/paper/massey2004_table.jsonl
+OUT      ?= out/reproduce
+SEED     ?= 7
+# The larger simulation, arcmin² (the paper's 6).
+AREA     ?= 6
+THREADS  ?= 2
+ZERO_POINT ?= 22.08
+# Photon noise: electrons per DN/s, WFPC2's 7 e⁻/DN times the HDF's 123 600 s.
+GAIN     ?= 865200
+# Nothing fainter is measured: the paper compares galaxies brighter than I = 29.
+MAG_LIMIT ?= 29
+
+IMAGE     := $(DATA)/hdfn_f814w_v2.fits
+WEIGHT    := $(DATA)/hdfn_f814w_v2_weight.fits
+PSF_IMAGE := $(DATA)/wfpc2_f814w_tinytim_psf.fits
+INPUTS    := $(IMAGE) $(WEIGHT) $(PSF_IMAGE) $(PAPER)
+prog = $(BIN)/shapesim-$(1)
+
+# The whole job, logged: this make runs the targets below in a sub-make and keeps the transcript.
+.PHONY: all outputs
+all:
+	@mkdir -p $(OUT)
+	@start=$$(date +%s.%N); { \
+	  echo "==== $$(date -u '+%Y-%m-%d %H:%M:%S UTC') make -f $(SELF) OUT=$(OUT) SEED=$(SEED) AREA=$(AREA)"; \
+	  echo "programs: $$($(call prog,detect) --version)"; \
+	  echo "inputs (SHA-256):"; sha256sum $(INPUTS) | sed 's/^/  /'; \
+	  $(MAKE) --no-print-directory -f $(SELF) outputs; \
+	  echo "==== done in $$(awk -v a=$$start -v b=$$(date +%s.%N) 'BEGIN { printf "%.1f", b - a }') s"; \
+	} 2>&1 | tee -a $(OUT)/pipeline.log
+
+# A parameter file is rewritten only when its value changes, so targets that name it rerun
+# exactly then.
+$(OUT)/params/%: FORCE
+	@mkdir -p $(@D)
+	@if [ "$$(cat $@ 2>/dev/null)" != "$(value_$*)" ]; then echo "$(value_$*)" > $@; fi
+.PHONY: FORCE
+FORCE:
+value_seed := $(SEED)
+value_area := $(AREA)
+
+# Write a target through a temporary name, so a failed or killed step leaves nothing behind.
+tmp = $@.tmp
+
+# --- the real image ---------------------------------------------------------------------
+$(OUT)/sources.jsonl $(OUT)/stamps.fits $(OUT)/stars.jsonl &: $(IMAGE) $(WEIGHT) $(call prog,detect)
+	@mkdir -p $(OUT)
+	$(call prog,detect) $(IMAGE) --weight $(WEIGHT) --zero-point $(ZERO_POINT) \
+	  --stamps $(OUT)/stamps.fits --stars $(OUT)/stars.jsonl > $(OUT)/sources.jsonl.tmp
+	mv $(OUT)/sources.jsonl.tmp $(OUT)/sources.jsonl
+
+$(OUT)/shapelets.jsonl $(OUT)/models.fits &: $(OUT)/sources.jsonl $(OUT)/stars.jsonl $(call prog,decompose)
+	$(call prog,decompose) -j $(THREADS) --stars $(OUT)/stars.jsonl --models $(OUT)/models.fits \
+	  < $(OUT)/sources.jsonl > $(OUT)/shapelets.jsonl.tmp
+	mv $(OUT)/shapelets.jsonl.tmp $(OUT)/shapelets.jsonl
+
+# TinyTim at 0.01″, boxed by the WFPC2 pixel and the drizzle drop, modelled at the HDF's scale.
+$(OUT)/psf.jsonl: $(PSF_IMAGE) $(IMAGE) $(call prog,decompose)
+	$(call prog,decompose) --psf-image $(PSF_IMAGE) --like $(IMAGE) --psf-box 0.0996 0.05 > $(tmp)
+	mv $(tmp) $@
+
+$(OUT)/morphology.json: $(OUT)/shapelets.jsonl $(IMAGE) $(call prog,smooth)
+	$(call prog,smooth) --like $(IMAGE) < $< > $(tmp)
+	mv $(tmp) $@
+$(OUT)/delta.json: $(OUT)/shapelets.jsonl $(IMAGE) $(call prog,smooth)
+	$(call prog,smooth) --delta --like $(IMAGE) < $< > $(tmp)
+	mv $(tmp) $@
+
+# --- the simulations: like the HDF cut (δ-function and full PDF), and AREA arcmin² ---------
+$(OUT)/sim.objects.jsonl: $(OUT)/morphology.json $(IMAGE) $(OUT)/params/seed $(call prog,sample)
+	$(call prog,sample) $< --like $(IMAGE) --seed $(SEED) > $(tmp)
+	mv $(tmp) $@
+$(OUT)/delta.objects.jsonl: $(OUT)/delta.json $(IMAGE) $(OUT)/params/seed $(call prog,sample)
+	$(call prog,sample) $< --like $(IMAGE) --seed $(SEED) > $(tmp)
+	mv $(tmp) $@
+LARGE_FIELD = --area $(AREA) --pixel-scale 0.03985 --ra 189.2 --dec 62.21
+$(OUT)/sim6.objects.jsonl: $(OUT)/morphology.json $(OUT)/params/seed $(OUT)/params/area $(call prog,sample)
+	$(call prog,sample) $< $(LARGE_FIELD) --seed $(SEED) > $(tmp)
+	mv $(tmp) $@
+
+# Galaxy models already hold the HDF's PSF (--galaxy-psf = --psf: no further convolution);
+# the noise is the HDF's, measured by detect, plus photon noise.
+RENDER = $(call prog,render) --psf $(OUT)/psf.jsonl --galaxy-psf $(OUT)/psf.jsonl \
+  --noise-like $(OUT)/sources.jsonl --gain $(GAIN) --seed $(SEED) -j $(THREADS)
+$(OUT)/sim.fits $(OUT)/sim.truth.jsonl &: $(OUT)/sim.objects.jsonl $(OUT)/psf.jsonl $(OUT)/sources.jsonl $(call prog,render)
+	$(RENDER) --like $(IMAGE) -o $(OUT)/sim.fits --truth $(OUT)/sim.truth.jsonl < $<
+$(OUT)/delta.fits $(OUT)/delta.truth.jsonl &: $(OUT)/delta.objects.jsonl $(OUT)/psf.jsonl $(OUT)/sources.jsonl $(call prog,render)
+	$(RENDER) --like $(IMAGE) -o $(OUT)/delta.fits --truth $(OUT)/delta.truth.jsonl < $<
+$(OUT)/sim6.fits $(OUT)/sim6.truth.jsonl &: $(OUT)/sim6.objects.jsonl $(OUT)/psf.jsonl $(OUT)/sources.jsonl $(call prog,render)
+	$(RENDER) $(LARGE_FIELD) -o $(OUT)/sim6.fits --truth $(OUT)/sim6.truth.jsonl < $<
+
+# --- measure all four images alike, and compare -----------------------------------------
+MEASURE = $(call prog,measure) --zero-point $(ZERO_POINT) --mag-limit $(MAG_LIMIT) -j $(THREADS)
+$(OUT)/hdf.morph.jsonl: $(IMAGE) $(WEIGHT) $(call prog,measure)
+	$(MEASURE) $(IMAGE) --weight $(WEIGHT) > $(tmp)
+	mv $(tmp) $@
+$(OUT)/%.morph.jsonl: $(OUT)/%.fits $(call prog,measure)
+	$(MEASURE) $< > $(tmp)
+	mv $(tmp) $@
+
+CATALOGUES := hdf delta sim sim6
+$(OUT)/table.md: $(CATALOGUES:%=$(OUT)/%.morph.jsonl) $(PAPER) $(call prog,measure)
+	$(call prog,measure) --compare $(foreach c,$(CATALOGUES),$c=$(OUT)/$c.morph.jsonl) \
+	  --paper $(PAPER) --out $(OUT)/compare
+	cp $(OUT)/compare/table.md $@
+
+# --- figures and the report -------------------------------------------------------------
+# HDF | δ | full simulation at one scale and stretch; the large simulation scaled to 1200 px.
+$(OUT)/figures/hdf_delta_sim.png: $(IMAGE) $(OUT)/delta.fits $(OUT)/sim.fits $(EXAMPLES)/panels
+	@mkdir -p $(@D)
+	$(EXAMPLES)/panels $(@:.png=.pgm) $(IMAGE) $(OUT)/delta.fits $(OUT)/sim.fits
+	pnmtopng $(@:.png=.pgm) > $(tmp) && rm $(@:.png=.pgm) && mv $(tmp) $@
+$(OUT)/figures/sim6.png: $(OUT)/sim6.fits $(EXAMPLES)/panels
+	@mkdir -p $(@D)
+	$(EXAMPLES)/panels $(@:.png=.pgm) $<
+	pnmscale -xsize 1200 $(@:.png=.pgm) | pnmtopng > $(tmp) && rm $(@:.png=.pgm) && mv $(tmp) $@
+# The paper's Fig. 3 and its negative-flux diagnostic (a fixed seed of its own).
+$(OUT)/figures/perturbations.png $(OUT)/perturbations.md &: $(OUT)/morphology.json $(EXAMPLES)/perturbations
+	@mkdir -p $(OUT)/figures
+	$(EXAMPLES)/perturbations $< $(OUT)/figures/perturbations.pgm 2000 > $(OUT)/perturbations.md.tmp
+	pnmtopng $(OUT)/figures/perturbations.pgm > $(OUT)/figures/perturbations.png.tmp
+	rm $(OUT)/figures/perturbations.pgm
+	mv $(OUT)/figures/perturbations.png.tmp $(OUT)/figures/perturbations.png
+	mv $(OUT)/perturbations.md.tmp $(OUT)/perturbations.md
+
+FIGURES := $(OUT)/figures/hdf_delta_sim.png $(OUT)/figures/sim6.png $(OUT)/figures/perturbations.png
+$(OUT)/report.md: $(R)pipelines/report.sh $(OUT)/table.md $(OUT)/morphology.json $(OUT)/perturbations.md \
+    $(FIGURES) $(INPUTS) $(OUT)/sim.truth.jsonl $(OUT)/delta.truth.jsonl $(OUT)/sim6.truth.jsonl
+	$(R)pipelines/report.sh $(OUT) $(INPUTS) > $(tmp)
+	mv $(tmp) $@
+
+outputs: $(OUT)/report.md
