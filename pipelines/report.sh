@@ -15,6 +15,13 @@ fits_card() {  # the value of header card $2 in the first image HDU of FITS file
   fold -w 80 "$f" | grep -a -m1 "^$card *=" | sed "s/^$card *= *//; s/ *\/.*//; s/'//g; s/ *$//"
 }
 
+# Objects of catalogue $1 brighter than I = $2, and how many real parents they were drawn from.
+bright_parents() {
+  awk -v limit="$2" 'match($0, /"mag":[-0-9.e+]+/) { m = substr($0, RSTART + 6, RLENGTH - 6) + 0;
+      if (m < limit && match($0, /"parent":"[^"]*"/)) { n++; p[substr($0, RSTART + 10, RLENGTH - 11)]++ } }
+    END { k = 0; for (q in p) k++; printf "%d objects from %d real galaxies", n, k }' "$1"
+}
+
 version=$(grep -a -m1 -o 'shapesim) [^ ]*' "$out/pipeline.log" 2>/dev/null | tail -1 | cut -d' ' -f2 || true)
 sources=$(lines "$out/sources.jsonl")
 models=$(lines "$out/shapelets.jsonl")
@@ -32,7 +39,9 @@ command, each program's own timing line and the run's wall time are in
 
 The HDF-N F814W cut (left), a simulation drawn from the δ-function PDF (the real galaxies
 re-placed, centre) and a full simulation (new galaxies from the smoothed PDF, right), at one
-pixel scale, one noise level and one grey stretch (asinh, set by the real image's noise):
+pixel scale, one noise level and one grey stretch (asinh, set by the real image's noise). The
+two simulations share their seed, so they place the same parents at the same positions: what
+differs between them is the smoothing of the PDF alone.
 
 ![HDF | δ-function simulation | full simulation](figures/hdf_delta_sim.png)
 
@@ -77,7 +86,8 @@ Number counts (Fig. 5), sizes (Fig. 6), size against magnitude (Fig. 7), ellipti
 ## A larger simulation
 
 $(fits_card "$out/sim6.fits" FIELDNX) × $(fits_card "$out/sim6.fits" FIELDNY) pixels at the HDF's scale and depth, drawn from the same PDF
-(shown at 1200 pixels across):
+(shown at 1200 pixels across). Brighter than I = 23 it holds $(bright_parents "$out/sim6.objects.jsonl" 23):
+the bootstrap can only copy the bright galaxies the real cut has, and a 512² cut has few.
 
 ![the larger simulation](figures/sim6.png)
 

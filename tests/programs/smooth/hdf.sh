@@ -1,6 +1,8 @@
 #!/usr/bin/env bash
 # shapesim-smooth on the HDF models (detect → decompose → smooth): one shapesim.morphology/1
-# document whose points are the converged models not flagged edge, bright_star or noise; --delta zeroes every λ; the same
+# document whose points are the converged models (or those stopped at the n_max cap, as in the
+# paper) not flagged edge, bright_star or noise; --drop-capped drops the capped ones; --delta
+# zeroes every λ; the same
 # input gives the same bytes; bad input gives one clear stderr line and a non-zero exit.
 source "$(dirname "${BASH_SOURCE[0]}")/../lib.sh"
 prog=shapesim-smooth
@@ -13,16 +15,22 @@ hdf_models
 "$BIN/$prog" -q <shapelets.jsonl >again.json || fail "second run failed"
 cmp -s morph.json again.json || fail "two runs differ"
 "$BIN/$prog" -q --delta <shapelets.jsonl >delta.json || fail "--delta failed"
+"$BIN/$prog" -q --drop-capped <shapelets.jsonl >strict.json || fail "--drop-capped failed"
 python3 - <<'PY' || fail "the morphology documents break the checks"
 import json, math
 records = [json.loads(l) for l in open("shapelets.jsonl")]
-want = [r["id"] for r in records if "converged" in r["flags"] and "edge" not in r["flags"]
+want = [r["id"] for r in records if ("converged" in r["flags"] or "n_max_cap" in r["flags"])
+        and "edge" not in r["flags"]
         and "bright_star" not in r["flags"] and "noise" not in r["flags"]
         and r.get("mag") is not None
         and r["coeffs"][0][0] > 0]
 m = json.load(open("morph.json"))
 assert m["schema"] == "shapesim.morphology/1", m["schema"]
 assert [p["id"] for p in m["points"]] == want, "points are not the converged, non-edge models"
+capped = [r["id"] for r in records if "n_max_cap" in r["flags"] and "converged" not in r["flags"]]
+assert capped and set(capped) <= set(want), capped  # the cut's brightest galaxy is one
+strict = json.load(open("strict.json"))
+assert [p["id"] for p in strict["points"]] == [i for i in want if i not in capped]
 assert m["n_max"] == max(p["n_max"] for p in m["points"])
 lam = m["lambda"]
 assert lam["phase_deg"] == 15 and lam["beta"] > 0 and lam["mag"] > 0, lam
