@@ -10,22 +10,13 @@
 # Every run appends to $(OUT)/pipeline.log: the date, the programs' version, the inputs'
 # SHA-256, each command with the programs' own timing lines, and the total wall time.
 
-SHELL := bash
-.SHELLFLAGS := -o pipefail -ec
-.DELETE_ON_ERROR:
-.SUFFIXES:
-.DEFAULT_GOAL := all
-
-# The repository, as a prefix: empty when make runs from it, its absolute path otherwise.
 SELF := $(lastword $(MAKEFILE_LIST))
-ROOT := $(abspath $(dir $(SELF))/..)
-R    := $(if $(filter $(CURDIR),$(ROOT)),,$(ROOT)/)
+OUT      ?= out/reproduce
+include $(dir $(SELF))common.mk
 
-BIN      ?= $(R)bin
 EXAMPLES ?= $(R)build/examples
 DATA     ?= $(R)share/data/hdfn
 PAPER    ?= $(R)share/data/paper/massey2004_table.jsonl
-OUT      ?= out/reproduce
 SEED     ?= 7
 # The larger simulation, arcmin² (the paper's 6).
 AREA     ?= 6
@@ -40,7 +31,6 @@ IMAGE     := $(DATA)/hdfn_f814w_v2.fits
 WEIGHT    := $(DATA)/hdfn_f814w_v2_weight.fits
 PSF_IMAGE := $(DATA)/wfpc2_f814w_tinytim_psf.fits
 INPUTS    := $(IMAGE) $(WEIGHT) $(PSF_IMAGE) $(PAPER)
-prog = $(BIN)/shapesim-$(1)
 
 # The whole job, logged: this make runs the targets below in a sub-make and keeps the transcript.
 .PHONY: all outputs
@@ -54,13 +44,7 @@ all:
 	  echo "==== done in $$(awk -v a=$$start -v b=$$(date +%s.%N) 'BEGIN { printf "%.1f", b - a }') s"; \
 	} 2>&1 | tee -a $(OUT)/pipeline.log
 
-# A parameter file is rewritten only when its value changes, so targets that name it rerun
-# exactly then.
-$(OUT)/params/%: FORCE
-	@mkdir -p $(@D)
-	@if [ "$$(cat $@ 2>/dev/null)" != "$(value_$*)" ]; then echo "$(value_$*)" > $@; fi
-.PHONY: FORCE
-FORCE:
+# Parameters (common.mk).
 value_seed := $(SEED)
 value_area := $(AREA)
 

@@ -12,20 +12,12 @@
 # index.jsonl (one shapesim.tile/1 line per tile: window, files, object count, SHA-256) and,
 # with MEASURE=1, measured.jsonl. The defaults draw from what `make reproduce` made.
 
-SHELL := bash
-.SHELLFLAGS := -o pipefail -ec
-.DELETE_ON_ERROR:
-.SUFFIXES:
-.SECONDEXPANSION:
-.DEFAULT_GOAL := all
-
-# The repository, as a prefix: empty when make runs from it, its absolute path otherwise.
 SELF := $(lastword $(MAKEFILE_LIST))
-ROOT := $(abspath $(dir $(SELF))/..)
-R    := $(if $(filter $(CURDIR),$(ROOT)),,$(ROOT)/)
+.SECONDEXPANSION:
 
-BIN      ?= $(R)bin
 OUT      ?= out/survey
+include $(dir $(SELF))common.mk
+
 MODEL    ?= out/reproduce/morphology.json
 PSF      ?= out/reproduce/psf.jsonl
 # The PSF the galaxy models already hold (the real image's): none more is applied when equal.
@@ -44,18 +36,11 @@ MEASURE  ?=
 ZERO_POINT ?= 22.08
 MAG_LIMIT  ?= 29
 
-prog = $(BIN)/shapesim-$(1)
 SAMPLE = $(call prog,sample) $(MODEL) $(FIELD) --seed $(SEED) $(SAMPLE_OPTIONS)
 RENDER = $(call prog,render) --psf $(PSF) --galaxy-psf $(GALAXY_PSF) $(FIELD) $(NOISE) \
   --seed $(SEED) -j $(THREADS) $(RENDER_OPTIONS)
 
-# Parameter files change only when their value does, so a new seed redraws every tile and a
-# new field re-plans the grid, and nothing else reruns anything.
-$(OUT)/params/%: FORCE
-	@mkdir -p $(@D)
-	@if [ "$$(cat $@ 2>/dev/null)" != '$(value_$*)' ]; then echo '$(value_$*)' > $@; fi
-.PHONY: FORCE
-FORCE:
+# Parameters (common.mk): a new seed redraws every tile, a new field re-plans the grid.
 value_grid := $(FIELD) | $(TILE)
 value_draw := $(SEED) | $(SAMPLE_OPTIONS) | $(NOISE) | $(RENDER_OPTIONS)
 
