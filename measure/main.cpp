@@ -103,7 +103,8 @@ int run_compare(const CompareSettings& c, const app::Log& log) {
         o << "| catalogue | N (I ≤ " << c.cuts.mag_counts << ") | ⟨C⟩ | rms C | ⟨A⟩ | rms A | ⟨S⟩ | rms S"
           << " | rms e | FWHM median (″) | FWHM sd (″) |\n|---|---|---|---|---|---|---|---|---|---|---|\n";
         for (const TableRow& t : rows) {
-            o << "| " << t.name << " | " << (t.galaxies >= 0 ? std::to_string(t.galaxies) : "–") << " | " << format(t.c_mean, t.c_mean_err)
+            o << "| " << t.name << " | " << (t.galaxies >= 0 ? std::to_string(t.galaxies) : "–")
+              << " | " << format(t.c_mean, t.c_mean_err)
               << " | " << format(t.c_rms, t.c_rms_err) << " | " << format(t.a_mean, t.a_mean_err)
               << " | " << format(t.a_rms, t.a_rms_err) << " | " << format(t.s_mean, t.s_mean_err)
               << " | " << format(t.s_rms, t.s_rms_err) << " | " << format(t.e_rms, t.e_rms_err)

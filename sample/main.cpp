@@ -88,13 +88,9 @@ int run(int argc, const char* const argv[]) {
         if (s.tile_grid.empty() || s.tile_grid.size() > 2 || s.tile_grid.front() < 1 || s.tile_grid.back() < 1)
             throw po::error("--tile-grid takes W [H], whole numbers of pixels >= 1");
         const long w = s.tile_grid.front(), h = s.tile_grid.back();
-        const long columns = (field.nx + w - 1) / w;
-        const std::vector<Tile> tiles = tile_grid(field.nx, field.ny, w, h);
-        for (std::size_t k = 0; k < tiles.size(); ++k) {
-            const Tile& t = tiles[k];
-            std::cout << long(k) % columns << ' ' << long(k) / columns << ' ' << t.x0 << ' ' << t.y0 << ' '
+        for (const Tile& t : tile_grid(field.nx, field.ny, w, h))
+            std::cout << (t.x0 - 1) / w << ' ' << (t.y0 - 1) / h << ' ' << t.x0 << ' ' << t.y0 << ' '
                       << t.x1 << ' ' << t.y1 << '\n';
-        }
         std::cout.flush();
         if (!std::cout) throw Error("cannot write the tile grid", "stdout");
         return 0;

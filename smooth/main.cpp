@@ -36,13 +36,25 @@ const char* const description =
     "galaxy's magnitude, kept or not, and shapesim-sample then draws the real galaxy density.";
 
 struct Settings {
-    std::string input = "-", require = "converged", reject = "edge,bright_star,noise", weight_field;
+    // The paper keeps the bright galaxies whose fits stop at the n_max cap unconverged,
+    // truncated there as the best fit possible (§3.1): either flag satisfies the default.
+    std::string input = "-", require = "converged|n_max_cap", reject = "edge,bright_star,noise", weight_field;
     double k = 4.0, phase = 15.0, beta = 0.0, mag = 0.0, modulus = 0.0, mag_limit = 0.0, area = 0.0;
-    bool delta = false, drop_capped = false;
+    bool delta = false;
 };
 
 bool has(const std::vector<std::string>& flags, const std::string& flag) {
     return std::find(flags.begin(), flags.end(), flag) != flags.end();
+}
+
+// Whether `flags` holds one of the '|'-separated alternatives of `wanted`.
+bool has_any(const std::vector<std::string>& flags, const std::string& wanted) {
+    for (std::size_t start = 0;;) {
+        const std::size_t bar = wanted.find('|', start);
+        if (has(flags, wanted.substr(start, bar - start))) return true;
+        if (bar == std::string::npos) return false;
+        start = bar + 1;
+    }
 }
 
 int run(int argc, const char* const argv[]) {
@@ -54,11 +66,9 @@ int run(int argc, const char* const argv[]) {
     options.group("Input").add_options()
         ("input,i", po::value(&s.input)->value_name("FILE")->default_value("-"),
          "shapelet records (default: stdin)")
-        ("require", po::value(&s.require)->value_name("FLAGS")->default_value("converged"),
-         "keep records carrying all these flags (comma-separated; empty: all); fits stopped\n"
-         "at the n_max cap count as converged, as in the paper")
-        ("drop-capped", po::bool_switch(&s.drop_capped),
-         "do not count fits stopped at the n_max cap as converged")
+        ("require", po::value(&s.require)->value_name("FLAGS")->default_value("converged|n_max_cap"),
+         "keep records carrying all these flags (comma-separated; empty: all; A|B: either);\n"
+         "by default converged fits and, as in the paper, fits stopped at the n_max cap")
         ("reject", po::value(&s.reject)->value_name("FLAGS")->default_value("edge,bright_star,noise"),
          "drop records carrying any of these flags")
         ("mag-limit", po::value(&s.mag_limit)->value_name("MAG"),
@@ -122,11 +132,8 @@ int run(int argc, const char* const argv[]) {
         if (source_field && r.mag && record.value("kind", std::string("galaxy")) != "star")
             source_field->mags.push_back(*r.mag);
         std::string why;
-        // The paper keeps the bright galaxies whose fits stop at the n_max cap unconverged,
-        // truncated there as the best fit possible (§3.1); dropping them empties the bright end.
-        const bool capped = !s.drop_capped && has(r.flags, "n_max_cap");
         for (const auto& f : required)
-            if (!has(r.flags, f) && !(f == "converged" && capped)) why = "not " + f;
+            if (!has_any(r.flags, f)) why = "not " + f;
         for (const auto& f : rejected)
             if (has(r.flags, f)) why = f;
         if (why.empty() && !r.mag) why = "no magnitude";
@@ -174,7 +181,6 @@ int run(int argc, const char* const argv[]) {
                                {"lambda_phase", s.phase},
                                {"delta", s.delta},
                                {"require", required},
-                               {"drop_capped", s.drop_capped},
                                {"reject", rejected}}}};
     std::cout << morphology.to_json().dump() << '\n';
     std::cout.flush();

@@ -13,7 +13,8 @@
 // Output: FitsWriter writes a multi-extension file atomically (app/atomic_file): HDU 0 is
 // empty and carries provenance (PROGRAM, VERSION, CFITSIO, caller's keywords such as the
 // options; no DATE, so reruns are bit-identical); each image goes into its own extension
-// with EXTNAME, BUNIT, TAN WCS, extra keywords and HISTORY. Float images are BITPIX −32 (or −64 where precision is the point).
+// with EXTNAME, BUNIT, TAN WCS, extra keywords and HISTORY. Float images are BITPIX −32 (or
+// −64 where precision is the point).
 //
 // Stamps (DESIGN §2): one MEF file; per object an image HDU `<id>.image`, a weight (inverse
 // variance) HDU `<id>.weight` and a mask HDU `<id>.mask` (non-zero = pixel owned by a

@@ -1,7 +1,7 @@
 #!/usr/bin/env bash
 # shapesim-smooth on the HDF models (detect → decompose → smooth): one shapesim.morphology/1
 # document whose points are the converged models (or those stopped at the n_max cap, as in the
-# paper) not flagged edge, bright_star or noise; --drop-capped drops the capped ones; --delta
+# paper) not flagged edge, bright_star or noise; --require converged drops the capped ones; --delta
 # zeroes every λ; the same
 # input gives the same bytes; bad input gives one clear stderr line and a non-zero exit.
 source "$(dirname "${BASH_SOURCE[0]}")/../lib.sh"
@@ -15,7 +15,7 @@ hdf_models
 "$BIN/$prog" -q <shapelets.jsonl >again.json || fail "second run failed"
 cmp -s morph.json again.json || fail "two runs differ"
 "$BIN/$prog" -q --delta <shapelets.jsonl >delta.json || fail "--delta failed"
-"$BIN/$prog" -q --drop-capped <shapelets.jsonl >strict.json || fail "--drop-capped failed"
+"$BIN/$prog" -q --require converged <shapelets.jsonl >strict.json || fail "--require converged failed"
 python3 - <<'PY' || fail "the morphology documents break the checks"
 import json, math
 records = [json.loads(l) for l in open("shapelets.jsonl")]
