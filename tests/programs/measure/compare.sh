@@ -2,7 +2,8 @@
 # shapesim-measure --compare: a catalogue against itself gives KS D = 0, p = 1 and Wasserstein 0
 # for every statistic, two identical Table rows and the seven figures (when gnuplot is there);
 # a copy with 1.5× larger galaxies is told apart in size, not in magnitude; empty,
-# single-object and wrong-typed catalogues give one clear line.
+# single-object and wrong-typed catalogues give one clear line; --paper adds the published
+# rows, and a bad one is named.
 source "$(dirname "${BASH_SOURCE[0]}")/../lib.sh"
 prog=shapesim-measure
 cd "$TMPDIR"
@@ -48,4 +49,22 @@ rc=0; "$BIN/$prog" --compare a=hdf.jsonl --out bad >out 2>err || rc=$?
 expect_error "$rc" 2 'at least two catalogues'
 rc=0; "$BIN/$prog" --compare hdf.jsonl b=hdf.jsonl >out 2>err || rc=$?
 expect_error "$rc" 2 'NAME=FILE'
+# --mag-limit measures exactly the records brighter than it, unchanged.
+"$BIN/$prog" "$HDF_IMAGE" --weight "$HDF_DATA/hdfn_f814w_v2_weight.fits" --zero-point 22.08 \
+  --mag-limit 27 -j 2 -q >bright.jsonl || fail "--mag-limit failed"
+python3 -c 'import json
+full = [l for l in open("hdf.jsonl") if json.loads(l).get("mag") is not None and json.loads(l)["mag"] <= 27]
+bright = list(open("bright.jsonl"))
+assert bright and bright == full, (len(bright), len(full))' || fail "--mag-limit 27 is not the bright subset"
+# The paper's rows: printed beside ours; a wrong-typed or unnamed row is named, and no Table.
+paper=$HDF_DATA/../paper/massey2004_table.jsonl
+"$BIN/$prog" --compare a=hdf.jsonl b=hdf.jsonl --paper "$paper" --out withpaper -q || fail "--paper failed"
+grep -q '^| paper: HDF-N | – | 3.110 | 0.390 |' withpaper/table.md || fail "no paper row: $(cat withpaper/table.md)"
+echo '{"schema":"shapesim.table_row/1","name":"x","c_mean":"3.1"}' >badpaper.jsonl
+rc=0; "$BIN/$prog" --compare a=hdf.jsonl b=hdf.jsonl --paper badpaper.jsonl --out badp >out 2>err || rc=$?
+expect_error "$rc" 1 'badpaper.jsonl:1: c_mean'
+[ ! -e badp/table.md ] || fail "a Table was written despite a bad --paper row"
+echo '{"schema":"shapesim.table_row/1","c_mean":3.1}' >badpaper.jsonl
+rc=0; "$BIN/$prog" --compare a=hdf.jsonl b=hdf.jsonl --paper badpaper.jsonl --out badp >out 2>err || rc=$?
+expect_error "$rc" 1 'badpaper.jsonl:1: name'
 exit 0

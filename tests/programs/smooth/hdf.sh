@@ -70,4 +70,9 @@ rc=0; "$BIN/$prog" --weight-field nosuch <shapelets.jsonl >out 2>err || rc=$?
 expect_error "$rc" 1 'nosuch'
 rc=0; "$BIN/$prog" --k -1 <shapelets.jsonl >out 2>err || rc=$?
 expect_error "$rc" 2 'k'
+rc=0; "$BIN/$prog" --like "$data/hdfn_f814w_v2.fits" --area 1 <shapelets.jsonl >out 2>err || rc=$?
+expect_error "$rc" 2 'give --like or --area, not both'
+rc=0; "$BIN/$prog" --like nosuch.fits <shapelets.jsonl >out 2>err || rc=$?
+expect_error "$rc" 1 'nosuch.fits'
+[ ! -s out ] || fail "output written for a missing --like image"
 exit 0
