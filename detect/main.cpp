@@ -10,6 +10,7 @@
 #include "shapesim/error.hpp"
 #include "shapesim/fits_io.hpp"
 #include "shapesim/jsonl.hpp"
+#include "shapesim/noise.hpp"
 #include "shapesim/psf.hpp"
 #include "shapesim/records.hpp"
 #include "shapesim/sources.hpp"
@@ -36,8 +37,9 @@ const char* const description =
 
 struct Settings {
     app::DetectionSettings detection;
-    std::string stamps, stars, segmentation;
+    std::string stamps, stars, segmentation, noise_model;
     StampOptions stamp;
+    SkyNoiseOptions noise;
 };
 
 void declare(app::ProgramOptions& options, Settings& s) {
@@ -58,7 +60,16 @@ void declare(app::ProgramOptions& options, Settings& s) {
              ->notifier(in_range("border-width", 1, 1000)),
          "depth of the stamp border that sets the local noise, pixels")
         ("segmentation", po::value(&s.segmentation)->value_name("FILE"),
-         "write the segmentation map (object labels = ids) to this FITS file");
+         "write the segmentation map (object labels = ids) to this FITS file")
+        ("noise-model", po::value(&s.noise_model)->value_name("FILE"),
+         "write the sky's measured noise (shapesim.noise/1: rms, 2-D autocorrelation, pixel "
+         "quantiles; objects masked) to this file, for shapesim-render --noise-model")
+        ("noise-radius", po::value(&s.noise.radius)->default_value(8)
+             ->notifier(in_range("noise-radius", 0, 64)),
+         "largest lag of the measured autocorrelation, pixels")
+        ("noise-grow", po::value(&s.noise.grow)->default_value(2)
+             ->notifier(in_range("noise-grow", 0, 100)),
+         "sky pixels kept this far from every object and bad pixel, pixels");
 }
 
 std::vector<FitsKeyword> provenance(const app::ProgramOptions& options) {
@@ -77,7 +88,7 @@ int run(int argc, const char* const argv[]) {
     const app::Log log("shapesim-detect", options.common().verbosity);
 
     // Refuse unwritable outputs before the work.
-    for (const std::string* path : {&s.stamps, &s.stars, &s.segmentation})
+    for (const std::string* path : {&s.stamps, &s.stars, &s.segmentation, &s.noise_model})
         if (!path->empty()) app::check_writable(*path);
 
     app::DetectionRun detected = s.detection.run(options, log);
@@ -122,6 +133,16 @@ int run(int argc, const char* const argv[]) {
         FitsImageSpec spec{"SEGMENTATION", 32, {}, context.wcs, {}, {}};
         seg.write_image(field.segmentation.cast<double>(), spec);
         seg.commit();
+    }
+    if (!s.noise_model.empty()) {
+        NoiseRecord noise = measure_sky_noise(field, s.noise);
+        noise.extra["image"] = s.detection.image;
+        app::AtomicTextFile file(s.noise_model);
+        JsonlWriter(file.stream(), s.noise_model).write(noise.to_json());
+        file.commit();
+        log.info("sky noise: rms ", noise.rms, " (MAD σ ", noise.mad_sigma, ") over ",
+                 noise.pixels, " pixels; autocorrelation at (1,0) ", noise.correlation.at(1, 0),
+                 ", (1,1) ", noise.correlation.at(1, 1), ", (2,0) ", noise.correlation.at(2, 0));
     }
     if (stamps) stamps->commit();
     if (stars_file) stars_file->commit();

@@ -6,6 +6,7 @@
 #include "shapesim/app/options.hpp"
 #include "shapesim/app/run_main.hpp"
 #include "shapesim/compare.hpp"
+#include "shapesim/noise.hpp"
 #include "shapesim/error.hpp"
 #include "shapesim/jsonl.hpp"
 #include "shapesim/measure.hpp"
@@ -46,7 +47,7 @@ const char* const description =
 
 // --compare: the Table, the distances and the figures.
 struct CompareSettings {
-    std::vector<std::string> inputs;
+    std::vector<std::string> inputs, skies;
     std::string out = "compare", paper;
     TableCuts cuts;
 };
@@ -61,13 +62,10 @@ std::string format(double v, double err, int digits = 3) {
 
 int run_compare(const CompareSettings& c, const app::Log& log) {
     std::vector<Catalogue> catalogues;
-    for (const std::string& spec : c.inputs) {
-        const auto eq = spec.find('=');
-        if (eq == std::string::npos || eq == 0 || eq + 1 == spec.size())
-            throw po::error("--compare takes NAME=FILE, got '" + spec + "'");
+    for (const auto& [name, path] : app::named_files(c.inputs, "compare")) {
         Catalogue cat;
-        cat.name = spec.substr(0, eq);
-        JsonlReader reader(spec.substr(eq + 1), {MorphRecord::schema});
+        cat.name = name;
+        JsonlReader reader(path, {MorphRecord::schema});
         Json record;
         while (reader.next(record)) {
             try {
@@ -240,6 +238,9 @@ int run(int argc, const char* const argv[]) {
     options.group("Compare").add_options()
         ("compare", po::value(&compare.inputs)->value_name("NAME=FILE")->multitoken(),
          "compare measured catalogues (the first is the reference) instead of measuring")
+        ("compare-sky", po::value(&compare.skies)->value_name("NAME=FILE")->multitoken(),
+         "compare skies' noise records (shapesim-detect --noise-model; the first is the "
+         "reference): a markdown table on stdout")
         ("out", po::value(&compare.out)->value_name("DIR")->default_value("compare"),
          "folder for table.md, distances.md and the figures")
         ("paper", po::value(&compare.paper)->value_name("FILE"),
@@ -254,6 +255,18 @@ int run(int argc, const char* const argv[]) {
              ->notifier(in_range("bootstrap", 2, 1000000)), "bootstrap resamples for the errors");
     if (!options.parse(argc, argv)) return 0;
     const app::Log log("shapesim-measure", options.common().verbosity);
+    if (!compare.skies.empty()) {
+        if (!detection.image.empty() || !compare.inputs.empty())
+            throw po::error("--compare-sky: not with an IMAGE or --compare");
+        std::vector<std::string> names;
+        std::vector<NoiseRecord> skies;
+        for (const auto& [name, path] : app::named_files(compare.skies, "compare-sky")) {
+            names.push_back(name);
+            skies.push_back(read_noise_record(path));
+        }
+        write_sky_table(std::cout, names, skies);
+        return 0;
+    }
     if (!compare.inputs.empty()) {
         if (!detection.image.empty()) throw po::error("give an IMAGE or --compare, not both");
         return run_compare(compare, log);

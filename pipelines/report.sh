@@ -75,6 +75,18 @@ EOF
 cat "$out/compare/distances.md"
 cat <<EOF
 
+## The sky
+
+The simulations' noise is the HDF sky's own, measured by \`shapesim-detect --noise-model\` on
+the pixels no detection reaches (grown by 2 pixels, clipped at 5 MAD-σ): its rms and 2-D
+autocorrelation out to 8 pixels, drawn as white noise through the kernel that has that
+autocorrelation. Each image's sky is measured alike (its own detection, the HDF's weight map);
+the KS test compares the pixel histograms on a 4-pixel grid:
+
+EOF
+cat "$out/sky.md"
+cat <<EOF
+
 ## The paper's figures
 
 Number counts (Fig. 5), sizes (Fig. 6), size against magnitude (Fig. 7), ellipticities

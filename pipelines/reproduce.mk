@@ -52,10 +52,11 @@ value_area := $(AREA)
 tmp = $@.tmp
 
 # --- the real image ---------------------------------------------------------------------
-$(OUT)/sources.jsonl $(OUT)/stamps.fits $(OUT)/stars.jsonl &: $(IMAGE) $(WEIGHT) $(call prog,detect)
+$(OUT)/sources.jsonl $(OUT)/stamps.fits $(OUT)/stars.jsonl $(OUT)/hdf.noise.jsonl &: $(IMAGE) $(WEIGHT) $(call prog,detect)
 	@mkdir -p $(OUT)
 	$(call prog,detect) $(IMAGE) --weight $(WEIGHT) --zero-point $(ZERO_POINT) \
-	  --stamps $(OUT)/stamps.fits --stars $(OUT)/stars.jsonl > $(OUT)/sources.jsonl.tmp
+	  --stamps $(OUT)/stamps.fits --stars $(OUT)/stars.jsonl --noise-model $(OUT)/hdf.noise.jsonl \
+	  > $(OUT)/sources.jsonl.tmp
 	mv $(OUT)/sources.jsonl.tmp $(OUT)/sources.jsonl
 
 $(OUT)/shapelets.jsonl $(OUT)/models.fits &: $(OUT)/sources.jsonl $(OUT)/stars.jsonl $(call prog,decompose)
@@ -88,14 +89,15 @@ $(OUT)/sim6.objects.jsonl: $(OUT)/morphology.json $(OUT)/params/seed $(OUT)/para
 	mv $(tmp) $@
 
 # Galaxy models already hold the HDF's PSF (--galaxy-psf = --psf: no further convolution);
-# the noise is the HDF's, measured by detect, plus photon noise.
+# the noise is the HDF sky's, measured by detect (rms and 2-D autocorrelation), plus photon
+# noise.
 RENDER = $(call prog,render) --psf $(OUT)/psf.jsonl --galaxy-psf $(OUT)/psf.jsonl \
-  --noise-like $(OUT)/sources.jsonl --gain $(GAIN) --seed $(SEED) -j $(THREADS)
-$(OUT)/sim.fits $(OUT)/sim.truth.jsonl &: $(OUT)/sim.objects.jsonl $(OUT)/psf.jsonl $(OUT)/sources.jsonl $(call prog,render)
+  --noise-model $(OUT)/hdf.noise.jsonl --gain $(GAIN) --seed $(SEED) -j $(THREADS)
+$(OUT)/sim.fits $(OUT)/sim.truth.jsonl &: $(OUT)/sim.objects.jsonl $(OUT)/psf.jsonl $(OUT)/hdf.noise.jsonl $(call prog,render)
 	$(RENDER) --like $(IMAGE) -o $(OUT)/sim.fits --truth $(OUT)/sim.truth.jsonl < $<
-$(OUT)/delta.fits $(OUT)/delta.truth.jsonl &: $(OUT)/delta.objects.jsonl $(OUT)/psf.jsonl $(OUT)/sources.jsonl $(call prog,render)
+$(OUT)/delta.fits $(OUT)/delta.truth.jsonl &: $(OUT)/delta.objects.jsonl $(OUT)/psf.jsonl $(OUT)/hdf.noise.jsonl $(call prog,render)
 	$(RENDER) --like $(IMAGE) -o $(OUT)/delta.fits --truth $(OUT)/delta.truth.jsonl < $<
-$(OUT)/sim6.fits $(OUT)/sim6.truth.jsonl &: $(OUT)/sim6.objects.jsonl $(OUT)/psf.jsonl $(OUT)/sources.jsonl $(call prog,render)
+$(OUT)/sim6.fits $(OUT)/sim6.truth.jsonl &: $(OUT)/sim6.objects.jsonl $(OUT)/psf.jsonl $(OUT)/hdf.noise.jsonl $(call prog,render)
 	$(RENDER) $(LARGE_FIELD) -o $(OUT)/sim6.fits --truth $(OUT)/sim6.truth.jsonl < $<
 
 # --- measure all four images alike, and compare -----------------------------------------
@@ -105,6 +107,15 @@ $(OUT)/hdf.morph.jsonl: $(IMAGE) $(WEIGHT) $(call prog,measure)
 	mv $(tmp) $@
 $(OUT)/%.morph.jsonl: $(OUT)/%.fits $(call prog,measure)
 	$(MEASURE) $< > $(tmp)
+	mv $(tmp) $@
+
+# The skies, objects masked alike: each image's own detection (the HDF's weight map for the
+# simulations of its field), its sky noise measured as detect measures the real one.
+$(OUT)/delta.noise.jsonl $(OUT)/sim.noise.jsonl: $(OUT)/%.noise.jsonl: $(OUT)/%.fits $(WEIGHT) $(call prog,detect)
+	$(call prog,detect) $< --weight $(WEIGHT) --noise-model $(tmp) > /dev/null
+	mv $(tmp) $@
+$(OUT)/sky.md: $(OUT)/hdf.noise.jsonl $(OUT)/delta.noise.jsonl $(OUT)/sim.noise.jsonl $(call prog,measure)
+	$(call prog,measure) --compare-sky $(foreach c,hdf delta sim,$c=$(OUT)/$c.noise.jsonl) > $(tmp)
 	mv $(tmp) $@
 
 CATALOGUES := hdf delta sim sim6
@@ -133,7 +144,7 @@ $(OUT)/figures/perturbations.png $(OUT)/perturbations.md &: $(OUT)/morphology.js
 	mv $(OUT)/perturbations.md.tmp $(OUT)/perturbations.md
 
 FIGURES := $(OUT)/figures/hdf_delta_sim.png $(OUT)/figures/sim6.png $(OUT)/figures/perturbations.png
-$(OUT)/report.md: $(R)pipelines/report.sh $(OUT)/table.md $(OUT)/morphology.json $(OUT)/perturbations.md \
+$(OUT)/report.md: $(R)pipelines/report.sh $(OUT)/table.md $(OUT)/sky.md $(OUT)/morphology.json $(OUT)/perturbations.md \
     $(FIGURES) $(INPUTS) $(OUT)/sim.truth.jsonl $(OUT)/delta.truth.jsonl $(OUT)/sim6.truth.jsonl
 	$(R)pipelines/report.sh $(OUT) $(INPUTS) > $(tmp)
 	mv $(tmp) $@

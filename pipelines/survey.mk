@@ -27,7 +27,7 @@ FIELD    ?= --area 1 --pixel-scale 0.03985
 # Tile side, pixels ("W H" for rectangles).
 TILE     ?= 1024
 SEED     ?= 1
-NOISE    ?= --noise-like out/reproduce/sources.jsonl --gain 865200
+NOISE    ?= --noise-model out/reproduce/hdf.noise.jsonl --gain 865200
 SAMPLE_OPTIONS ?=
 RENDER_OPTIONS ?=
 # Threads per tile job (tiles themselves run in parallel under make -j or Slurm).

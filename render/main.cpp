@@ -42,7 +42,7 @@ const char* const description =
     "  shapesim-render --psf psf.jsonl --size 1 --noise-free -o clean.fits < objects.jsonl";
 
 struct Settings {
-    std::string input = "-", psf, galaxy_psf, truth, noise_like;
+    std::string input = "-", psf, galaxy_psf, truth, noise_like, noise_model;
     app::FieldOptions field;
     std::vector<double> shear;
     double kappa = 0.0, exposure = 1.0;
@@ -106,6 +106,9 @@ int run(int argc, const char* const argv[]) {
         ("noise-correlation", po::value(&o.noise_correlation)
              ->notifier(in_range("noise-correlation", 1.0, 2.3)),
          "correlated-noise factor F of the background (drizzle-like 3x3 kernel)")
+        ("noise-model", po::value(&s.noise_model)->value_name("FILE"),
+         "the real sky's measured noise (shapesim-detect --noise-model): its rms and 2-D "
+         "autocorrelation, drawn as white noise through the kernel that has it")
         ("noise-like", po::value(&s.noise_like)->value_name("FILE"),
          "take the rms and F from shapesim-detect's records (medians of noise_rms, "
          "noise_correlation)")
@@ -134,6 +137,10 @@ int run(int argc, const char* const argv[]) {
     if (!s.galaxy_psf.empty() && s.psf.empty()) throw po::error("--galaxy-psf needs --psf");
     if (options.given("noise-like") && (options.given("noise-rms") || options.given("noise-correlation")))
         throw po::error("--noise-like sets --noise-rms and --noise-correlation");
+    if (options.given("noise-model") &&
+        (options.given("noise-like") || options.given("noise-rms") || options.given("noise-correlation")))
+        throw po::error("--noise-model sets the noise: not with --noise-like, --noise-rms, "
+                        "--noise-correlation");
     if (!s.shear.empty()) {
         if (s.shear.size() != 2) throw po::error("--shear takes two numbers: G1 G2");
         if (!(std::hypot(s.shear[0], s.shear[1]) < 1.0)) throw po::error("--shear: |g| must be < 1");
@@ -154,6 +161,16 @@ int run(int argc, const char* const argv[]) {
 
     // Noise and kernels.
     if (!s.noise_like.empty()) std::tie(o.noise_rms, o.noise_correlation) = noise_of(s.noise_like);
+    std::string noise_note = "drizzle-like 3x3 (NOISECOR)";
+    if (!s.noise_model.empty()) {
+        const NoiseRecord noise = read_noise_record(s.noise_model);
+        o.noise_rms = noise.rms;
+        o.noise_correlation = std::max(1.0, noise.noise_correlation);
+        o.noise_kernel = correlated_noise_kernel(noise.correlation);
+        noise_note = s.noise_model;
+        log.verbose("noise kernel radius ", o.noise_kernel->radius, ", ",
+                    o.noise_kernel->columns.size(), " separable terms");
+    }
     o.gain *= s.exposure;
     o.seed = options.common().seed;
     o.threads = options.common().threads;
@@ -238,6 +255,7 @@ int run(int argc, const char* const argv[]) {
         FitsKeyword("TRUNC", o.truncation, "stamp truncation, fraction of noise rms or peak"),
         FitsKeyword("NOISERMS", o.noise_free ? 0.0 : o.noise_rms, "Gaussian background rms"),
         FitsKeyword("NOISECOR", o.noise_correlation, "correlated-noise factor F (4x4 blocks)"),
+        FitsKeyword("NOISEMOD", noise_note, "background noise correlation"),
         FitsKeyword("GAIN", o.noise_free ? 0.0 : o.gain, "electrons per image unit (photon noise)"),
         FitsKeyword("SKY", o.sky, "sky level added"),
         FitsKeyword("NOISEFRE", o.noise_free, "noise-free image"),

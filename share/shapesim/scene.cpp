@@ -189,50 +189,43 @@ ImageArray paint(const std::vector<PreparedObject>& objects, const Tile& window,
     return image;
 }
 
-double correlated_noise_kernel_edge(double factor) {
-    require(factor >= 1.0 && std::isfinite(factor), "the correlated-noise factor must be ≥ 1");
-    // F(e) = 1 + (3e + e²)/(1 + 2e²) for 4×4 block sums; it rises from 1 at e = 0 to its
-    // maximum near e = 0.9.
-    auto f = [](double e) { return 1.0 + (3.0 * e + e * e) / (1.0 + 2.0 * e * e); };
-    if (factor == 1.0) return 0.0;
-    double lo = 0.0, hi = 0.9;
-    if (factor > f(hi))
-        throw Error("a correlated-noise factor above " + std::to_string(f(hi)) +
-                    " needs a wider kernel than 3×3");
-    for (int k = 0; k < 100; ++k) {
-        const double mid = 0.5 * (lo + hi);
-        (f(mid) < factor ? lo : hi) = mid;
-    }
-    return 0.5 * (lo + hi);
-}
-
 void add_noise(ImageArray& image, const Tile& window, long field_nx, const SceneOptions& options) {
     if (options.noise_free) return;
     const long nx = window.x1 - window.x0 + 1, ny = window.y1 - window.y0 + 1;
     require(image.rows() == ny && image.cols() == nx, "add_noise: image and window differ");
-    const double e = options.noise_correlation > 1.0
-                         ? correlated_noise_kernel_edge(options.noise_correlation)
-                         : 0.0;
-    const double norm = 1.0 / std::sqrt(1.0 + 2.0 * e * e);
-    const double k1[3] = {e * norm, norm, e * norm};
-    const bool correlated = e > 0.0;
+    const NoiseKernel kernel = options.noise_kernel ? *options.noise_kernel
+                                                    : drizzle_noise_kernel(options.noise_correlation);
+    require(kernel.radius <= max_noise_kernel_radius, "add_noise: the noise kernel is too wide");
+    const int K = kernel.radius, width = 2 * K + 1, terms = int(kernel.columns.size());
+    const bool white = K == 0;
     const double sigma = options.noise_rms;
     const Ziggurat& zig = Ziggurat::instance();
-    // White noise of field pixel (row R ≥ −1, column C ≥ −2): word C + 2 of the row's stream;
-    // the rare ziggurat retries from a stream keyed by the pixel.
+    // White noise of field pixel (row R, column C), 0-based: for R ≥ −1, C ≥ −2, word C + 2 of
+    // Philox blocks keyed {seed, R + 1} (counter {block, purpose}, four words per block), its
+    // rare ziggurat retries from a stream keyed by the pixel; further out (only a wide
+    // kernel's margin reaches there), a stream keyed by the pixel.
     const std::uint64_t stride = std::uint64_t(field_nx) + 4;
-    // The words straight from Philox blocks (as RandomStream lays them out: counter {block,
-    // purpose}, key {seed, row + 1}), four pixels per block; retries from a stream keyed by
-    // the pixel.
     const std::uint64_t purpose = fnv1a_64("background noise");
     auto retry = [&](long row, long column, std::uint64_t word) {
         RandomStream more(options.seed, std::uint64_t(row + 1) * stride + std::uint64_t(column),
                           "background noise retry");
         return zig(word, [&]() -> RandomStream& { return more; });
     };
+    auto margin = [&](long row, long column) {
+        const std::uint64_t key = (std::uint64_t(row + max_noise_kernel_radius) << 32) ^
+                                  std::uint64_t(column + max_noise_kernel_radius);
+        RandomStream stream(options.seed, key, "background noise margin");
+        return stream.gaussian();
+    };
     auto white_row = [&](long row, long c_first, long count, double* out) {
+        long skip = 0;  // columns left of −2 (or the whole row above −1): the margin stream
+        if (row < -1) skip = count;
+        else if (c_first < -2) skip = std::min(count, -2 - c_first);
+        for (long c = 0; c < skip; ++c) out[c] = margin(row, c_first + c);
+        if (skip == count) return;
         const std::array<std::uint64_t, 2> key{options.seed, std::uint64_t(row + 1)};
-        const long first = c_first + 2, last = first + count;  // word indices, ≥ 0
+        const long first = c_first + skip + 2, last = c_first + count + 2;  // word indices ≥ 0
+        double* const base = out - (c_first + 2);
         for (long block = first / 4; block * 4 < last; ++block) {
             const std::array<std::uint64_t, 4> words =
                 philox_block({std::uint64_t(block), purpose, 0, 0}, key);
@@ -241,7 +234,7 @@ void add_noise(ImageArray& image, const Tile& window, long field_nx, const Scene
                 if (c < first || c >= last) continue;
                 const std::uint64_t w = words[std::size_t(lane)];
                 const double z = zig.fast(w);
-                out[c - first] = std::isnan(z) ? retry(row, c, w) : z;
+                base[c] = std::isnan(z) ? retry(row, c, w) : z;
             }
         }
     };
@@ -250,14 +243,28 @@ void add_noise(ImageArray& image, const Tile& window, long field_nx, const Scene
     const double photon_floor = options.photon_tolerance * sigma * sigma;
     in_bands(ny, options.threads, [&](long first, long last) {
         if (first >= last) return;
-        // Rolling white rows R − 1, R, R + 1 with a column of margin each side.
-        std::vector<double> rows[3];
-        for (auto& v : rows) v.resize(std::size_t(nx) + 2);
+        // A ring of the 2K + 1 white rows' horizontal sums, one per separable term: ring slot
+        // (R mod width) holds row R; white rows carry K columns of margin each side.
+        std::vector<double> raw(std::size_t(nx + 2 * K)), sum((std::size_t(nx)));
+        std::vector<std::vector<double>> ring(std::size_t(width * terms),
+                                              std::vector<double>(std::size_t(nx)));
+        auto load = [&](long row) {
+            white_row(row, window.x0 - 1 - K, nx + 2 * K, raw.data());
+            const std::size_t slot = std::size_t(((row % width) + width) % width);
+            for (int t = 0; t < terms; ++t) {
+                const std::vector<double>& h = kernel.rows[std::size_t(t)];
+                double* out = ring[slot * std::size_t(terms) + std::size_t(t)].data();
+                std::fill(out, out + nx, 0.0);
+                for (int d = 0; d < width; ++d) {
+                    const double c = h[std::size_t(d)];
+                    const double* w = raw.data() + d;
+                    for (long i = 0; i < nx; ++i) out[i] += c * w[i];
+                }
+            }
+        };
         const long row_first = window.y0 - 1 + first;
-        if (correlated) {
-            white_row(row_first - 1, window.x0 - 2, nx + 2, rows[1].data());
-            white_row(row_first, window.x0 - 2, nx + 2, rows[2].data());
-        }
+        if (!white && sigma > 0.0)
+            for (long row = row_first - K; row < row_first + K; ++row) load(row);
         for (long j = first; j < last; ++j) {
             const long row = window.y0 - 1 + j;  // field 0-based
             double* pixels = &image(j, 0);
@@ -276,22 +283,25 @@ void add_noise(ImageArray& image, const Tile& window, long field_nx, const Scene
                 pixels[i] = value;
             }
             if (!(sigma > 0.0)) continue;
-            if (!correlated) {
-                white_row(row, window.x0 - 1, nx, rows[0].data());
-                for (long i = 0; i < nx; ++i) pixels[i] += sigma * rows[0][std::size_t(i)];
+            if (white) {
+                white_row(row, window.x0 - 1, nx, raw.data());
+                for (long i = 0; i < nx; ++i) pixels[i] += sigma * raw[std::size_t(i)];
                 continue;
             }
-            std::swap(rows[0], rows[1]);
-            std::swap(rows[1], rows[2]);
-            white_row(row + 1, window.x0 - 2, nx + 2, rows[2].data());
-            for (long i = 0; i < nx; ++i) {
-                double v = 0.0;
-                for (int a = 0; a < 3; ++a) {
-                    const double* w = rows[a].data() + i;
-                    v += k1[a] * (k1[0] * w[0] + k1[1] * w[1] + k1[2] * w[2]);
+            load(row + K);
+            // Σ over rows and terms as whole-row multiply-adds (vectorised), in a fixed order.
+            std::fill(sum.begin(), sum.end(), 0.0);
+            for (int d = 0; d < width; ++d) {
+                const long r = row - K + d;
+                const std::size_t slot = std::size_t(((r % width) + width) % width);
+                for (int t = 0; t < terms; ++t) {
+                    const double c = kernel.columns[std::size_t(t)][std::size_t(d)];
+                    const double* h = ring[slot * std::size_t(terms) + std::size_t(t)].data();
+                    double* acc = sum.data();
+                    for (long i = 0; i < nx; ++i) acc[i] += c * h[i];
                 }
-                pixels[i] += sigma * v;
             }
+            for (long i = 0; i < nx; ++i) pixels[i] += sigma * sum[std::size_t(i)];
         }
     });
 }

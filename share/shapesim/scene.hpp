@@ -27,16 +27,19 @@
 //     `gain` electrons per image unit, N/gain with N ~ Poisson(λ), λ = (signal + sky)·gain,
 //     wherever its variance (signal + sky)/gain is ≥ `photon_tolerance` × the background's
 //     (a pixel left out has its variance low by less than that fraction);
-//   - a Gaussian background of rms `noise_rms`, white, or correlated as drizzling correlates
-//     it: white noise convolved with the separable 3×3 kernel [e, 1, e]⊗[e, 1, e] normalised
-//     to Σk² = 1 (per-pixel variance kept), e chosen so that 4×4 block sums have the measured
-//     correlated-noise factor F (shapesim-detect's `noise_correlation`, its definition).
+//   - a Gaussian background of rms `noise_rms`: white noise convolved with `noise_kernel`,
+//     the kernel of the real sky's measured 2-D correlation (noise.hpp; Σk² = 1, so the
+//     per-pixel variance is kept), or without one the drizzle-like 3×3 kernel
+//     [e, 1, e]⊗[e, 1, e] whose 4×4 block sums have the correlated-noise factor F
+//     (shapesim-detect's `noise_correlation`). Each output pixel sums the same white values
+//     in the same order whatever the band or tile: bit-identical across threads and tiles.
 #pragma once
 
 #include "shapesim/convolve.hpp"
 #include "shapesim/geometry.hpp"
 #include "shapesim/model.hpp"
 #include "shapesim/moments.hpp"
+#include "shapesim/noise.hpp"
 #include "shapesim/records.hpp"
 #include "shapesim/render.hpp"
 #include "shapesim/sample.hpp"
@@ -52,7 +55,9 @@ namespace shapesim {
 struct SceneOptions {
     double truncation = 1e-3;   ///< stamp edge: left-out pixels ≤ this × noise rms (or × peak)
     double noise_rms = 0.0;     ///< Gaussian background rms, image units (0: none)
-    double noise_correlation = 1.0;  ///< F of the background (1: white)
+    double noise_correlation = 1.0;  ///< F of the background (1: white; drizzle-like 3×3)
+    /// The background's measured correlation (noise.hpp); when set, noise_correlation is unused.
+    std::optional<NoiseKernel> noise_kernel;
     double gain = 0.0;          ///< electrons per image unit for photon noise (0: none)
     double sky = 0.0;           ///< sky level added, image units per pixel
     /// Photon noise is drawn where its variance s/gain is at least this fraction of the
@@ -91,6 +96,9 @@ struct PreparedObject {
 /// monotone tails of φ_n beyond √(2n+1). 0 when the whole model is below it.
 double stamp_radius(const CartesianModel& model, double threshold);
 
+/// Widest noise kernel add_noise draws (its margin stream's keys).
+constexpr int max_noise_kernel_radius = 64;
+
 /// The scene's truncation threshold for a model: truncation × noise rms, or × the model's
 /// value at its centre (one pixel's worth) when the image is noise-free or noiseless.
 double truncation_threshold(const CartesianModel& model, const SceneOptions& options);
@@ -107,9 +115,5 @@ ImageArray paint(const std::vector<PreparedObject>& objects, const Tile& window,
 /// Add the noise of `options` to `image` — on entry the noise-free image, whose signal the
 /// photon noise follows — the window `window` of a field `field_nx` pixels wide (pixel keys).
 void add_noise(ImageArray& image, const Tile& window, long field_nx, const SceneOptions& options);
-
-/// The edge weight e of the drizzle-like kernel for a correlated-noise factor F ≥ 1 (4×4
-/// blocks); 0 for F = 1. Throws Error when F exceeds what a 3×3 kernel can reach.
-double correlated_noise_kernel_edge(double factor);
 
 }  // namespace shapesim

@@ -231,4 +231,16 @@ std::vector<std::string> split_list(const std::string& list) {
     return items;
 }
 
+std::vector<std::pair<std::string, std::string>> named_files(const std::vector<std::string>& specs,
+                                                             const std::string& option) {
+    std::vector<std::pair<std::string, std::string>> out;
+    for (const std::string& spec : specs) {
+        const auto eq = spec.find('=');
+        if (eq == std::string::npos || eq == 0 || eq + 1 == spec.size())
+            throw po::error("--" + option + " takes NAME=FILE, got '" + spec + "'");
+        out.emplace_back(spec.substr(0, eq), spec.substr(eq + 1));
+    }
+    return out;
+}
+
 }  // namespace shapesim::app

@@ -133,6 +133,11 @@ private:
 /// items skipped.
 std::vector<std::string> split_list(const std::string& list);
 
+/// NAME=FILE option values (--compare, --compare-sky) split at the first '='; po::error
+/// naming `option` for a value without a name or a file.
+std::vector<std::pair<std::string, std::string>> named_files(const std::vector<std::string>& specs,
+                                                             const std::string& option);
+
 /// The version line printed by --version: "<program> (shapesim) <shapesim::version()>".
 std::string version_line(const std::string& program);
 

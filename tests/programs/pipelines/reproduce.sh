@@ -67,9 +67,13 @@ run SEED=8
 for p in shapesim-sample shapesim-render shapesim-measure; do
   grep -q "^[^ ]*bin/$p " "$TMPDIR/log" || fail "SEED=8 did not run $p"
 done
-for p in shapesim-detect shapesim-decompose shapesim-smooth; do
+for p in shapesim-decompose shapesim-smooth; do
   grep -q "^[^ ]*bin/$p " "$TMPDIR/log" && fail "SEED=8 reran $p"
 done
+# detect runs again only on the new simulations (their skies), never on the real image.
+grep -q "^[^ ]*bin/shapesim-detect [^ ]*hdfn_f814w_v2.fits" "$TMPDIR/log" && fail "SEED=8 reran detect on the HDF"
+grep -q "^[^ ]*bin/shapesim-detect [^ ]*/sim.fits " "$TMPDIR/log" || fail "SEED=8 did not measure the new sky"
+grep -q "^| delta " "$out/sky.md" || fail "sky.md lost its rows"
 [ "$(stat -c %y "$out/shapelets.jsonl" "$out/morphology.json" "$out/psf.jsonl" "$out/hdf.morph.jsonl" | md5sum)" = "$before" ] ||
   fail "SEED=8 touched the real image's products"
 [ "$(sha256sum <"$out/sim.fits")" != "$sim_before" ] || fail "SEED=8 gave the same simulation"

@@ -1,0 +1,436 @@
+#include "shapesim/noise.hpp"
+
+#include "shapesim/compare.hpp"
+#include "shapesim/error.hpp"
+
+#include <Eigen/SVD>
+
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+#include <ostream>
+
+namespace shapesim {
+
+namespace {
+
+constexpr double pi = 3.14159265358979323846;
+
+int side(int radius) { return 2 * radius + 1; }
+
+// Square dilation of `blocked` (row-major ny × nx) by `grow` pixels: two 1-D passes.
+std::vector<std::uint8_t> dilate(const std::vector<std::uint8_t>& blocked, long nx, long ny,
+                                 int grow) {
+    std::vector<std::uint8_t> rows(blocked.size(), 0), out(blocked.size(), 0);
+    for (long j = 0; j < ny; ++j)
+        for (long i = 0; i < nx; ++i)
+            if (blocked[std::size_t(j * nx + i)])
+                for (long k = std::max(0L, i - grow); k <= std::min(nx - 1, i + grow); ++k)
+                    rows[std::size_t(j * nx + k)] = 1;
+    for (long j = 0; j < ny; ++j)
+        for (long i = 0; i < nx; ++i)
+            if (rows[std::size_t(j * nx + i)])
+                for (long k = std::max(0L, j - grow); k <= std::min(ny - 1, j + grow); ++k)
+                    out[std::size_t(k * nx + i)] = 1;
+    return out;
+}
+
+double median_in_place(std::vector<double>& v) {
+    const auto middle = v.begin() + long(v.size() / 2);
+    std::nth_element(v.begin(), middle, v.end());
+    return *middle;
+}
+
+// The empirical CDF of a sample summarised by quantiles q_i at (i + ½)/Q, linear between.
+double cdf_from_quantiles(const std::vector<double>& q, double x) {
+    const double count = double(q.size());
+    if (x < q.front()) return 0.0;
+    if (x >= q.back()) return 1.0;
+    const auto upper = std::upper_bound(q.begin(), q.end(), x);
+    const long i = long(upper - q.begin()) - 1;  // q[i] ≤ x < q[i + 1]
+    const double span = q[std::size_t(i + 1)] - q[std::size_t(i)];
+    const double t = span > 0.0 ? (x - q[std::size_t(i)]) / span : 0.0;
+    return (double(i) + 0.5 + t) / count;
+}
+
+}  // namespace
+
+double NoiseCorrelation::at(int dx, int dy) const {
+    if (std::abs(dx) > radius || std::abs(dy) > radius) return 0.0;
+    return values[std::size_t((dy + radius) * side(radius) + dx + radius)];
+}
+
+// ---------------------------------------------------------------------------------------------
+// The record
+
+NoiseRecord NoiseRecord::from_json(const Json& j) {
+    const std::string s = required_string(j, "schema");
+    if (s != schema)
+        throw Error(std::string("expected \"") + schema + "\", got \"" + s + "\"", {}, 0, "schema");
+    NoiseRecord r;
+    r.id = required_string(j, "id");
+    r.rms = required_double(j, "rms");
+    r.mad_sigma = required_double(j, "mad_sigma");
+    r.pixels = required_int(j, "pixels");
+    if (auto f = optional_double(j, "noise_correlation")) r.noise_correlation = *f;
+    r.correlation.radius = required_int(j, "correlation_radius");
+    if (r.correlation.radius < 0 || r.correlation.radius > 64)
+        throw Error("must be within [0, 64]", {}, 0, "correlation_radius");
+    const Json& values = required_array(j, "correlation");
+    for (const Json& v : values) r.correlation.values.push_back(as_double(v, "correlation"));
+    if (const Json* q = optional_array(j, "quantiles"))
+        for (const Json& v : *q) r.quantiles.push_back(as_double(v, "quantiles"));
+    if (auto n = optional_int(j, "quantile_pixels")) r.quantile_pixels = *n;
+
+    for (const auto& [key, value] : j.items())
+        if (key != "schema" && key != "id" && key != "rms" && key != "mad_sigma" &&
+            key != "pixels" && key != "noise_correlation" && key != "correlation_radius" &&
+            key != "correlation" && key != "quantiles" && key != "quantile_pixels")
+            r.extra[key] = value;
+    r.validate();
+    return r;
+}
+
+void NoiseRecord::validate() const {
+    auto fail = [](const char* field, const std::string& why) { throw Error(why, {}, 0, field); };
+    if (!(rms > 0.0 && std::isfinite(rms))) fail("rms", "must be > 0");
+    if (!(mad_sigma >= 0.0 && std::isfinite(mad_sigma))) fail("mad_sigma", "must be ≥ 0");
+    if (pixels < 0) fail("pixels", "must be ≥ 0");
+    if (!(noise_correlation >= 0.0)) fail("noise_correlation", "must be ≥ 0");
+    const int r = correlation.radius;
+    if (correlation.values.size() != std::size_t(side(r) * side(r)))
+        fail("correlation", "must hold (2·correlation_radius + 1)² = " +
+                                std::to_string(side(r) * side(r)) + " values, has " +
+                                std::to_string(correlation.values.size()));
+    if (std::abs(correlation.at(0, 0) - 1.0) > 1e-9) fail("correlation", "ξ(0, 0) must be 1");
+    for (double v : correlation.values)
+        if (!(std::abs(v) <= 1.0 + 1e-9)) fail("correlation", "values must be within [−1, 1]");
+    if (!std::is_sorted(quantiles.begin(), quantiles.end()))
+        fail("quantiles", "must be in ascending order");
+}
+
+Json NoiseRecord::to_json() const {
+    validate();
+    Json j;
+    j["schema"] = schema;
+    j["id"] = id;
+    j["rms"] = rms;
+    j["mad_sigma"] = mad_sigma;
+    j["pixels"] = pixels;
+    j["noise_correlation"] = noise_correlation;
+    for (const auto& [key, value] : extra.items()) j[key] = value;
+    j["correlation_radius"] = correlation.radius;
+    j["correlation"] = correlation.values;
+    if (!quantiles.empty()) {
+        j["quantile_pixels"] = quantile_pixels;
+        j["quantiles"] = quantiles;
+    }
+    return j;
+}
+
+NoiseRecord read_noise_record(const std::string& path) {
+    JsonlReader reader(path, {NoiseRecord::schema});
+    NoiseRecord record, more;
+    if (!reader.next_record(record)) throw Error("no shapesim.noise/1 record", path);
+    if (reader.next_record(more)) throw Error("more than one noise record", path);
+    return record;
+}
+
+// ---------------------------------------------------------------------------------------------
+// Measuring
+
+NoiseRecord measure_sky_noise(const DetectionResult& field, const SkyNoiseOptions& options) {
+    require(options.radius >= 0 && options.radius <= 64, "sky noise: radius must be in [0, 64]");
+    require(options.grow >= 0 && options.decimate >= 1 && options.quantiles >= 2,
+            "sky noise: grow ≥ 0, decimate ≥ 1 and quantiles ≥ 2");
+    const long nx = field.image.cols(), ny = field.image.rows();
+    const std::size_t n = std::size_t(nx * ny);
+    std::vector<std::uint8_t> blocked(n, 0);
+    for (std::size_t k = 0; k < n; ++k)
+        blocked[k] = field.segmentation.data()[k] != 0 || field.bad[k] != 0;
+    std::vector<std::uint8_t> sky = dilate(blocked, nx, ny, options.grow);
+    for (auto& s : sky) s = !s;
+
+    // Clip at 5 MAD-σ about the median.
+    std::vector<double> values;
+    for (std::size_t k = 0; k < n; ++k)
+        if (sky[k]) values.push_back(field.image.data()[k]);
+    if (values.size() < 100)
+        throw Error("sky noise: only " + std::to_string(values.size()) +
+                    " sky pixels away from the objects (need 100)");
+    const double median = median_in_place(values);
+    for (double& v : values) v = std::abs(v - median);
+    const double mad_sigma = 1.4826 * median_in_place(values);
+    const double cut = 5.0 * mad_sigma;
+    for (std::size_t k = 0; k < n; ++k)
+        if (sky[k] && !(std::abs(field.image.data()[k] - median) <= cut)) sky[k] = 0;
+
+    double sum = 0.0;
+    long count = 0;
+    for (std::size_t k = 0; k < n; ++k)
+        if (sky[k]) {
+            sum += field.image.data()[k];
+            ++count;
+        }
+    const double mean = sum / double(count);
+    std::vector<double> centred(n, 0.0);
+    double sum2 = 0.0;
+    for (std::size_t k = 0; k < n; ++k)
+        if (sky[k]) {
+            centred[k] = field.image.data()[k] - mean;
+            sum2 += centred[k] * centred[k];
+        }
+    const double variance = sum2 / double(count);
+    require(variance > 0.0, "sky noise: the sky pixels are constant (no noise)");
+
+    NoiseRecord record;
+    record.rms = std::sqrt(variance);
+    record.mad_sigma = mad_sigma;
+    record.pixels = count;
+    record.noise_correlation = field.noise_correlation;
+
+    // ξ(d) for dy ≥ 0 (and dx > 0 on dy = 0); the rest by symmetry.
+    const int r = options.radius;
+    NoiseCorrelation& xi = record.correlation;
+    xi.radius = r;
+    xi.values.assign(std::size_t(side(r) * side(r)), 0.0);
+    for (int dy = 0; dy <= r; ++dy)
+        for (int dx = -r; dx <= r; ++dx) {
+            if (dy == 0 && dx < 0) continue;
+            double pair_sum = 0.0;
+            long pairs = 0;
+            for (long j = 0; j + dy < ny; ++j)
+                for (long i = std::max(0L, long(-dx)); i < nx && i + dx < nx; ++i) {
+                    const std::size_t p = std::size_t(j * nx + i);
+                    const std::size_t q = std::size_t((j + dy) * nx + i + dx);
+                    if (sky[p] && sky[q]) {
+                        pair_sum += centred[p] * centred[q];
+                        ++pairs;
+                    }
+                }
+            const double v = pairs > 0 ? pair_sum / double(pairs) / variance : 0.0;
+            xi.values[std::size_t((dy + r) * side(r) + dx + r)] = v;
+            xi.values[std::size_t((-dy + r) * side(r) - dx + r)] = v;
+        }
+    xi.values[std::size_t(r * side(r) + r)] = 1.0;
+
+    // Quantiles of the sparse grid's pixels.
+    std::vector<double> sparse;
+    for (long j = 0; j < ny; j += options.decimate)
+        for (long i = 0; i < nx; i += options.decimate)
+            if (sky[std::size_t(j * nx + i)]) sparse.push_back(field.image.data()[j * nx + i]);
+    std::sort(sparse.begin(), sparse.end());
+    record.quantile_pixels = long(sparse.size());
+    if (sparse.size() >= 2) {
+        const int q = int(std::min<std::size_t>(std::size_t(options.quantiles), sparse.size()));
+        for (int k = 0; k < q; ++k) {
+            const double at = (double(k) + 0.5) / q * double(sparse.size()) - 0.5;
+            const std::size_t lo = std::size_t(std::max(0.0, std::floor(at)));
+            const std::size_t hi = std::min(lo + 1, sparse.size() - 1);
+            const double t = std::clamp(at - double(lo), 0.0, 1.0);
+            record.quantiles.push_back(sparse[lo] + t * (sparse[hi] - sparse[lo]));
+        }
+    }
+    return record;
+}
+
+// ---------------------------------------------------------------------------------------------
+// Drawing
+
+std::vector<double> NoiseKernel::dense() const {
+    const int s = side(radius);
+    std::vector<double> k(std::size_t(s * s), 0.0);
+    for (std::size_t t = 0; t < columns.size(); ++t)
+        for (int y = 0; y < s; ++y)
+            for (int x = 0; x < s; ++x)
+                k[std::size_t(y * s + x)] += columns[t][std::size_t(y)] * rows[t][std::size_t(x)];
+    return k;
+}
+
+NoiseCorrelation NoiseKernel::correlation(int r) const {
+    const std::vector<double> k = dense();
+    const int s = side(radius);
+    NoiseCorrelation xi;
+    xi.radius = r;
+    xi.values.assign(std::size_t(side(r) * side(r)), 0.0);
+    for (int dy = -r; dy <= r; ++dy)
+        for (int dx = -r; dx <= r; ++dx) {
+            double v = 0.0;
+            for (int y = 0; y < s; ++y)
+                for (int x = 0; x < s; ++x) {
+                    const int y2 = y + dy, x2 = x + dx;
+                    if (y2 < 0 || y2 >= s || x2 < 0 || x2 >= s) continue;
+                    v += k[std::size_t(y * s + x)] * k[std::size_t(y2 * s + x2)];
+                }
+            xi.values[std::size_t((dy + r) * side(r) + dx + r)] = v;
+        }
+    return xi;
+}
+
+NoiseKernel correlated_noise_kernel(const NoiseCorrelation& xi, double tolerance) {
+    require(tolerance > 0.0 && tolerance < 1.0, "noise kernel: tolerance must be in (0, 1)");
+    const int r = xi.radius;
+    require(xi.values.size() == std::size_t(side(r) * side(r)), "noise kernel: bad correlation");
+    if (r == 0) return drizzle_noise_kernel(1.0);
+    // Grid: a power of two at least four times the correlation's width.
+    int grid = 64;
+    while (grid < 4 * side(r)) grid *= 2;
+    std::vector<double> cosine((std::size_t(grid)));
+    for (int k = 0; k < grid; ++k) cosine[std::size_t(k)] = std::cos(2.0 * pi * k / grid);
+    auto phase = [&](long k) { return cosine[std::size_t(((k % grid) + grid) % grid)]; };
+    // P(u, v) = Σ ξ(dx, dy) cos(2π (u dx + v dy)/N) (ξ is even), negatives set to 0; √P.
+    std::vector<double> amplitude(std::size_t(grid * grid));
+    double power = 0.0;
+    for (int v = 0; v < grid; ++v)
+        for (int u = 0; u < grid; ++u) {
+            double p = 0.0;
+            for (int dy = -r; dy <= r; ++dy)
+                for (int dx = -r; dx <= r; ++dx)
+                    p += xi.at(dx, dy) * phase(long(u) * dx + long(v) * dy);
+            p = std::max(p, 0.0);
+            power += p;
+            amplitude[std::size_t(v * grid + u)] = std::sqrt(p);
+        }
+    // k(x, y) = N⁻² Σ √P cos(2π (u x + v y)/N) for |x|, |y| ≤ r; Σ_all k² = N⁻² Σ P.
+    const double total = power / (double(grid) * grid);
+    const int s = side(r);
+    Eigen::MatrixXd k(s, s);
+    for (int y = -r; y <= r; ++y)
+        for (int x = -r; x <= r; ++x) {
+            double value = 0.0;
+            for (int v = 0; v < grid; ++v)
+                for (int u = 0; u < grid; ++u)
+                    value += amplitude[std::size_t(v * grid + u)] *
+                             phase(long(u) * x + long(v) * y);
+            k(y + r, x + r) = value / (double(grid) * grid);
+        }
+    // The smallest radius holding all but tolerance² of Σk²: the correlation then moves by at
+    // most ≈ 2 tolerance (Cauchy–Schwarz on the pairs left out).
+    int radius = r;
+    for (int K = 0; K <= r; ++K) {
+        const double held = k.block(r - K, r - K, side(K), side(K)).squaredNorm();
+        if (held >= (1.0 - tolerance * tolerance) * total) {
+            radius = K;
+            break;
+        }
+    }
+    Eigen::MatrixXd cut = k.block(r - radius, r - radius, side(radius), side(radius));
+    cut /= cut.norm();
+    // Separable terms by SVD, until the rest is below tolerance² of the whole.
+    const Eigen::JacobiSVD<Eigen::MatrixXd> svd(cut, Eigen::ComputeFullU | Eigen::ComputeFullV);
+    const Eigen::VectorXd sv = svd.singularValues();
+    const double all = sv.squaredNorm();
+    NoiseKernel kernel;
+    kernel.radius = radius;
+    double rest = all;
+    for (int t = 0; t < sv.size() && rest > tolerance * tolerance * all; ++t) {
+        const Eigen::VectorXd c = svd.matrixU().col(t) * sv(t), w = svd.matrixV().col(t);
+        kernel.columns.emplace_back(c.data(), c.data() + c.size());
+        kernel.rows.emplace_back(w.data(), w.data() + w.size());
+        rest -= sv(t) * sv(t);
+    }
+    // Σk² = 1 exactly for the terms kept.
+    double norm2 = 0.0;
+    for (double v : kernel.dense()) norm2 += v * v;
+    const double scale = 1.0 / std::sqrt(norm2);
+    for (auto& c : kernel.columns)
+        for (double& v : c) v *= scale;
+    return kernel;
+}
+
+double correlated_noise_kernel_edge(double factor) {
+    require(factor >= 1.0 && std::isfinite(factor), "the correlated-noise factor must be ≥ 1");
+    // F(e) = 1 + (3e + e²)/(1 + 2e²) for 4×4 block sums; it rises from 1 at e = 0 to its
+    // maximum near e = 0.9.
+    auto f = [](double e) { return 1.0 + (3.0 * e + e * e) / (1.0 + 2.0 * e * e); };
+    if (factor == 1.0) return 0.0;
+    double lo = 0.0, hi = 0.9;
+    if (factor > f(hi))
+        throw Error("a correlated-noise factor above " + std::to_string(f(hi)) +
+                    " needs a wider kernel than 3×3: give the measured noise model "
+                    "(shapesim-detect --noise-model, shapesim-render --noise-model)");
+    for (int k = 0; k < 100; ++k) {
+        const double mid = 0.5 * (lo + hi);
+        (f(mid) < factor ? lo : hi) = mid;
+    }
+    return 0.5 * (lo + hi);
+}
+
+NoiseKernel drizzle_noise_kernel(double factor) {
+    const double e = correlated_noise_kernel_edge(factor);
+    NoiseKernel kernel;
+    if (e == 0.0) {
+        kernel.columns = {{1.0}};
+        kernel.rows = {{1.0}};
+        return kernel;
+    }
+    const double norm = 1.0 / std::sqrt(1.0 + 2.0 * e * e);
+    kernel.radius = 1;
+    kernel.columns = {{e * norm, norm, e * norm}};
+    kernel.rows = kernel.columns;
+    return kernel;
+}
+
+// ---------------------------------------------------------------------------------------------
+// Comparing
+
+SkyComparison compare_sky(const NoiseRecord& a, const NoiseRecord& b) {
+    if (a.quantiles.size() < 2 || b.quantiles.size() < 2)
+        throw Error("sky comparison: a noise record has no quantiles");
+    SkyComparison c;
+    c.radius = std::min(a.correlation.radius, b.correlation.radius);
+    for (int dy = -c.radius; dy <= c.radius; ++dy)
+        for (int dx = -c.radius; dx <= c.radius; ++dx) {
+            const double d = b.correlation.at(dx, dy) - a.correlation.at(dx, dy);
+            c.difference.push_back(d);
+            if (std::abs(dx) <= 3 && std::abs(dy) <= 3)
+                c.max_difference = std::max(c.max_difference, std::abs(d));
+        }
+    c.rms_ratio = b.rms / a.rms;
+    // D = sup |F_a − F_b|, over both samples' quantiles (the CDFs are linear between them).
+    for (const auto* q : {&a.quantiles, &b.quantiles})
+        for (double x : *q)
+            c.ks_d = std::max(c.ks_d, std::abs(cdf_from_quantiles(a.quantiles, x) -
+                                               cdf_from_quantiles(b.quantiles, x)));
+    const double na = double(std::max(1L, a.quantile_pixels));
+    const double nb = double(std::max(1L, b.quantile_pixels));
+    const double ne = na * nb / (na + nb);
+    c.ks_p = kolmogorov_q((std::sqrt(ne) + 0.12 + 0.11 / std::sqrt(ne)) * c.ks_d);
+    return c;
+}
+
+void write_sky_table(std::ostream& out, const std::vector<std::string>& names,
+                     const std::vector<NoiseRecord>& skies) {
+    require(!skies.empty() && names.size() == skies.size(), "sky table: names and records differ");
+    static const int lags[][2] = {{1, 0}, {0, 1}, {1, 1}, {2, 0}, {2, 2}, {3, 0}, {3, 3}};
+    out << "| sky | rms | MAD σ | rms/MAD σ |";
+    for (const auto& l : lags) out << " ξ(" << l[0] << "," << l[1] << ") |";
+    out << " max \\|Δξ\\| (≤ 3 px) | rms / ref | KS D | KS p |\n|---|---|---|---|";
+    for (std::size_t k = 0; k < std::size(lags) + 4; ++k) out << "---|";
+    out << "\n";
+    char buf[64];
+    auto put = [&](const char* format, double v) {
+        std::snprintf(buf, sizeof buf, format, v);
+        out << ' ' << buf << " |";
+    };
+    for (std::size_t k = 0; k < skies.size(); ++k) {
+        const NoiseRecord& s = skies[k];
+        out << "| " << names[k] << " |";
+        put("%.4g", s.rms);
+        put("%.4g", s.mad_sigma);
+        put("%.4f", s.rms / s.mad_sigma);
+        for (const auto& l : lags) put("%.3f", s.correlation.at(l[0], l[1]));
+        if (k == 0) {
+            out << " – | – | – | – |\n";
+            continue;
+        }
+        const SkyComparison c = compare_sky(skies[0], s);
+        put("%.3f", c.max_difference);
+        put("%.4f", c.rms_ratio);
+        put("%.4f", c.ks_d);
+        put("%.3g", c.ks_p);
+        out << "\n";
+    }
+}
+
+}  // namespace shapesim

@@ -1,0 +1,111 @@
+// The sky's noise as a real image has it, and as a simulation draws it (issue 14 §5).
+//
+// Measured (measure_sky_noise), on the sky of a detected field: the pixels no detected object
+// owns and no bad pixel touches within `grow` pixels (a square dilation of the segmentation,
+// so faint wings just outside the isophote do not count), clipped at 5 MAD-σ about their median
+// (cosmic rays, hot pixels). From them:
+//   rms         their standard deviation (image units);
+//   mad_sigma   1.4826 × their median absolute deviation;
+//   correlation ξ(dx, dy) = ⟨n(p) n(p + d)⟩ / ⟨n²⟩ over the pairs whose two pixels are both
+//               sky, |dx|, |dy| ≤ radius — the 2-D normalised autocorrelation GalSim's
+//               CorrelatedNoise takes from a blank image (ξ(0, 0) = 1, ξ(−d) = ξ(d));
+//   quantiles   of the pixels on a sparse grid (every `decimate`-th pixel in x and y, far
+//               enough apart to be nearly independent), for a two-sample KS test of one
+//               sky's pixel histogram against another's (sky_ks).
+//
+// Drawn (correlated_noise_kernel): white noise convolved with a kernel k whose
+// autocorrelation k ⋆ k is ξ: the power spectrum P = DFT(ξ) on an N×N grid (negative
+// values, from measurement noise and the cut at `radius`, set to 0), k = DFT⁻¹(√P) (real and
+// symmetric), cut to the smallest radius K holding all but `tolerance`² of Σk², normalised
+// to Σk² = 1 (the per-pixel variance is the rms²), and stored as the fewest separable terms
+// k = Σ_r c_r ⊗ r_r (SVD) that leave out at most `tolerance`² of it: its correlation is ξ to
+// ≈ 2·tolerance at every lag; the render's cost per pixel is 2 · (2K + 1) · terms
+// multiply-adds.
+#pragma once
+
+#include "shapesim/detect.hpp"
+#include "shapesim/jsonl.hpp"
+
+#include <iosfwd>
+#include <string>
+#include <vector>
+
+namespace shapesim {
+
+/// A normalised 2-D autocorrelation ξ(dx, dy), |dx|, |dy| ≤ radius.
+struct NoiseCorrelation {
+    int radius = 0;
+    std::vector<double> values;  ///< (2·radius + 1)², row-major: index (dy + r)(2r + 1) + dx + r
+    double at(int dx, int dy) const;
+};
+
+/// The measured sky noise of an image (`shapesim.noise/1`, from shapesim-detect).
+struct NoiseRecord {
+    static constexpr const char* schema = "shapesim.noise/1";
+    std::string id = "sky";
+    double rms = 0.0;                  ///< image units
+    double mad_sigma = 0.0;            ///< image units
+    long pixels = 0;                   ///< sky pixels used
+    double noise_correlation = 1.0;    ///< F of 4×4 blocks (DetectionResult, for reference)
+    NoiseCorrelation correlation;
+    std::vector<double> quantiles;     ///< of the decimated sky pixels, at (i + ½)/count
+    long quantile_pixels = 0;          ///< how many pixels the quantiles summarise
+    Json extra = Json::object();
+
+    static NoiseRecord from_json(const Json& record);
+    Json to_json() const;
+    void validate() const;
+};
+
+/// The one record of a noise-model file (Error naming the file and line otherwise).
+NoiseRecord read_noise_record(const std::string& path);
+
+struct SkyNoiseOptions {
+    int radius = 8;      ///< lags measured, pixels
+    int grow = 2;        ///< pixels kept clear of every object and bad pixel
+    int decimate = 4;    ///< the quantiles' pixel grid spacing
+    int quantiles = 1000;
+};
+
+/// Measure the sky noise of a detected field (its background-subtracted image,
+/// segmentation and bad pixels). Error when fewer than 100 sky pixels remain.
+NoiseRecord measure_sky_noise(const DetectionResult& field, const SkyNoiseOptions& options = {});
+
+/// A noise kernel as a sum of separable terms: k(dx, dy) = Σ_r columns[r][dy + K] rows[r][dx + K].
+struct NoiseKernel {
+    int radius = 0;  ///< K
+    std::vector<std::vector<double>> columns, rows;
+    /// The dense (2K + 1)² kernel, row-major by dy.
+    std::vector<double> dense() const;
+    /// Its autocorrelation Σ_p k(p) k(p + d), |dx|, |dy| ≤ `radius` (0 beyond 2K).
+    NoiseCorrelation correlation(int radius) const;
+};
+
+/// The kernel drawing noise of correlation `xi` (see the header comment).
+NoiseKernel correlated_noise_kernel(const NoiseCorrelation& xi, double tolerance = 2e-3);
+
+/// The edge weight e of the drizzle-like 3×3 kernel [e, 1, e] ⊗ [e, 1, e] for a
+/// correlated-noise factor F ≥ 1 (4×4 blocks); 0 for F = 1. Throws Error when F exceeds what a
+/// 3×3 kernel can reach (use a measured correlation instead).
+double correlated_noise_kernel_edge(double factor);
+/// That kernel, normalised to Σk² = 1 (one separable term; radius 0 for F = 1).
+NoiseKernel drizzle_noise_kernel(double factor);
+
+/// One sky against another: their autocorrelations, rms and pixel histograms.
+struct SkyComparison {
+    int radius = 0;
+    std::vector<double> difference;  ///< ξ_b − ξ_a, as NoiseCorrelation::values
+    double max_difference = 0.0;     ///< max |ξ_b − ξ_a| over |dx|, |dy| ≤ 3
+    double rms_ratio = 1.0;          ///< rms_b / rms_a
+    double ks_d = 0.0, ks_p = 1.0;   ///< two-sample KS of the decimated sky pixels
+};
+/// Errors when a record lacks quantiles.
+SkyComparison compare_sky(const NoiseRecord& a, const NoiseRecord& b);
+
+/// A markdown table of skies against the first (the reference): rms, MAD σ, rms/MAD σ,
+/// ξ at lags (1,0) (0,1) (1,1) (2,0) (2,2) (3,0) (3,3), the largest |Δξ| within 3 pixels,
+/// the rms ratio and the KS D and p of the pixel histograms.
+void write_sky_table(std::ostream& out, const std::vector<std::string>& names,
+                     const std::vector<NoiseRecord>& skies);
+
+}  // namespace shapesim

@@ -1,0 +1,67 @@
+#!/usr/bin/env bash
+# The real sky's noise, measured and drawn: shapesim-detect --noise-model writes the HDF sky's
+# rms and 2-D autocorrelation; shapesim-render --noise-model draws it into a δ-function
+# simulation of the HDF cut; measured alike (its own detection, the HDF's weight map), the
+# simulated sky has the real one's autocorrelation within 0.02 at every lag up to 3 pixels,
+# its rms within 2% and a pixel histogram the KS test cannot tell apart (p > 0.05)
+# (shapesim-measure --compare-sky). Tiles with the wide kernel equal the whole image; bad
+# noise models fail with one line.
+source "$(dirname "${BASH_SOURCE[0]}")/../lib.sh"
+prog=shapesim-render
+tools=$(cd ../tools && pwd)
+weight=$HDF_DATA/hdfn_f814w_v2_weight.fits
+
+cd "$TMPDIR"
+"$BIN/shapesim-detect" "$HDF_IMAGE" --weight "$weight" --zero-point 22.08 --stamps stamps.fits \
+  --noise-model hdf.noise.jsonl -q >sources.jsonl || fail "detect --noise-model failed"
+"$BIN/shapesim-decompose" -q -j 2 <sources.jsonl >shapelets.jsonl || fail "decompose failed"
+"$BIN/shapesim-decompose" -q --psf-image "$HDF_DATA/wfpc2_f814w_tinytim_psf.fits" --like "$HDF_IMAGE" \
+  --psf-box 0.0996 0.05 >psf.jsonl || fail "decompose --psf-image failed"
+"$BIN/shapesim-smooth" -q --delta --like "$HDF_IMAGE" <shapelets.jsonl >delta.json || fail "smooth failed"
+"$BIN/shapesim-sample" delta.json --like "$HDF_IMAGE" --seed 7 -q >objects.jsonl || fail "sample failed"
+common=(--psf psf.jsonl --galaxy-psf psf.jsonl --like "$HDF_IMAGE" --noise-model hdf.noise.jsonl
+        --gain 865200 --seed 7)
+"$BIN/$prog" "${common[@]}" -q -o delta.fits <objects.jsonl || fail "render --noise-model failed"
+"$BIN/shapesim-detect" delta.fits --weight "$weight" --noise-model delta.noise.jsonl -q >/dev/null ||
+  fail "detect on the simulation failed"
+"$BIN/shapesim-measure" --compare-sky hdf=hdf.noise.jsonl delta=delta.noise.jsonl >sky.md ||
+  fail "measure --compare-sky failed"
+for t in "1 1 512 200" "1 201 512 512"; do
+  "$BIN/$prog" "${common[@]}" -q --tile $t -o "tile_${t// /_}.fits" <objects.jsonl ||
+    fail "--tile $t failed"
+done
+
+python3 - "$tools" <<'PY' || fail "the sky checks fail: $(cat sky.md)"
+import json, sys
+sys.path.insert(0, sys.argv[1])
+from fitsdata import read
+real = json.loads(open("hdf.noise.jsonl").readline())
+assert real["schema"] == "shapesim.noise/1", real["schema"]
+r = real["correlation_radius"]
+xi = lambda d, dx, dy: d["correlation"][(dy + r) * (2 * r + 1) + dx + r]
+assert 1.5e-5 < real["rms"] < 2.5e-5 and 0.4 < xi(real, 1, 0) < 0.6, real["rms"]
+row = [c.strip() for c in open("sky.md").read().splitlines()[3].split("|")[1:-1]]
+assert row[0] == "delta", row
+max_dxi, ratio, ks_p = float(row[11]), float(row[12]), float(row[14])
+assert max_dxi <= 0.02, f"autocorrelation differs by {max_dxi}"
+assert abs(ratio - 1) <= 0.02, f"rms ratio {ratio}"
+assert ks_p > 0.05, f"KS p {ks_p}"
+cards, nx, ny, whole = read("delta.fits")
+assert cards["NOISEMOD"] == "hdf.noise.jsonl", cards["NOISEMOD"]
+for y0, y1 in ((1, 200), (201, 512)):
+    _, _, _, tile = read(f"tile_1_{y0}_512_{y1}.fits")
+    assert tile == whole[y0 - 1:y1], f"tile rows {y0}-{y1} differ"
+PY
+
+# Bad input: one line, the right exit code, no image.
+rc=0; "$BIN/$prog" "${common[@]}" --noise-rms 1 -o bad.fits <objects.jsonl >out 2>err || rc=$?
+expect_error "$rc" 2 'noise-model sets the noise'
+rc=0; "$BIN/$prog" --like "$HDF_IMAGE" --psf psf.jsonl --noise-model sources.jsonl -o bad.fits \
+  <objects.jsonl >out 2>err || rc=$?
+expect_error "$rc" 1 'schema'
+sed 's/"correlation_radius":[0-9]*/"correlation_radius":3/' hdf.noise.jsonl >short.jsonl
+rc=0; "$BIN/$prog" --like "$HDF_IMAGE" --psf psf.jsonl --noise-model short.jsonl -o bad.fits \
+  <objects.jsonl >out 2>err || rc=$?
+expect_error "$rc" 1 'short.jsonl:1: correlation: must hold'
+[ ! -e bad.fits ] || fail "an image was left after a bad noise model"
+exit 0

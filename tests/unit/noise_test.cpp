@@ -1,0 +1,229 @@
+// noise.hpp: the sky's measured noise (rms, 2-D autocorrelation, pixel quantiles), the kernel
+// that draws it, and the comparison of two skies; scene.hpp's add_noise with a wide kernel.
+#include "shapesim/noise.hpp"
+
+#include "shapesim/detect.hpp"
+#include "shapesim/error.hpp"
+#include "shapesim/scene.hpp"
+
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <iostream>
+
+using namespace shapesim;
+
+namespace {
+
+void report(const std::string& name, double value) {
+    std::cout << "[ metric ] noise." << name << " = " << value << "\n";
+}
+
+// A Gaussian kernel of width `s` pixels, radius `r`, one separable term, Σk² = 1: its
+// correlation is known exactly (NoiseKernel::correlation, a direct sum).
+NoiseKernel gaussian_kernel(double s, int r) {
+    std::vector<double> g;
+    double norm = 0.0;
+    for (int x = -r; x <= r; ++x) {
+        g.push_back(std::exp(-0.5 * x * x / (s * s)));
+        norm += g.back() * g.back();
+    }
+    for (double& v : g) v /= std::sqrt(norm);
+    NoiseKernel k;
+    k.radius = r;
+    k.columns = {g};
+    k.rows = {g};
+    return k;
+}
+
+ImageArray drawn_noise(const NoiseKernel& kernel, double rms, long n, std::uint64_t seed) {
+    SceneOptions o;
+    o.noise_rms = rms;
+    o.noise_kernel = kernel;
+    o.seed = seed;
+    ImageArray image = ImageArray::Zero(n, n);
+    add_noise(image, Tile{1, 1, n, n}, n, o);
+    return image;
+}
+
+// Nothing detected at 50σ: the whole image is sky.
+DetectionResult as_sky(const ImageArray& image) {
+    DetectionOptions o;
+    o.detect_thresh = 50.0;
+    return detect_sources(image, nullptr, o);
+}
+
+}  // namespace
+
+// The kernel built from an exact correlation (Gaussian-smoothed white noise, σ = 1.5 px, and
+// a tilted elliptical, non-separable one, each given to its full support) has that correlation back at every
+// lag to 5e-3: the kernel is cut where it keeps all but (2e-3)² of Σk², and split into separable
+// terms to 2e-3 in norm (each moves the correlation by ≲ 4e-3).
+TEST(NoiseKernel, ReproducesAnExactCorrelation) {
+    const NoiseCorrelation round = gaussian_kernel(1.5, 6).correlation(12);
+    // A Gaussian 2.0 × 0.8 px tilted by 30°: not separable. One term per row of the dense
+    // kernel: row t is δ_t ⊗ k(·, t).
+    NoiseKernel tilted;
+    tilted.radius = 6;
+    const double c = std::cos(0.5236), sn = std::sin(0.5236);
+    double n2 = 0.0;
+    for (int y = -6; y <= 6; ++y) {
+        std::vector<double> column(13, 0.0), row;
+        column[std::size_t(y + 6)] = 1.0;
+        for (int x = -6; x <= 6; ++x) {
+            const double u = c * x + sn * y, v = -sn * x + c * y;
+            row.push_back(std::exp(-0.5 * (u * u / 4.0 + v * v / 0.64)));
+            n2 += row.back() * row.back();
+        }
+        tilted.columns.push_back(column);
+        tilted.rows.push_back(row);
+    }
+    for (auto& r : tilted.rows)
+        for (double& v : r) v /= std::sqrt(n2);
+    const NoiseCorrelation elongated = tilted.correlation(12);
+    for (const auto* xi : {&round, &elongated}) {
+        const NoiseKernel k = correlated_noise_kernel(*xi);
+        const NoiseCorrelation back = k.correlation(12);
+        double worst = 0.0, sum2 = 0.0;
+        for (std::size_t p = 0; p < xi->values.size(); ++p)
+            worst = std::max(worst, std::abs(back.values[p] - xi->values[p]));
+        for (double v : k.dense()) sum2 += v * v;
+        report("kernel_max_correlation_error", worst);
+        report("kernel_terms", double(k.columns.size()));
+        EXPECT_LT(worst, 5e-3);
+        EXPECT_NEAR(sum2, 1.0, 1e-12);
+        EXPECT_LE(k.radius, 12);
+    }
+    // White: one term of radius 0.
+    NoiseCorrelation white;
+    white.radius = 3;
+    white.values.assign(49, 0.0);
+    white.values[24] = 1.0;
+    const NoiseKernel w = correlated_noise_kernel(white);
+    EXPECT_EQ(w.radius, 0);
+    EXPECT_EQ(w.columns.size(), 1u);
+}
+
+// Round trip: noise drawn with a kernel and measured on a 512² sky has the kernel's rms (to
+// 1.5%) and correlation (to 0.015 at every lag ≤ 3; the sampling error of 250 000 pixels is
+// ≈ 0.005); white noise measures white.
+TEST(SkyNoise, MeasuresWhatWasDrawn) {
+    const NoiseKernel k = gaussian_kernel(1.2, 5);
+    const NoiseCorrelation truth = k.correlation(4);
+    const NoiseRecord m = measure_sky_noise(as_sky(drawn_noise(k, 2.0, 512, 5)), {4, 2, 4, 1000});
+    double worst = 0.0;
+    for (int dy = -3; dy <= 3; ++dy)
+        for (int dx = -3; dx <= 3; ++dx)
+            worst = std::max(worst, std::abs(m.correlation.at(dx, dy) - truth.at(dx, dy)));
+    report("measured_rms_over_drawn", m.rms / 2.0);
+    report("measured_correlation_max_error", worst);
+    EXPECT_NEAR(m.rms, 2.0, 0.03);
+    EXPECT_NEAR(m.mad_sigma, 2.0, 0.04);
+    EXPECT_LT(worst, 0.015);
+    EXPECT_EQ(m.correlation.at(0, 0), 1.0);
+    EXPECT_EQ(m.correlation.at(2, -1), m.correlation.at(-2, 1));
+
+    const NoiseRecord w =
+        measure_sky_noise(as_sky(drawn_noise(drizzle_noise_kernel(1.0), 1.0, 512, 6)));
+    EXPECT_NEAR(w.correlation.at(1, 0), 0.0, 0.01);
+    EXPECT_NEAR(w.correlation.at(1, 1), 0.0, 0.01);
+    EXPECT_NEAR(w.rms, 1.0, 0.01);
+}
+
+// Objects are masked (and `grow` pixels round them): a bright disc on white noise leaves the
+// rms at σ and ξ(1, 0) at 0; a hot pixel (a cosmic ray) is clipped.
+TEST(SkyNoise, MasksObjectsAndClipsHotPixels) {
+    ImageArray image = drawn_noise(drizzle_noise_kernel(1.0), 1.0, 256, 7);
+    for (int j = 0; j < 256; ++j)
+        for (int i = 0; i < 256; ++i)
+            image(j, i) += 200.0 * std::exp(-0.5 * (std::pow(i - 100.0, 2) + std::pow(j - 120.0, 2)) / 64.0);
+    image(30, 30) += 1e4;
+    DetectionOptions o;
+    const DetectionResult field = detect_sources(image, nullptr, o);
+    ASSERT_GE(field.objects.size(), 1u);
+    const NoiseRecord m = measure_sky_noise(field);
+    report("masked_rms", m.rms);
+    EXPECT_NEAR(m.rms, 1.0, 0.03);
+    EXPECT_NEAR(m.correlation.at(1, 0), 0.0, 0.02);
+    EXPECT_LT(m.pixels, 256L * 256L);
+    // Without the mask the disc's light would dominate.
+    EXPECT_THROW(measure_sky_noise(field, {8, 200, 4, 1000}), Error);  // nothing left
+}
+
+// The record is written and read back unchanged; a wrong-sized correlation is refused,
+// naming the field.
+TEST(NoiseRecordTest, RoundTripAndErrors) {
+    const NoiseRecord m = measure_sky_noise(as_sky(drawn_noise(gaussian_kernel(1.0, 3), 0.5, 128, 8)), {3, 2, 4, 50});
+    const NoiseRecord back = NoiseRecord::from_json(m.to_json());
+    EXPECT_EQ(back.rms, m.rms);
+    EXPECT_EQ(back.correlation.values, m.correlation.values);
+    EXPECT_EQ(back.quantiles, m.quantiles);
+    EXPECT_EQ(back.quantile_pixels, m.quantile_pixels);
+    Json bad = m.to_json();
+    bad["correlation"].erase(bad["correlation"].begin());
+    try {
+        NoiseRecord::from_json(bad);
+        FAIL() << "a short correlation was accepted";
+    } catch (const Error& e) {
+        EXPECT_EQ(e.field(), "correlation");
+    }
+    bad = m.to_json();
+    bad["rms"] = -1.0;
+    EXPECT_THROW(NoiseRecord::from_json(bad), Error);
+}
+
+// Two skies of the same noise agree (KS p > 0.01, rms ratio 1 ± 2%); a sky 10% noisier is told
+// apart (p < 1e-3; 5% gives p ≈ 0.01 from 16 000 pixels); a sky with its own correlation differs by its lags.
+TEST(SkyComparisonTest, TellsSkiesApart) {
+    const NoiseKernel k = gaussian_kernel(1.0, 4);
+    const NoiseRecord a = measure_sky_noise(as_sky(drawn_noise(k, 1.0, 512, 9)));
+    const NoiseRecord b = measure_sky_noise(as_sky(drawn_noise(k, 1.0, 512, 10)));
+    const NoiseRecord louder = measure_sky_noise(as_sky(drawn_noise(k, 1.10, 512, 11)));
+    const NoiseRecord white = measure_sky_noise(as_sky(drawn_noise(drizzle_noise_kernel(1.0), 1.0, 512, 12)));
+    const SkyComparison same = compare_sky(a, b), loud = compare_sky(a, louder),
+                        other = compare_sky(a, white), self = compare_sky(a, a);
+    report("same_ks_p", same.ks_p);
+    report("louder_ks_p", loud.ks_p);
+    EXPECT_GT(same.ks_p, 0.01);
+    EXPECT_NEAR(same.rms_ratio, 1.0, 0.02);
+    EXPECT_LT(same.max_difference, 0.02);
+    EXPECT_LT(loud.ks_p, 1e-3);
+    EXPECT_GT(other.max_difference, 0.3);
+    EXPECT_EQ(self.ks_d, 0.0);
+    EXPECT_EQ(self.ks_p, 1.0);
+}
+
+// add_noise with a wide kernel (radius 6, several terms: the margin stream reaches past the
+// field's first rows and columns) is bit-identical across 1 and 3 threads and a 3×2 tiling,
+// and the drizzle kernel given explicitly equals the one F gives.
+TEST(SceneNoise, WideKernelIsTileAndThreadInvariant) {
+    NoiseKernel k = correlated_noise_kernel(gaussian_kernel(2.0, 6).correlation(8));
+    ASSERT_GE(k.radius, 5);
+    SceneOptions o;
+    o.noise_rms = 1.0;
+    o.noise_kernel = k;
+    o.seed = 31;
+    const long nx = 120, ny = 90;
+    ImageArray whole = ImageArray::Zero(ny, nx);
+    add_noise(whole, Tile{1, 1, nx, ny}, nx, o);
+    SceneOptions threaded = o;
+    threaded.threads = 3;
+    ImageArray again = ImageArray::Zero(ny, nx);
+    add_noise(again, Tile{1, 1, nx, ny}, nx, threaded);
+    EXPECT_TRUE((again == whole).all());
+    for (int j = 0; j < 2; ++j)
+        for (int i = 0; i < 3; ++i) {
+            const Tile t{1 + 40 * i, 1 + 45 * j, 40 * (i + 1), 45 * (j + 1)};
+            ImageArray tile = ImageArray::Zero(45, 40);
+            add_noise(tile, t, nx, o);
+            EXPECT_TRUE((tile == whole.block(45 * j, 40 * i, 45, 40)).all()) << i << "," << j;
+        }
+    SceneOptions by_factor, by_kernel;
+    by_factor.noise_rms = by_kernel.noise_rms = 1.0;
+    by_factor.noise_correlation = 1.84;
+    by_kernel.noise_kernel = drizzle_noise_kernel(1.84);
+    ImageArray f = ImageArray::Zero(40, 40), g = ImageArray::Zero(40, 40);
+    add_noise(f, Tile{1, 1, 40, 40}, 40, by_factor);
+    add_noise(g, Tile{1, 1, 40, 40}, 40, by_kernel);
+    EXPECT_TRUE((f == g).all());
+}
