@@ -115,13 +115,17 @@ int run(int argc, const char* const argv[]) {
     o.margin = s.margin / field.pixel_scale;
 
     JsonlWriter out(std::cout, "-");
-    const SampleSummary summary =
-        sample_field(morphology, field, o, tile, [&](const ObjectRecord& r) { out.write(r.to_json()); });
+    ParentShares parents;
+    const SampleSummary summary = sample_field(morphology, field, o, tile, [&](const ObjectRecord& r) {
+        out.write(r.to_json());
+        parents.add(r);
+    });
     log.info(summary.galaxies, " galaxies and ", summary.stars, " stars over ",
              field.area_arcmin2(), " arcmin^2 (", o.density, " per arcmin^2; ", field.nx, " x ", field.ny, " pixels); ",
              summary.galaxies_out, " galaxies and ", summary.stars_out, " stars written",
              tile ? " (in the tile)" : "", "; ", summary.redraws, " perturbations redrawn; ",
              log.elapsed(), " s");
+    log.info("largest share of one parent among the galaxies written: ", parents.summary());
     return 0;
 }
 

@@ -193,4 +193,40 @@ SampleSummary sample_field(const Morphology& morphology, const FieldGeometry& fi
     return summary;
 }
 
+ParentShares::ParentShares(std::vector<double> mag_limits)
+    : limits_(std::move(mag_limits)), counts_(limits_.size()) {}
+
+void ParentShares::add(const ObjectRecord& record) {
+    if (record.kind != "galaxy" || !record.mag || !record.parent) return;
+    for (std::size_t k = 0; k < limits_.size(); ++k)
+        if (*record.mag < limits_[k]) ++counts_[k][*record.parent];
+}
+
+std::vector<ParentShares::Share> ParentShares::shares() const {
+    std::vector<Share> out;
+    for (std::size_t k = 0; k < limits_.size(); ++k) {
+        Share s;
+        s.mag_limit = limits_[k];
+        for (const auto& [parent, n] : counts_[k]) {
+            s.galaxies += n;
+            if (n > s.largest) {
+                s.largest = n;
+                s.parent = parent;
+            }
+        }
+        out.push_back(s);
+    }
+    return out;
+}
+
+std::string ParentShares::summary(const std::string& band) const {
+    std::ostringstream text;
+    for (const Share& s : shares()) {
+        if (text.tellp() > 0) text << "; ";
+        text << band << " < " << s.mag_limit << ": " << s.largest << "/" << s.galaxies;
+        if (s.largest > 0) text << " from " << s.parent;
+    }
+    return text.str();
+}
+
 }  // namespace shapesim

@@ -20,6 +20,7 @@
 
 #include <cstdint>
 #include <functional>
+#include <map>
 #include <optional>
 #include <vector>
 
@@ -76,6 +77,27 @@ struct SampleSummary {
     std::uint64_t galaxies = 0, stars = 0;      ///< drawn over the whole field
     std::uint64_t galaxies_out = 0, stars_out = 0;  ///< emitted (in the tile)
     std::uint64_t redraws = 0;                  ///< perturbations refused and redrawn
+};
+
+/// Clones at the bright end (issue 14 §3): among the galaxies brighter than each limit, the
+/// largest number drawn from one real parent.
+class ParentShares {
+public:
+    explicit ParentShares(std::vector<double> mag_limits = {22.0, 24.0, 26.0});
+    void add(const ObjectRecord& record);  ///< galaxies with a mag and a parent count
+    struct Share {
+        double mag_limit = 0.0;
+        std::uint64_t galaxies = 0;  ///< brighter than mag_limit
+        std::uint64_t largest = 0;   ///< of them, from the commonest parent
+        std::string parent;          ///< that parent (the smallest id on ties)
+    };
+    std::vector<Share> shares() const;
+    /// "I < 22: 3/5 from 117; I < 24: …" (the band named `band`).
+    std::string summary(const std::string& band = "I") const;
+
+private:
+    std::vector<double> limits_;
+    std::vector<std::map<std::string, std::uint64_t>> counts_;
 };
 
 /// Draw the field's objects and call `emit` for each one in the tile (all, without one),

@@ -179,3 +179,33 @@ TEST(Sample, TileGridPartitionsTheField) {
     EXPECT_EQ(tile_grid(100, 100, 1000, 7).size(), 15u);
     EXPECT_THROW(tile_grid(100, 100, 0, 10), Error);
 }
+
+// The bright end's clones: the largest share of one parent below each limit, ties to the
+// smallest id, stars and parentless records ignored.
+TEST(ParentSharesTest, CountsTheCommonestParentBelowEachLimit) {
+    ParentShares shares({22.0, 24.0});
+    auto galaxy = [](double mag, const char* parent) {
+        ObjectRecord r;
+        r.mag = mag;
+        r.parent = parent;
+        return r;
+    };
+    for (const auto& r : {galaxy(21, "7"), galaxy(21.5, "3"), galaxy(23, "7"), galaxy(23, "9"),
+                          galaxy(23.5, "9"), galaxy(23.9, "9"), galaxy(25, "7")})
+        shares.add(r);
+    ObjectRecord star = galaxy(20, "7");
+    star.kind = "star";
+    shares.add(star);
+    ObjectRecord orphan;
+    orphan.mag = 20.0;
+    shares.add(orphan);
+    const auto s = shares.shares();
+    ASSERT_EQ(s.size(), 2u);
+    EXPECT_EQ(s[0].galaxies, 2u);
+    EXPECT_EQ(s[0].largest, 1u);
+    EXPECT_EQ(s[0].parent, "3");
+    EXPECT_EQ(s[1].galaxies, 6u);
+    EXPECT_EQ(s[1].largest, 3u);
+    EXPECT_EQ(s[1].parent, "9");
+    EXPECT_EQ(shares.summary(), "I < 22: 1/2 from 3; I < 24: 3/6 from 9");
+}
