@@ -35,12 +35,6 @@ std::vector<std::uint8_t> dilate(const std::vector<std::uint8_t>& blocked, long 
     return out;
 }
 
-double median_in_place(std::vector<double>& v) {
-    const auto middle = v.begin() + long(v.size() / 2);
-    std::nth_element(v.begin(), middle, v.end());
-    return *middle;
-}
-
 // The empirical CDF of a sample summarised by quantiles q_i at (i + ½)/Q, linear between.
 double cdf_from_quantiles(const std::vector<double>& q, double x) {
     const double count = double(q.size());
@@ -158,9 +152,9 @@ NoiseRecord measure_sky_noise(const DetectionResult& field, const SkyNoiseOption
     if (values.size() < 100)
         throw Error("sky noise: only " + std::to_string(values.size()) +
                     " sky pixels away from the objects (need 100)");
-    const double median = median_in_place(values);
+    const double median = median_of_values(values);
     for (double& v : values) v = std::abs(v - median);
-    const double mad_sigma = 1.4826 * median_in_place(values);
+    const double mad_sigma = 1.4826 * median_of_values(std::move(values));
     const double cut = 5.0 * mad_sigma;
     for (std::size_t k = 0; k < n; ++k)
         if (sky[k] && !(std::abs(field.image.data()[k] - median) <= cut)) sky[k] = 0;
