@@ -18,6 +18,7 @@
 #include <cmath>
 #include <iostream>
 #include <memory>
+#include <optional>
 
 namespace {
 
@@ -96,6 +97,12 @@ int run(int argc, const char* const argv[]) {
     context.stamps = s.stamps;
     const DetectionResult& field = detected.field;
     const PointSourceLocus& locus = detected.locus;
+    // Measured before any output, so a field without enough sky fails with nothing written.
+    std::optional<NoiseRecord> noise;
+    if (!s.noise_model.empty()) {
+        noise = measure_sky_noise(field, s.noise);
+        noise->extra["image"] = s.detection.image;
+    }
     const double star_threshold = s.detection.star_threshold;
     std::unique_ptr<FitsWriter> stamps;
     if (!s.stamps.empty())
@@ -134,15 +141,13 @@ int run(int argc, const char* const argv[]) {
         seg.write_image(field.segmentation.cast<double>(), spec);
         seg.commit();
     }
-    if (!s.noise_model.empty()) {
-        NoiseRecord noise = measure_sky_noise(field, s.noise);
-        noise.extra["image"] = s.detection.image;
+    if (noise) {
         app::AtomicTextFile file(s.noise_model);
-        JsonlWriter(file.stream(), s.noise_model).write(noise.to_json());
+        JsonlWriter(file.stream(), s.noise_model).write(noise->to_json());
         file.commit();
-        log.info("sky noise: rms ", noise.rms, " (MAD σ ", noise.mad_sigma, ") over ",
-                 noise.pixels, " pixels; autocorrelation at (1,0) ", noise.correlation.at(1, 0),
-                 ", (1,1) ", noise.correlation.at(1, 1), ", (2,0) ", noise.correlation.at(2, 0));
+        log.info("sky noise: rms ", noise->rms, " (MAD σ ", noise->mad_sigma, ") over ",
+                 noise->pixels, " pixels; autocorrelation at (1,0) ", noise->correlation.at(1, 0),
+                 ", (1,1) ", noise->correlation.at(1, 1), ", (2,0) ", noise->correlation.at(2, 0));
     }
     if (stamps) stamps->commit();
     if (stars_file) stars_file->commit();

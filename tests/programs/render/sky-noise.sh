@@ -64,4 +64,10 @@ rc=0; "$BIN/$prog" --like "$HDF_IMAGE" --psf psf.jsonl --noise-model short.jsonl
   <objects.jsonl >out 2>err || rc=$?
 expect_error "$rc" 1 'short.jsonl:1: correlation: must hold'
 [ ! -e bad.fits ] || fail "an image was left after a bad noise model"
+# A field with no sky left (every pixel within 100 px of an object): detect fails before any
+# output, leaving no noise model, no stamps and an empty catalogue.
+rc=0; "$BIN/shapesim-detect" "$HDF_IMAGE" -q --zero-point 22.08 --noise-grow 100 --noise-model nosky.jsonl \
+  --stamps nosky.fits >out 2>err || rc=$?
+expect_error "$rc" 1 'sky noise: only'
+[ ! -e nosky.jsonl ] && [ ! -e nosky.fits ] && [ ! -s out ] || fail "detect left output without a sky"
 exit 0
