@@ -28,7 +28,8 @@ namespace po = app::po;
 const char* const description =
     "Fit each postage stamp with a polar shapelet series, choosing the centre (the model's\n"
     "own centroid), the scale beta (a search on chi2_r within the resolution and stamp\n"
-    "limits) and n_max (raised until chi2_r <= 1, capped at 15). Reads shapesim.source/1\n"
+    "limits) and n_max (raised while two more orders take up more chi2 than the noise\n"
+    "would, capped at 15; converged when chi2_r <= 1). Reads shapesim.source/1\n"
     "records on stdin and the stamps shapesim-detect wrote; writes shapesim.shapelet/1.\n"
     "\n"
     "PSF mode: with --psf-image, model an (oversampled) PSF image at the pixel scale of\n"
@@ -78,9 +79,13 @@ void declare(app::ProgramOptions& options, Settings& s) {
         ("theta-min", po::value(&f.theta_min)->default_value(1.0)
              ->notifier(in_range("theta-min", 1e-3, 1e3)),
          "smallest scale beta/sqrt(n_max+1) the basis may resolve, pixels")
-        ("flatten", po::value(&f.flatten_fraction)->default_value(0.01)
-             ->notifier(in_range("flatten", 0.0, 1.0)),
-         "stop when chi2_r falls by less than this fraction over two orders")
+        ("order-sigmas", po::value(&f.order_sigmas)->default_value(3.0)
+             ->notifier(in_range("order-sigmas", 0.0, 1e3)),
+         "raise n_max while two more orders lower chi2 by more than the noise's take-up "
+         "F^2 (dp + this * sqrt(2 dp))")
+        ("bad-fit-chi2r", po::value(&f.bad_fit_chi2r)->default_value(1.5)
+             ->notifier(in_range("bad-fit-chi2r", 1e-3, 1e6)),
+         "flag fits kept with chi2_r above this bad_fit")
         ("noise-correlation", po::value(&s.noise_correlation)->value_name("F")
              ->notifier(in_range("noise-correlation", 1.0, 100.0)),
          "correlated-noise factor for the effective degrees of freedom (default: the "

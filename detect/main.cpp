@@ -54,9 +54,16 @@ void declare(app::ProgramOptions& options, Settings& s) {
          "write postage stamps (image, weight, mask per object) to this FITS file")
         ("stamp-factor", po::value(&s.stamp.size_factor)->default_value(3.0)
              ->notifier(in_range("stamp-factor", 0.0, 1e3)),
-         "stamp side = factor · A_IMAGE + offset, pixels")
+         "stamp side >= factor · A_IMAGE + offset, pixels (and >= the object's segment plus "
+         "--stamp-sky-margin, and its Kron aperture; then grown x1.25 until the border is sky)")
         ("stamp-offset", po::value(&s.stamp.size_offset)->default_value(5.0)
              ->notifier(in_range("stamp-offset", 1.0, 1e4)), "see --stamp-factor")
+        ("stamp-sky-margin", po::value(&s.stamp.sky_margin)->default_value(4)
+             ->notifier(in_range("stamp-sky-margin", 0, 10000)),
+         "sky pixels beyond the object's segment on each side of its stamp")
+        ("stamp-max-side", po::value(&s.stamp.max_side)->default_value(513)
+             ->notifier(in_range("stamp-max-side", 3, 100000)),
+         "stamps are never grown beyond this side, pixels (flag stamp_not_sky)")
         ("border-width", po::value(&s.stamp.border_width)->default_value(2)
              ->notifier(in_range("border-width", 1, 1000)),
          "depth of the stamp border that sets the local noise, pixels")
@@ -93,6 +100,7 @@ int run(int argc, const char* const argv[]) {
         if (!path->empty()) app::check_writable(*path);
 
     app::DetectionRun detected = s.detection.run(options, log);
+    s.stamp.gain = s.detection.detection.gain;  // source photon noise in the stamps' weights
     SourceContext& context = detected.context;
     context.stamps = s.stamps;
     const DetectionResult& field = detected.field;

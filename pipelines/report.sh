@@ -49,7 +49,7 @@ differs between them is the smoothing of the PDF alone.
 |---|---|
 | \`shapesim-detect\` | $sources objects above 1.3σ in the real image |
 | \`shapesim-decompose\` | $models shapelet models, $converged converged (χ²_r ≤ 1 within 2σ) |
-| \`shapesim-smooth\` | $kept models in the morphology PDF (converged; not edge, bright-star or noise-dominated) |
+| \`shapesim-smooth\` | $kept models in the morphology PDF (not edge, bright-star, noise-dominated or a bad fit) |
 | \`shapesim-sample\` + \`-render\`, like the HDF | $(lines "$out/delta.truth.jsonl") galaxies (δ), $(lines "$out/sim.truth.jsonl") (full), at the real field's density brighter than I = 29 |
 | \`shapesim-sample\` + \`-render\`, $(fits_card "$out/sim6.fits" FIELDNX) × $(fits_card "$out/sim6.fits" FIELDNY) pixels | $(lines "$out/sim6.truth.jsonl") objects |
 | \`shapesim-measure\` | $(lines "$out/hdf.morph.jsonl") (HDF), $(lines "$out/delta.morph.jsonl") (δ), $(lines "$out/sim.morph.jsonl") (full), $(lines "$out/sim6.morph.jsonl") (large) galaxies measured |

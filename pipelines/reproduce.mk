@@ -54,7 +54,7 @@ tmp = $@.tmp
 # --- the real image ---------------------------------------------------------------------
 $(OUT)/sources.jsonl $(OUT)/stamps.fits $(OUT)/stars.jsonl $(OUT)/hdf.noise.jsonl &: $(IMAGE) $(WEIGHT) $(call prog,detect)
 	@mkdir -p $(OUT)
-	$(call prog,detect) $(IMAGE) --weight $(WEIGHT) --zero-point $(ZERO_POINT) \
+	$(call prog,detect) $(IMAGE) --weight $(WEIGHT) --zero-point $(ZERO_POINT) --gain $(GAIN) \
 	  --stamps $(OUT)/stamps.fits --stars $(OUT)/stars.jsonl --noise-model $(OUT)/hdf.noise.jsonl \
 	  > $(OUT)/sources.jsonl.tmp
 	mv $(OUT)/sources.jsonl.tmp $(OUT)/sources.jsonl

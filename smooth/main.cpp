@@ -36,9 +36,10 @@ const char* const description =
     "galaxy's magnitude, kept or not, and shapesim-sample then draws the real galaxy density.";
 
 struct Settings {
-    // The paper keeps the bright galaxies whose fits stop at the n_max cap unconverged,
-    // truncated there as the best fit possible (§3.1): either flag satisfies the default.
-    std::string input = "-", require = "converged|n_max_cap", reject = "edge,bright_star,noise", weight_field;
+    // Every fit that is a faithful model: whatever stopped its order search (converged,
+    // flattened at the noise, the cap, the stamp), unless χ²_r says it misses real structure
+    // ("bad_fit"). The paper's `converged|n_max_cap` is one --require away.
+    std::string input = "-", require, reject = "edge,bright_star,noise,bad_fit", weight_field;
     double k = 4.0, phase = 15.0, beta = 0.0, mag = 0.0, modulus = 0.0, mag_limit = 0.0, area = 0.0;
     bool delta = false;
 };
@@ -66,11 +67,13 @@ int run(int argc, const char* const argv[]) {
     options.group("Input").add_options()
         ("input,i", po::value(&s.input)->value_name("FILE")->default_value("-"),
          "shapelet records (default: stdin)")
-        ("require", po::value(&s.require)->value_name("FLAGS")->default_value("converged|n_max_cap"),
+        ("require", po::value(&s.require)->value_name("FLAGS")->default_value(""),
          "keep records carrying all these flags (comma-separated; empty: all; A|B: either);\n"
-         "by default converged fits and, as in the paper, fits stopped at the n_max cap")
-        ("reject", po::value(&s.reject)->value_name("FLAGS")->default_value("edge,bright_star,noise"),
-         "drop records carrying any of these flags")
+         "the paper's selection: converged|n_max_cap")
+        ("reject", po::value(&s.reject)->value_name("FLAGS")
+             ->default_value("edge,bright_star,noise,bad_fit"),
+         "drop records carrying any of these flags (bad_fit: chi2_r above "
+         "shapesim-decompose --bad-fit-chi2r)")
         ("mag-limit", po::value(&s.mag_limit)->value_name("MAG"),
          "drop records fainter than this")
         ("area", po::value(&s.area)->value_name("ARCMIN2")->notifier(in_range("area", 1e-9, 1e9)),

@@ -23,7 +23,8 @@ void DecomposeOptions::validate() const {
     if (!(theta_min > 0.0)) fail("theta_min", "must be > 0");
     if (!(centre_tolerance > 0.0)) fail("centre_tolerance", "must be > 0");
     if (centre_iterations < 0) fail("centre_iterations", "must be ≥ 0");
-    if (!(flatten_fraction >= 0.0)) fail("flatten_fraction", "must be ≥ 0");
+    if (!(order_sigmas >= 0.0 && std::isfinite(order_sigmas))) fail("order_sigmas", "must be ≥ 0");
+    if (!(bad_fit_chi2r > 0.0)) fail("bad_fit_chi2r", "must be > 0");
     if (!(noise_correlation >= 1.0 && std::isfinite(noise_correlation)))
         fail("noise_correlation", "must be ≥ 1");
 }
@@ -35,6 +36,17 @@ double effective_dof(const ShapeletFit& fit, double noise_correlation) {
 
 double effective_chi2r(const ShapeletFit& fit, double noise_correlation) {
     return fit.chi2 / effective_dof(fit, noise_correlation);
+}
+
+double noise_uptake(int from, int to, const DecomposeOptions& options) {
+    const double extra = double(real_count(to) - real_count(from));
+    const double f2 = options.noise_correlation * options.noise_correlation;
+    return f2 * (extra + options.order_sigmas * std::sqrt(2.0 * extra));
+}
+
+bool within_target(const ShapeletFit& fit, double chi2r, const DecomposeOptions& options) {
+    const double dof = effective_dof(fit, options.noise_correlation);
+    return chi2r <= options.chi2_target + options.chi2_sigmas * std::sqrt(2.0 / dof);
 }
 
 namespace {
@@ -213,22 +225,19 @@ Decomposition decompose(const ImageArray& image, const ImageArray& weight, const
         }
         const double chi2r = search.best_chi2r();
         const ShapeletFit& best = *search.best();
-        out.trials.push_back({n, best.model.beta_pix, chi2r});
+        out.trials.push_back({n, best.model.beta_pix, chi2r, best.chi2});
         x = best.model.x;
         y = best.model.y;
         beta = best.model.beta_pix;
-        kept = best;
-        have_kept = true;
-        kept_chi2r = chi2r;
-        const double dof = effective_dof(best, options.noise_correlation);
-        if (chi2r <= options.chi2_target + options.chi2_sigmas * std::sqrt(2.0 / dof)) {
-            out.stop = "chi2_target";
-            out.converged = true;
-            break;
+        // This order becomes the candidate when it takes up significantly more χ² than the
+        // noise would over the candidate's.
+        if (!have_kept || kept.chi2 - best.chi2 > noise_uptake(kept.model.n_max, n, options)) {
+            kept = best;
+            have_kept = true;
+            kept_chi2r = chi2r;
         }
-        const std::size_t t = out.trials.size();
-        if (t >= 3 && out.trials[t - 3].chi2r - chi2r < options.flatten_fraction * out.trials[t - 3].chi2r) {
-            out.stop = "flattened";
+        if (n >= kept.model.n_max + 2) {  // two orders beyond it brought nothing significant
+            out.stop = within_target(kept, kept_chi2r, options) ? "chi2_target" : "flattened";
             break;
         }
         if (n == options.n_max_cap) out.stop = "n_max_cap";
@@ -236,6 +245,11 @@ Decomposition decompose(const ImageArray& image, const ImageArray& weight, const
     if (!have_kept) throw Error("no usable fit: the stamp is too small for the lowest order");
     out.fit = std::move(kept);
     out.chi2r = kept_chi2r;
+    out.converged = within_target(out.fit, out.chi2r, options);
+    // The cap only stopped the search if the orders it cut off were still wanted.
+    if (out.stop == "n_max_cap" && out.fit.model.n_max < options.n_max_cap)
+        out.stop = out.converged ? "chi2_target" : "flattened";
+    out.bad_fit = out.chi2r > options.bad_fit_chi2r;
 
     // β's share of the flux error, from the profile χ² at ln β ± h.
     const double fixed = flux_error(out.fit);
@@ -328,6 +342,7 @@ ShapeletRecord shapelet_record(const SourceRecord& source, const Decomposition& 
 
     r.flags.push_back(decomposition.converged ? "converged" : "not_converged");
     if (decomposition.stop == "n_max_cap") r.flags.push_back("n_max_cap");
+    if (decomposition.bad_fit) r.flags.push_back("bad_fit");
     const double reach = fit.model.beta_pix * std::sqrt(fit.model.n_max + 1.0);
     if (has(source.flags, "blended") ||
         masked_fraction(stamp, fit.model.x, fit.model.y, reach) > 0.05)

@@ -8,11 +8,21 @@
 //      centre to the nearest stamp edge);
 //   centre: moved to the fitted model's own centroid (closed form, moments.hpp) and the fit
 //      repeated, until it moves less than `centre_tolerance` pixels;
-// and n_max is raised until χ²_r ≤ `chi2_target` + `chi2_sigmas`·√(2/dof) ("chi2_target":
-// at the true order χ²_r itself scatters about 1 by √(2/dof), so a bare "≤ 1" would stop
-// there only half the time and fit noise the other half), or χ²_r stops falling by
-// more than `flatten_fraction` over two orders ("flattened"), or n_max reaches the cap
-// ("n_max_cap", the best fit at the cap kept), or the constraints leave no β ("stamp_small").
+// and n_max is chosen by the data: an order becomes the candidate when it lowers χ² below the
+// current candidate's by more than the noise would take up with the extra coefficients,
+// Δχ² > F²·(Δp + `order_sigmas`·√(2Δp)) (Δp more real coefficients, F the correlated-noise
+// factor below), and the search stops when two orders beyond the candidate brought nothing
+// significant (odd orders alone can be empty for a symmetric galaxy). The test is on χ², not
+// χ²_r, so the sky a stamp includes does not decide the order (a 3a + 5 stamp stopped a faint
+// galaxy at its top order, the same galaxy in a stamp grown to its real extent would stop at
+// n_max 0 once χ²_r is diluted below 1 by sky), and a bright galaxy goes on while its orders
+// still take up real structure. The stop says why: "chi2_target" (and the fit is converged,
+// χ²_r ≤ `chi2_target` + `chi2_sigmas`·√(2/dof): at the true order χ²_r itself scatters about
+// 1 by √(2/dof)), "flattened" (no more significant orders, but χ²_r above that: the noise
+// model, not the order, limits the fit), "n_max_cap" (orders were still significant at the
+// cap; the fit at the cap kept, converged only if its χ²_r is within the target), or
+// "stamp_small" (the constraints leave no β). A fit kept with χ²_r above `bad_fit_chi2r` is a
+// bad model, whatever stopped it ("bad_fit").
 //
 // Correlated noise. With per-pixel variances right but neighbouring pixels correlated, the
 // residual χ² of a fit of p smooth basis functions is E χ² = N − tr(H C) ≈ N − p·F², where
@@ -43,7 +53,8 @@ struct DecomposeOptions {
     double theta_min = 1.0;        ///< smallest resolved scale β/√(n+1), pixels
     double centre_tolerance = 0.01;///< recentring stops below this shift, pixels
     int centre_iterations = 5;     ///< and after this many recentrings
-    double flatten_fraction = 0.01;///< "flattened": χ²_r(n−2) − χ²_r(n) < this · χ²_r(n−2)
+    double order_sigmas = 3.0;     ///< an order must beat the noise's take-up by this many σ
+    double bad_fit_chi2r = 1.5;    ///< a kept fit above this χ²_r is flagged "bad_fit"
     double noise_correlation = 1.0;///< F for the effective degrees of freedom (see above)
     LsqSolver solver = LsqSolver::automatic;
 
@@ -56,6 +67,7 @@ struct OrderTrial {
     int n_max = 0;
     double beta_pix = 0.0;
     double chi2r = 0.0;
+    double chi2 = 0.0;  ///< the fit's χ² (weights as given)
 };
 
 /// The result of decompose().
@@ -65,6 +77,7 @@ struct Decomposition {
     std::string stop;      ///< why the search stopped: chi2_target, flattened, n_max_cap,
                            ///< stamp_small
     bool converged = false;///< χ²_r ≤ chi2_target (+ its noise allowance)
+    bool bad_fit = false;  ///< χ²_r > bad_fit_chi2r: not a faithful model
     double flux_error = 0.0;  ///< 1σ, with β's and truncation's shares (see decompose())
     double truncation_error = 0.0;  ///< truncation's share alone
     long fits = 0;         ///< linear fits performed
@@ -77,6 +90,11 @@ constexpr int truncation_orders = 4;
 double effective_dof(const ShapeletFit& fit, double noise_correlation);
 /// χ²_r of `fit` with those degrees of freedom.
 double effective_chi2r(const ShapeletFit& fit, double noise_correlation);
+/// The χ² the noise takes up when n_max rises from `from` to `to`, plus `order_sigmas` of its
+/// scatter: F²·(Δp + order_sigmas·√(2Δp)).
+double noise_uptake(int from, int to, const DecomposeOptions& options);
+/// Whether χ²_r (of `fit`) is within the target and its noise allowance.
+bool within_target(const ShapeletFit& fit, double chi2r, const DecomposeOptions& options);
 
 /// Decompose `image` (weights, optional mask as in fit_shapelets) starting from centre
 /// (x, y) in stamp FITS coordinates and scale `beta_start` pixels (e.g. the detection's a).
@@ -101,7 +119,8 @@ double flux_error(const ShapeletFit& fit);
 ///    `coeff_errors` ([[σ_re, σ_im], …] in the coefficients' order), `flux_err` (and its
 ///    truncation share `flux_err_truncation`), `stop`,
 ///    `beta_pix`, `trials` ([[n_max, β_pix, χ²_r], …]), `fits`.
-///  - flags: "converged" or "not_converged"; "n_max_cap"; "neighbour" (the source was
+///  - flags: "converged" or "not_converged"; "n_max_cap"; "bad_fit" (χ²_r above
+///    bad_fit_chi2r: the model misses real structure); "neighbour" (the source was
 ///    deblended, or more than 5% of the pixels within the model's reach β√(n_max+1) belong
 ///    to a neighbour); "edge" (stamp or aperture cut by the image edge); "noise" (model flux
 ///    below 3σ of the noise, truncation's share left out: a probable noise detection). ("bright_star", near_bright_star(), is the

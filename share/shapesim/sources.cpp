@@ -30,6 +30,7 @@ SourceRecord source_record(const Detection& object, const CoreFraction& core,
     if (!(object.flux_auto > 0.0)) r.flags.push_back("nonpositive_flux");
     if (cut && cut->clipped) r.flags.push_back("edge");
     if (cut && cut->noise_global) r.flags.push_back("noise_global");
+    if (cut && cut->border_not_sky) r.flags.push_back("stamp_not_sky");
 
     Json& e = r.extra;
     e["kind"] = stellarity_value > context.star_threshold ? "star" : "galaxy";
@@ -56,6 +57,7 @@ SourceRecord source_record(const Detection& object, const CoreFraction& core,
         e["noise_rms"] = cut->noise_rms;
         e["weight_scale"] = cut->weight_scale;
         e["border_pixels"] = cut->border_pixels;
+        e["stamp_grown"] = cut->grown;
     }
     e["noise_correlation"] = context.noise_correlation;
     e["pixel_scale"] = context.pixel_scale;

@@ -17,28 +17,112 @@ void StampOptions::validate() const {
     if (border_width < 1) throw Error("border width must be ≥ 1 pixel", "", 0, "border_width");
     if (min_border_pixels < 2)
         throw Error("the noise needs ≥ 2 border pixels", "", 0, "min_border_pixels");
+    if (!(kron_factor >= 0.0 && std::isfinite(kron_factor)))
+        throw Error("Kron factor must be ≥ 0", "", 0, "kron_factor");
+    if (sky_margin < 0) throw Error("sky margin must be ≥ 0 pixels", "", 0, "sky_margin");
+    if (!(border_sigmas > 0.0)) throw Error("must be > 0", "", 0, "border_sigmas");
+    if (max_side < 3) throw Error("must be ≥ 3 pixels", "", 0, "max_side");
+    if (!(gain >= 0.0 && std::isfinite(gain))) throw Error("must be ≥ 0", "", 0, "gain");
 }
 
-int stamp_side(const Detection& object, const StampOptions& options) {
-    const double side = options.size_factor * object.a + options.size_offset;
-    // Odd, so the pixel nearest the centroid is the central one; capped well below int range.
+namespace {
+
+// `side` rounded up to an odd whole number ≥ 3, capped well below int range.
+int odd_side(double side) {
     const int whole = int(std::min(std::ceil(side), 1.0e6));
     return std::max(3, whole % 2 == 1 ? whole : whole + 1);
+}
+
+}  // namespace
+
+int stamp_side(const Detection& object, const StampOptions& options) {
+    return odd_side(options.size_factor * object.a + options.size_offset);
+}
+
+int extent_side(const Detection& object, const StampOptions& options) {
+    const int paper = stamp_side(object, options);
+    double side = paper;
+    // The segment's bounding box as seen from the central pixel (a record without one, all
+    // zero, has no extent to add).
+    if (object.xmax > object.xmin || object.ymax > object.ymin) {
+        const long ic = std::lround(object.x), jc = std::lround(object.y);
+        const long reach = std::max({ic - object.xmin, object.xmax - ic, jc - object.ymin,
+                                     object.ymax - jc, 0L});
+        side = std::max(side, 2.0 * double(reach + options.sky_margin) + 1.0);
+    }
+    const double kron = options.kron_factor * object.kron_radius * object.a;
+    if (std::isfinite(kron)) side = std::max(side, 2.0 * kron + 1.0);
+    return std::max(paper, std::min(odd_side(side), options.max_side));
 }
 
 CutStamp cut_stamp(const DetectionResult& field, const Detection& object, const std::string& id,
                    const StampOptions& options) {
     options.validate();
     const int nx = int(field.image.cols()), ny = int(field.image.rows());
-    const int side = stamp_side(object, options);
-    const int half = side / 2;
     const int ic = int(std::lround(object.x)) - 1, jc = int(std::lround(object.y)) - 1;
-    const int i0 = std::max(0, ic - half), i1 = std::min(nx - 1, ic + half);
-    const int j0 = std::max(0, jc - half), j1 = std::min(ny - 1, jc + half);
-    if (i0 > i1 || j0 > j1) throw Error("object " + id + " lies outside the image");
+    const int depth = options.border_width;
+    // Pixels owned by no object and not touching one.
+    const auto near_object = [&](int row, int column) {
+        for (int dj = -1; dj <= 1; ++dj)
+            for (int di = -1; di <= 1; ++di) {
+                const int r = row + dj, c = column + di;
+                if (r >= 0 && c >= 0 && r < ny && c < nx && field.segmentation(r, c) != 0)
+                    return true;
+            }
+        return false;
+    };
 
     CutStamp out;
-    out.clipped = i0 != ic - half || i1 != ic + half || j0 != jc - half || j1 != jc + half;
+    int side = extent_side(object, options);
+    int i0 = 0, i1 = -1, j0 = 0, j1 = -1;
+    for (;;) {
+        const int half = side / 2;
+        const int a0 = std::max(0, ic - half), a1 = std::min(nx - 1, ic + half);
+        const int b0 = std::max(0, jc - half), b1 = std::min(ny - 1, jc + half);
+        if (a0 > a1 || b0 > b1) throw Error("object " + id + " lies outside the image");
+        const bool same = a0 == i0 && a1 == i1 && b0 == j0 && b1 == j1;
+        i0 = a0, i1 = a1, j0 = b0, j1 = b1;
+        if (same) {  // the image's edges stop the growth
+            out.border_not_sky = true;
+            break;
+        }
+        // Is the border ring sky? Not where the object's own segment reaches it, nor where
+        // its free pixels are brighter than their noise allows (wings beyond the isophote).
+        bool own = false;
+        double sum = 0.0;
+        long n = 0;
+        const auto visit = [&](int row, int column) {
+            if (field.segmentation(row, column) == object.label) own = true;
+            if (own || field.is_bad(row, column) || !std::isfinite(field.sigma(row, column)) ||
+                near_object(row, column))
+                return;
+            sum += field.image(row, column) / field.sigma(row, column);
+            ++n;
+        };
+        // The ring's sides the image's edge has not cut: an object running off the image
+        // owns the pixels along that edge however large its stamp.
+        const bool left = i0 == ic - half, right = i1 == ic + half;
+        const bool bottom = j0 == jc - half, top = j1 == jc + half;
+        for (int row = j0; row <= j1 && !own; ++row)
+            for (int column = i0; column <= i1; ++column)
+                if ((left && column < i0 + depth) || (right && column > i1 - depth) ||
+                    (bottom && row < j0 + depth) || (top && row > j1 - depth))
+                    visit(row, column);
+        const bool sky = !own && (n == 0 || sum / std::sqrt(double(n)) <=
+                                               options.border_sigmas * field.noise_correlation);
+        if (sky || side >= options.max_side) {
+            out.border_not_sky = !sky;
+            break;
+        }
+        side = std::min(odd_side(1.25 * side), options.max_side);
+        ++out.grown;
+    }
+
+    // Clipped where it matters: within the paper's 3a + 5 about the centre. Sky margin and
+    // growth cut by the edge only cost fit pixels (a segment or aperture running off the image
+    // is flagged by detection itself).
+    const int core = stamp_side(object, options) / 2;
+    out.clipped = ic - core < 0 || ic + core > nx - 1 || jc - core < 0 || jc + core > ny - 1;
     Stamp& stamp = out.stamp;
     stamp.id = id;
     stamp.x0 = i0 + 1;
@@ -61,16 +145,6 @@ CutStamp cut_stamp(const DetectionResult& field, const Detection& object, const 
     // the sky around the stamp out to `max_margin` pixels beyond it. A sky pixel touching a
     // segment is skipped while enough others remain: the segment took its neighbours'
     // upward noise peaks, so the pixels left just outside it are biased low.
-    const auto near_object = [&](int row, int column) {
-        for (int dj = -1; dj <= 1; ++dj)
-            for (int di = -1; di <= 1; ++di) {
-                const int r = row + dj, c = column + di;
-                if (r >= 0 && c >= 0 && r < ny && c < nx && field.segmentation(r, c) != 0)
-                    return true;
-            }
-        return false;
-    };
-    const int depth = options.border_width;
     std::vector<double> z;
     for (const bool strict : {true, false}) {
         for (int margin = 0;; margin = std::max(2 * margin, 4)) {
@@ -116,6 +190,27 @@ CutStamp cut_stamp(const DetectionResult& field, const Detection& object, const 
         auto middle = sigmas.begin() + std::ptrdiff_t(sigmas.size() / 2);
         std::nth_element(sigmas.begin(), middle, sigmas.end());
         out.noise_rms = *middle;
+    }
+
+    // Source photon noise (see the header), from the 3×3 mean about each pixel.
+    if (options.gain > 0.0) {
+        const ImageArray sky_weight = stamp.weight;
+        for (int j = 0; j < h; ++j)
+            for (int i = 0; i < w; ++i) {
+                if (!(sky_weight(j, i) > 0.0)) continue;
+                double sum = 0.0;
+                int n = 0;
+                for (int dj = -1; dj <= 1; ++dj)
+                    for (int di = -1; di <= 1; ++di) {
+                        const int r = j + dj, c = i + di;
+                        if (r < 0 || c < 0 || r >= h || c >= w || !(sky_weight(r, c) > 0.0))
+                            continue;
+                        sum += stamp.image(r, c);
+                        ++n;
+                    }
+                const double source = std::max(0.0, sum / n);
+                stamp.weight(j, i) = 1.0 / (1.0 / sky_weight(j, i) + source / options.gain);
+            }
     }
     return out;
 }

@@ -38,7 +38,7 @@ HDF_DATA=$(cd "$(dirname "${BASH_SOURCE[0]}")/../../share/data/hdfn" && pwd)
 HDF_IMAGE=$HDF_DATA/hdfn_f814w_v2.fits
 hdf_sources() {
   "$BIN/shapesim-detect" "$HDF_IMAGE" --weight "$HDF_DATA/hdfn_f814w_v2_weight.fits" \
-    --zero-point 22.08 --stamps stamps.fits -q >sources.jsonl || fail "shapesim-detect failed"
+    --zero-point 22.08 --gain 865200 --stamps stamps.fits -q >sources.jsonl || fail "shapesim-detect failed"
 }
 hdf_models() {
   hdf_sources

@@ -252,3 +252,132 @@ TEST(DecomposeRecord, NearBrightStar) {
     EXPECT_TRUE(near_bright_star(112.0, 100.0, 0.5, 10.0, {fwhm_only}));
     EXPECT_FALSE(near_bright_star(113.0, 100.0, 0.5, 10.0, {fwhm_only}));
 }
+
+// =============================================================================================
+// Order choice and verdicts (the stop rules of decompose.hpp) on galaxies whose truth is known.
+
+namespace {
+
+bool has_flag(const ShapeletRecord& r, const char* flag) {
+    return std::find(r.flags.begin(), r.flags.end(), flag) != r.flags.end();
+}
+
+// `truth` (centred in a `small`² stamp) drawn again in a `side`² stamp, same noise per pixel.
+Decomposition decompose_in(const ShapeletModel& truth, int small, int side, double sigma,
+                           std::uint64_t seed, const DecomposeOptions& options) {
+    ShapeletModel shifted = truth;
+    shifted.x += 0.5 * (side - small);
+    shifted.y += 0.5 * (side - small);
+    const ImageArray image = test::noisy_stamp(shifted, side, sigma, seed, std::uint64_t(side));
+    const ImageArray weight = ImageArray::Constant(side, side, 1.0 / (sigma * sigma));
+    return decompose(image, weight, nullptr, shifted.x, shifted.y, truth.beta_pix, options);
+}
+
+}  // namespace
+
+// The same faint galaxy (truth n_max 4, peak S/N 10) in a tight 21² stamp and in a 121² stamp
+// that is mostly sky: the order is chosen on χ², so the sky does not push it down. χ²_r alone
+// would stop the large stamp two orders earlier (its sky dilutes χ²_r below the target).
+TEST(DecomposeOrders, SkyInTheStampDoesNotDecideTheOrder) {
+    const int small = 21, large = 121;
+    double small_orders = 0.0, large_orders = 0.0, chi2r_only = 0.0;
+    int differ = 0;
+    const int seeds = 6;
+    for (unsigned seed = 0; seed < seeds; ++seed) {
+        const ShapeletModel truth = test::centred_galaxy(4, 2.5, small, 60 + seed, 1.0);
+        const double sigma = render_stamp(truth, small, small).maxCoeff() / 10.0;
+        const Decomposition a = decompose_in(truth, small, small, sigma, seed, DecomposeOptions{});
+        const Decomposition b = decompose_in(truth, small, large, sigma, seed, DecomposeOptions{});
+        small_orders += a.fit.model.n_max / double(seeds);
+        large_orders += b.fit.model.n_max / double(seeds);
+        differ += std::abs(a.fit.model.n_max - b.fit.model.n_max) > 2;
+        // The first order at which χ²_r met its target in the large stamp.
+        for (const OrderTrial& t : b.trials) {
+            const double dof = double(large * large) - double(real_count(t.n_max));
+            if (t.chi2r <= 1.0 + 2.0 * std::sqrt(2.0 / dof)) {
+                chi2r_only += t.n_max / double(seeds);
+                break;
+            }
+        }
+    }
+    report("small_stamp_mean_n_max", small_orders);
+    report("large_stamp_mean_n_max", large_orders);
+    report("large_stamp_mean_n_max_chi2r_rule", chi2r_only);
+    EXPECT_EQ(differ, 0);
+    EXPECT_GT(large_orders, small_orders - 1.0);
+    EXPECT_GE(large_orders, 1.5);  // the ellipticity (m = 2) is kept, not a round Gaussian
+    EXPECT_GT(large_orders, chi2r_only + 1.0);
+}
+
+// A bright galaxy with structure up to n_max 12 (peak S/N 500) is followed to its orders: no
+// plateau of one or two orders stops it.
+TEST(DecomposeOrders, BrightGalaxyIsFollowedToItsOrder) {
+    const int side = 61;
+    const ShapeletModel truth = test::centred_galaxy(12, 3.8, side, 71, 1.0);
+    const double sigma = render_stamp(truth, side, side).maxCoeff() / 500.0;
+    const Decomposition d = decompose_in(truth, side, side, sigma, 3, DecomposeOptions{});
+    report("bright_n_max", d.fit.model.n_max);
+    report("bright_chi2r", d.chi2r);
+    EXPECT_GE(d.fit.model.n_max, 10);
+    EXPECT_LE(d.fit.model.n_max, 14);
+    EXPECT_TRUE(d.converged);
+    EXPECT_FALSE(d.bad_fit);
+    EXPECT_EQ(d.stop, "chi2_target");
+}
+
+// Capped well below its order, the same galaxy ends far above χ²_r = 1: stopped at the cap,
+// not converged, and flagged a bad fit in its record.
+TEST(DecomposeOrders, CapFarAboveTheTargetIsABadFit) {
+    const int side = 61;
+    const ShapeletModel truth = test::centred_galaxy(12, 3.8, side, 71, 1.0);
+    const double sigma = render_stamp(truth, side, side).maxCoeff() / 500.0;
+    DecomposeOptions o;
+    o.n_max_cap = 4;
+    const Decomposition d = decompose_in(truth, side, side, sigma, 3, o);
+    report("capped_chi2r", d.chi2r);
+    EXPECT_EQ(d.stop, "n_max_cap");
+    EXPECT_EQ(d.fit.model.n_max, 4);
+    EXPECT_FALSE(d.converged);
+    EXPECT_TRUE(d.bad_fit);
+    Stamp stamp;
+    stamp.image = ImageArray::Zero(side, side);
+    stamp.weight = ImageArray::Ones(side, side);
+    stamp.mask = ImageArray::Zero(side, side);
+    stamp.x0 = stamp.y0 = 1;
+    SourceRecord source;
+    source.id = "1";
+    const ShapeletRecord r = shapelet_record(source, d, stamp, 0.04, std::nullopt);
+    EXPECT_TRUE(has_flag(r, "not_converged"));
+    EXPECT_TRUE(has_flag(r, "n_max_cap"));
+    EXPECT_TRUE(has_flag(r, "bad_fit"));
+}
+
+// Weights claiming half the true variance: χ²_r ≈ 2 at every order. Once the galaxy's orders
+// are taken up the search stops ("flattened") instead of climbing to the cap on noise, and the
+// verdict is honest: not converged, a bad fit.
+TEST(DecomposeOrders, UnderstatedNoiseFlattensAndIsFlagged) {
+    const int side = 31;
+    const ShapeletModel truth = test::centred_galaxy(4, 2.5, side, 81, 1.0);
+    const double sigma = render_stamp(truth, side, side).maxCoeff() / 50.0;
+    const ImageArray image = test::noisy_stamp(truth, side, sigma, 4, 1);
+    const ImageArray weight = ImageArray::Constant(side, side, 2.0 / (sigma * sigma));
+    const Decomposition d =
+        decompose(image, weight, nullptr, truth.x, truth.y, 2.5, DecomposeOptions{});
+    report("understated_noise_n_max", d.fit.model.n_max);
+    report("understated_noise_chi2r", d.chi2r);
+    EXPECT_EQ(d.stop, "flattened");
+    EXPECT_LE(d.fit.model.n_max, 8);
+    EXPECT_FALSE(d.converged);
+    EXPECT_TRUE(d.bad_fit);
+}
+
+// The noise's take-up of Δp more coefficients: F²(Δp + k√(2Δp)).
+TEST(DecomposeOrders, NoiseUptake) {
+    DecomposeOptions o;
+    o.noise_correlation = 2.0;
+    o.order_sigmas = 3.0;
+    // n_max 2 → 4: 15 − 6 = 9 more real coefficients.
+    EXPECT_DOUBLE_EQ(noise_uptake(2, 4, o), 4.0 * (9.0 + 3.0 * std::sqrt(18.0)));
+    o.order_sigmas = -1.0;
+    EXPECT_THROW(o.validate(), Error);
+}

@@ -681,6 +681,89 @@ TEST(StampSide, OddCeilOfThreeAPlusFive) {
     EXPECT_THROW(o.validate(), Error);
 }
 
+// The start side: the largest of the paper's 3a + 5, the segment's bounding box seen from the
+// central pixel plus the sky margin, and the Kron aperture's diameter.
+TEST(StampSide, ExtentCoversTheSegmentAndTheKronAperture) {
+    Detection d;
+    d.x = 50.2;
+    d.y = 40.7;  // central pixel (50, 41)
+    d.a = 2.0;   // 3a + 5 = 11
+    StampOptions o;
+    EXPECT_EQ(extent_side(d, o), 11);  // no bounding box, no Kron radius
+    d.xmin = 44, d.xmax = 53, d.ymin = 39, d.ymax = 43;  // farthest: 50 − 44 = 6
+    EXPECT_EQ(extent_side(d, o), 2 * (6 + 4) + 1);
+    d.ymax = 60;  // 60 − 41 = 19
+    EXPECT_EQ(extent_side(d, o), 2 * (19 + 4) + 1);
+    d.kron_radius = 6.0;  // 2 · 2.5 · 6 · 2 + 1 = 61
+    EXPECT_EQ(extent_side(d, o), 61);
+    o.max_side = 31;
+    EXPECT_EQ(extent_side(d, o), 31);
+    o.max_side = 5;  // never below the paper's side
+    EXPECT_EQ(extent_side(d, o), 11);
+    o = StampOptions{};
+    o.gain = -1.0;
+    EXPECT_THROW(o.validate(), Error);
+}
+
+// An exponential disc (scale 8 px, central surface brightness 300σ) leaves its isophote at
+// r ≈ 48 px; its wings are still ≈ 0.3σ a pixel on the start stamp's border ring (≈ 10σ in
+// the ring's mean), so the stamp grows until the ring is sky. Capped at the start side it is
+// flagged instead.
+TEST(StampCut, GrowsUntilTheBorderIsSky) {
+    const int n = 320;
+    const double xc = 160.3, yc = 159.6, scale = 8.0;
+    ImageArray image = white_noise(n, n, 1.0, 41);
+    for (int j = 0; j < n; ++j)
+        for (int i = 0; i < n; ++i)
+            image(j, i) += 300.0 * std::exp(-std::hypot(i + 1 - xc, j + 1 - yc) / scale);
+    DetectionOptions options;
+    options.back_size = 320;  // one background mesh: the wings are not taken for sky
+    const DetectionResult r = detect_sources(image, nullptr, options);
+    const Match m = nearest(r.objects, xc, yc);
+    ASSERT_LT(m.distance, 0.5);
+    const Detection& d = r.objects[std::size_t(m.index)];
+    const CutStamp cut = cut_stamp(r, d, "D", StampOptions{});
+    report("disc_start_side", extent_side(d, StampOptions{}));
+    report("disc_side", double(cut.stamp.image.cols()));
+    report("disc_grown", cut.grown);
+    EXPECT_GE(cut.grown, 1);
+    EXPECT_FALSE(cut.border_not_sky);
+    EXPECT_FALSE(cut.clipped);
+    // The wings on the final border (2 px deep) are below 0.15σ a pixel.
+    const double edge = 0.5 * double(cut.stamp.image.cols() - 4);
+    EXPECT_LT(300.0 * std::exp(-edge / scale), 0.15);
+    StampOptions capped;
+    capped.max_side = extent_side(d, capped);
+    const CutStamp small = cut_stamp(r, d, "D", capped);
+    EXPECT_EQ(small.grown, 0);
+    EXPECT_TRUE(small.border_not_sky);
+    EXPECT_EQ(small.stamp.image.cols(), capped.max_side);
+}
+
+// With a gain, a pixel's weight is 1/(σ_sky² + max(S̄, 0)/g), S̄ the 3×3 mean about it.
+TEST(StampCut, SourcePhotonNoiseInTheWeights) {
+    const std::vector<Blob> blobs{{40.2, 40.4, 40000.0, 2.5}};
+    const ImageArray image = blobs_image(96, 96, blobs) + white_noise(96, 96, 1.0, 33);
+    const DetectionResult r = detect_sources(image, nullptr, DetectionOptions{});
+    const Detection& d = r.objects[std::size_t(nearest(r.objects, 40.2, 40.4).index)];
+    const CutStamp sky = cut_stamp(r, d, "A", StampOptions{});
+    StampOptions o;
+    o.gain = 2.0;
+    const CutStamp photon = cut_stamp(r, d, "A", o);
+    ASSERT_EQ(photon.stamp.weight.size(), sky.stamp.weight.size());
+    EXPECT_EQ(photon.noise_rms, sky.noise_rms);  // the sky's σ, as before
+    const Stamp& s = photon.stamp;
+    int brighter = 0;
+    for (int j = 1; j + 1 < s.image.rows(); ++j)
+        for (int i = 1; i + 1 < s.image.cols(); ++i) {
+            const double mean = s.image.block(j - 1, i - 1, 3, 3).mean();
+            const double variance = 1.0 / sky.stamp.weight(j, i) + std::max(0.0, mean) / o.gain;
+            EXPECT_NEAR(s.weight(j, i) * variance, 1.0, 1e-12);
+            brighter += mean > 10.0;
+        }
+    EXPECT_GT(brighter, 10);  // the source's own noise mattered somewhere
+}
+
 TEST(StampCut, NeighbourMaskedOwnPixelsNot) {
     const std::vector<Blob> blobs{{40.2, 40.4, 4000.0, 2.5}, {50.6, 41.1, 3000.0, 2.5}};
     const ImageArray image = blobs_image(96, 96, blobs) + white_noise(96, 96, 1.0, 31);
@@ -694,7 +777,8 @@ TEST(StampCut, NeighbourMaskedOwnPixelsNot) {
     const Stamp& s = cut.stamp;
     EXPECT_EQ(s.id, "A");
     EXPECT_FALSE(cut.clipped);
-    EXPECT_EQ(s.image.cols(), stamp_side(d, StampOptions{}));
+    EXPECT_EQ(cut.grown, 0);  // compact: its extent already reaches sky
+    EXPECT_EQ(s.image.cols(), extent_side(d, StampOptions{}));
     EXPECT_EQ(s.image.rows(), s.image.cols());
     // The pixel holding the centroid is the central one.
     EXPECT_EQ(s.x0 + s.image.cols() / 2, int(std::lround(d.x)));
@@ -727,8 +811,9 @@ TEST(StampCut, ClippedAtTheEdge) {
     ASSERT_LT(top.distance, 1.0);
     const Detection& d = r.objects[std::size_t(left.index)];
     const CutStamp cut = cut_stamp(r, d, "L", StampOptions{});
-    const int side = stamp_side(d, StampOptions{});
+    const int side = extent_side(d, StampOptions{});
     EXPECT_TRUE(cut.clipped);
+    EXPECT_EQ(cut.grown, 0);  // its own pixels along the image's edge do not grow it
     EXPECT_EQ(cut.stamp.x0, 1);
     EXPECT_EQ(cut.stamp.image.rows(), side);
     EXPECT_EQ(cut.stamp.image.cols(), int(std::lround(d.x)) + side / 2);
@@ -736,7 +821,21 @@ TEST(StampCut, ClippedAtTheEdge) {
     const CutStamp top_cut = cut_stamp(r, t, "T", StampOptions{});
     EXPECT_TRUE(top_cut.clipped);
     EXPECT_EQ(top_cut.stamp.y0 + top_cut.stamp.image.rows() - 1, 96);
-    EXPECT_EQ(top_cut.stamp.image.cols(), stamp_side(t, StampOptions{}));
+    EXPECT_EQ(top_cut.stamp.image.cols(), extent_side(t, StampOptions{}));
+    // Only the sky margin runs off: the edge costs fit pixels, not the galaxy ("edge" is for
+    // a cut inside the paper's 3a + 5).
+    StampOptions wide;
+    wide.sky_margin = 20;
+    const int paper_half = stamp_side(d, wide) / 2;
+    const int margin_only_x = paper_half + 3;
+    const std::vector<Blob> near{{double(margin_only_x), 50.2, 3000.0, 2.0}};
+    const ImageArray near_image = blobs_image(96, 96, near) + white_noise(96, 96, 1.0, 34);
+    const DetectionResult rn = detect_sources(near_image, nullptr, DetectionOptions{});
+    const Match m = nearest(rn.objects, margin_only_x, 50.2);
+    ASSERT_LT(m.distance, 1.0);
+    const CutStamp margin_cut = cut_stamp(rn, rn.objects[std::size_t(m.index)], "M", wide);
+    EXPECT_EQ(margin_cut.stamp.x0, 1);  // the margin was cut …
+    EXPECT_FALSE(margin_cut.clipped);   // … but not the galaxy
 }
 
 // Weights 4× too large (σ understated 2×) and not rescaled by detect_sources: each stamp's

@@ -59,7 +59,7 @@ void DetectionSettings::declare(ProgramOptions& options, bool image_required) {
          "use the weight map as given (default: scale it to the measured rms)")
         ("gain", po::value(&d.gain)->default_value(0.0)
              ->notifier(in_range("gain", 0.0, 1e30)),
-         "GAIN, e- per image unit, for Poisson errors (0: none)");
+         "GAIN, e- per image unit, for Poisson errors and the stamps' weights (0: none)");
     options.group("Stars").add_options()
         ("psf-fwhm", po::value(&s.psf_fwhm)->value_name("ARCSEC")->default_value(0.15)
              ->notifier(in_range("psf-fwhm", 1e-6, 3600.0)),

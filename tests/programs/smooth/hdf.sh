@@ -1,8 +1,8 @@
 #!/usr/bin/env bash
 # shapesim-smooth on the HDF models (detect → decompose → smooth): one shapesim.morphology/1
-# document whose points are the converged models (or those stopped at the n_max cap, as in the
-# paper) not flagged edge, bright_star or noise; --require converged drops the capped ones; --delta
-# zeroes every λ; the same
+# document whose points are the models not flagged edge, bright_star, noise or bad_fit (whatever
+# stopped their order search); --require 'converged|n_max_cap' is the paper's selection;
+# --delta zeroes every λ; the same
 # input gives the same bytes; bad input gives one clear stderr line and a non-zero exit.
 source "$(dirname "${BASH_SOURCE[0]}")/../lib.sh"
 prog=shapesim-smooth
@@ -15,22 +15,24 @@ hdf_models
 "$BIN/$prog" -q <shapelets.jsonl >again.json || fail "second run failed"
 cmp -s morph.json again.json || fail "two runs differ"
 "$BIN/$prog" -q --delta <shapelets.jsonl >delta.json || fail "--delta failed"
-"$BIN/$prog" -q --require converged <shapelets.jsonl >strict.json || fail "--require converged failed"
+"$BIN/$prog" -q --require 'converged|n_max_cap' <shapelets.jsonl >strict.json ||
+  fail "--require 'converged|n_max_cap' failed"
 python3 - <<'PY' || fail "the morphology documents break the checks"
 import json, math
 records = [json.loads(l) for l in open("shapelets.jsonl")]
-want = [r["id"] for r in records if ("converged" in r["flags"] or "n_max_cap" in r["flags"])
-        and "edge" not in r["flags"]
-        and "bright_star" not in r["flags"] and "noise" not in r["flags"]
+want = [r["id"] for r in records
+        if not {"edge", "bright_star", "noise", "bad_fit"} & set(r["flags"])
         and r.get("mag") is not None
         and r["coeffs"][0][0] > 0]
 m = json.load(open("morph.json"))
 assert m["schema"] == "shapesim.morphology/1", m["schema"]
-assert [p["id"] for p in m["points"]] == want, "points are not the converged, non-edge models"
-capped = [r["id"] for r in records if "n_max_cap" in r["flags"] and "converged" not in r["flags"]]
-assert capped and set(capped) <= set(want), capped  # the cut's brightest galaxy is one
+assert [p["id"] for p in m["points"]] == want, "points are not the unflagged models"
+flattened = [r["id"] for r in records if r["stop"] == "flattened" and r["id"] in want]
+assert flattened, "no noise-limited fit kept: nothing tested"  # the cut's brightest are
+paper = [i for i in want if {"converged", "n_max_cap"} & set(next(r for r in records if r["id"] == i)["flags"])]
 strict = json.load(open("strict.json"))
-assert [p["id"] for p in strict["points"]] == [i for i in want if i not in capped]
+assert [p["id"] for p in strict["points"]] == paper
+assert len(paper) < len(want)
 assert m["n_max"] == max(p["n_max"] for p in m["points"])
 lam = m["lambda"]
 assert lam["phase_deg"] == 15 and lam["beta"] > 0 and lam["mag"] > 0, lam
@@ -48,6 +50,16 @@ assert d["lambda"]["phase_deg"] == 0 and d["lambda"]["beta"] == 0 and d["lambda"
 assert all(v == 0 for v in d["lambda"]["coefficient"])
 assert [p["shape"] for p in d["points"]] == [p["shape"] for p in m["points"]]
 PY
+
+# Capped at n_max 4, the bright galaxies end far above χ²_r 1.5: flagged bad_fit and dropped.
+"$BIN/shapesim-decompose" -q -j 2 --n-max-cap 4 <sources.jsonl >capped.jsonl || fail "decompose --n-max-cap 4 failed"
+"$BIN/$prog" -v <capped.jsonl >capped.json 2>capped.err || fail "smooth of capped fits failed"
+grep -q 'dropped: bad_fit' capped.err || fail "no bad_fit dropped: $(cat capped.err)"
+python3 -c 'import json
+bad = {r["id"] for r in map(json.loads, open("capped.jsonl")) if "bad_fit" in r["flags"]}
+assert bad and all(r["chi2r"] > 1.5 for r in map(json.loads, open("capped.jsonl")) if r["id"] in bad)
+assert not bad & {p["id"] for p in json.load(open("capped.json"))["points"]}, bad' ||
+  fail "bad fits reach the morphology model"
 
 # --k scales every computed λ; overrides win.
 "$BIN/$prog" -q --k 2 --lambda-mag 0.5 <shapelets.jsonl >k2.json || fail "--k 2 failed"
