@@ -20,8 +20,10 @@ namespace po = app::po;
 
 const char* const description =
     "Draw new galaxies from the morphology model by Silverman's bootstrap (a real galaxy\n"
-    "picked at random, every parameter perturbed by an Epanechnikov kernel of its smoothing\n"
-    "length), give each a uniform position, orientation and flip, add stars, and write\n"
+    "picked at random, its magnitude perturbed, the shape of one of the --neighbours real\n"
+    "galaxies nearest that magnitude, every parameter perturbed by an Epanechnikov kernel\n"
+    "of its smoothing length), give each a uniform position, orientation and flip, add\n"
+    "stars, and write\n"
     "shapesim.object/1 records. Every draw comes from the stream of (seed, object), so a\n"
     "tile (--tile) holds exactly the objects of the whole field that reach it.\n"
     "\n"
@@ -67,7 +69,21 @@ int run(int argc, const char* const argv[]) {
         ("mag-limit", po::value(&o.mag_limit)->default_value(29.0)
              ->notifier(in_range("mag-limit", -100.0, 100.0)), "nothing fainter")
         ("zero-point", po::value(&o.zero_point)->notifier(in_range("zero-point", -100.0, 100.0)),
-         "of the output fluxes (default: the model's)");
+         "of the output fluxes (default: the model's)")
+        ("neighbours", po::value(&o.draw.neighbours)->default_value(0)
+             ->notifier(in_range("neighbours", 0, 1000000)),
+         "take each galaxy's shape from one of this many real galaxies nearest to its drawn "
+         "magnitude (no clones at the bright end); 0: the paper's draw, shape and magnitude of "
+         "one parent")
+        ("max-mag-shift", po::value(&o.draw.max_mag_shift)->default_value(2.0)
+             ->notifier(in_range("max-mag-shift", 0.0, 100.0)),
+         "--neighbours only within this many magnitudes of the draw (the nearest always)")
+        ("size-slope", po::value(&o.draw.size_slope)->default_value(0.3)
+             ->notifier(in_range("size-slope", -5.0, 5.0)),
+         "a shape moved to another magnitude has its beta scaled as L^this")
+        ("max-perturbation", po::value(&o.draw.max_perturbation)->default_value(0.5)
+             ->notifier(in_range("max-perturbation", 1e-6, 1e6)),
+         "redraw perturbations changing the shape by more than this fraction, |c'-c|/|c|");
     options.group("Stars").add_options()
         ("star-density", po::value(&o.stars.density)->default_value(0.0)
              ->notifier(in_range("star-density", 0.0, 1e8)), "stars per arcmin^2 (Poisson)")

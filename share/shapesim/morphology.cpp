@@ -356,56 +356,127 @@ const std::vector<PolarIndex>& packed_indices() {
 
 }  // namespace
 
+void DrawOptions::validate() const {
+    if (neighbours < 0) throw Error("must be ≥ 0", "", 0, "neighbours");
+    if (!std::isfinite(size_slope)) throw Error("must be finite", "", 0, "size_slope");
+    if (!(max_mag_shift >= 0.0)) throw Error("must be ≥ 0", "", 0, "max_mag_shift");
+    if (!(max_perturbation > 0.0)) throw Error("must be > 0", "", 0, "max_perturbation");
+}
+
+std::vector<std::size_t> magnitude_order(const Morphology& morphology, double mag_limit) {
+    std::vector<std::size_t> order;
+    for (std::size_t k = 0; k < morphology.points.size(); ++k)
+        if (morphology.points[k].weight > 0.0 && morphology.points[k].mag <= mag_limit)
+            order.push_back(k);
+    std::stable_sort(order.begin(), order.end(), [&](std::size_t a, std::size_t b) {
+        return morphology.points[a].mag < morphology.points[b].mag;
+    });
+    return order;
+}
+
+namespace {
+
+// One of the `k` parents nearest in magnitude to `mag` (`order` sorted by magnitude) that lie
+// within `max_shift` of it (the nearest always qualifies), chosen by the uniform deviate u.
+std::size_t near_in_magnitude(const Morphology& morphology, const std::vector<std::size_t>& order,
+                              double mag, std::size_t k, double max_shift, double u) {
+    k = std::min(k, order.size());
+    const auto at = [&](std::size_t i) { return morphology.points[order[i]].mag; };
+    // [lo, hi) grows from the insertion point towards the nearer side, ties to the brighter.
+    std::size_t hi = std::size_t(
+        std::lower_bound(order.begin(), order.end(), mag,
+                         [&](std::size_t p, double m) { return morphology.points[p].mag < m; }) -
+        order.begin());
+    std::size_t lo = hi;
+    while (hi - lo < k) {
+        if (lo == 0) ++hi;
+        else if (hi == order.size()) --lo;
+        else if (mag - at(lo - 1) <= at(hi) - mag) --lo;
+        else ++hi;
+    }
+    while (hi - lo > 1 && std::max(mag - at(lo), at(hi - 1) - mag) > max_shift) {
+        if (mag - at(lo) > at(hi - 1) - mag) ++lo;
+        else --hi;
+    }
+    k = hi - lo;
+    return order[lo + std::min(k - 1, std::size_t(u * double(k)))];
+}
+
+}  // namespace
+
 DrawnGalaxy draw_galaxy(const Morphology& morphology, const std::vector<double>& parents,
                         RandomStream& stream, double pixel_scale, double zero_point,
-                        double mag_limit) {
+                        double mag_limit, const DrawOptions& draw) {
     DrawnGalaxy g;
     const double u = stream.uniform() * parents.back();
     g.parent = std::size_t(std::upper_bound(parents.begin(), parents.end(), u) - parents.begin());
     g.parent = std::min(g.parent, parents.size() - 1);
     while (g.parent > 0 && parents[g.parent] == parents[g.parent - 1]) --g.parent;  // weight 0
-    const MorphologyPoint& p = morphology.points[g.parent];
+    g.mag_parent = g.parent;
+    const MorphologyPoint& first = morphology.points[g.parent];
     const SmoothingLengths& l = morphology.lambda;
+    const bool delta = l.is_delta();
+    const bool conditional = draw.neighbours > 0 && !delta && !draw.by_magnitude.empty();
     const PolarIndex* index = packed_indices().data();
-    const std::size_t count = p.shape.size();
-    const bool prepared = p.modulus.size() == count && p.phase.size() == count;
-    // Perturbed shape as modulus and phase (m > 0) or value (m = 0); placed at the end.
-    std::vector<double> modulus(count), phase(count);
-    double beta = p.beta, mag = p.mag, sum = 0.0;
     const double lambda_phase = l.phase_deg * degree;
+    // The perturbed shape c' (aligned frame) of the shape parent.
+    std::vector<Complex> shape;
+    double beta = first.beta, mag = first.mag, sum = 0.0, change = 0.0, norm = 0.0;
     constexpr int max_redraws = 1000;
     for (;; ++g.redraws) {
+        const MorphologyPoint* p = &first;
         if (g.redraws == max_redraws) {  // give up perturbing: the parent itself
-            beta = p.beta;
-            mag = p.mag;
+            g.parent = g.mag_parent;
+            beta = first.beta;
+            mag = first.mag;
+            shape = first.shape;
             sum = 0.0;
-            for (std::size_t k = 0; k < count; ++k) {
-                modulus[k] = index[k].m == 0 ? p.shape[k].real() : std::abs(p.shape[k]);
-                phase[k] = index[k].m == 0 ? 0.0 : std::arg(p.shape[k]);
-                if (index[k].m == 0 && index[k].n % 2 == 0) sum += modulus[k];
-            }
+            for (std::size_t k = 0; k < shape.size(); ++k)
+                if (index[k].m == 0 && index[k].n % 2 == 0) sum += shape[k].real();
+            change = 0.0;
             break;
         }
-        beta = p.beta + l.beta * stream.epanechnikov();
-        mag = p.mag + l.mag * stream.epanechnikov();
-        modulus[0] = 1.0;
-        phase[0] = 0.0;
-        sum = 1.0;
-        for (std::size_t k = 1; k < count; ++k) {
-            const Complex c = p.shape[k];
-            if (index[k].m == 0) {
-                modulus[k] = c.real() + l.coefficient[k] * stream.epanechnikov();
-                phase[k] = 0.0;
-                if (index[k].n % 2 == 0) sum += modulus[k];
-            } else {
-                modulus[k] = (prepared ? p.modulus[k] : std::abs(c)) +
-                             l.coefficient[k] * stream.epanechnikov();
-                phase[k] = (prepared ? p.phase[k] : std::arg(c)) +
-                           lambda_phase * stream.epanechnikov();
-            }
+        if (conditional) {
+            mag = first.mag + l.mag * stream.epanechnikov();
+            g.parent = near_in_magnitude(morphology, draw.by_magnitude, mag,
+                                         std::size_t(draw.neighbours), draw.max_mag_shift,
+                                         stream.uniform());
+            p = &morphology.points[g.parent];
+            beta = p->beta * std::pow(10.0, -0.4 * draw.size_slope * (mag - p->mag)) +
+                   l.beta * stream.epanechnikov();
+        } else {
+            beta = p->beta + l.beta * stream.epanechnikov();
+            mag = p->mag + l.mag * stream.epanechnikov();
         }
-        if (beta > 0.0 && sum > 0.0 && mag <= mag_limit) break;
+        const std::size_t count = p->shape.size();
+        const bool prepared = p->modulus.size() == count && p->phase.size() == count;
+        shape.assign(count, Complex(0.0, 0.0));
+        shape[0] = 1.0;
+        sum = 1.0;
+        change = 0.0;
+        norm = 0.0;
+        for (std::size_t k = 0; k < count; ++k) {
+            const Complex c = p->shape[k];
+            norm += std::norm(c);
+            if (k == 0) continue;
+            if (index[k].m == 0) {
+                shape[k] = Complex(c.real() + l.coefficient[k] * stream.epanechnikov(), 0.0);
+                if (index[k].n % 2 == 0) sum += shape[k].real();
+            } else {
+                const double modulus =
+                    (prepared ? p->modulus[k] : std::abs(c)) + l.coefficient[k] * stream.epanechnikov();
+                const double phase =
+                    (prepared ? p->phase[k] : std::arg(c)) + lambda_phase * stream.epanechnikov();
+                // The δ-function PDF keeps the parent's coefficients bit for bit.
+                shape[k] = delta ? c : std::polar(modulus, phase);
+            }
+            change += std::norm(shape[k] - c);
+        }
+        if (beta > 0.0 && sum > 0.0 && mag <= mag_limit &&
+            change <= draw.max_perturbation * draw.max_perturbation * norm)
+            break;
     }
+    const MorphologyPoint& p = morphology.points[g.parent];
     g.mag = mag;
     g.beta = beta;
     g.flux = std::pow(10.0, -0.4 * (mag - zero_point));
@@ -414,31 +485,22 @@ DrawnGalaxy draw_galaxy(const Morphology& morphology, const std::vector<double>&
     g.rotation = stream.angle();
     g.reflected = stream.coin();
     // Reflection about x (a → conj a), then rotation by ρ (a_{n,m} → a_{n,m} e^{−imρ}): one
-    // complex exponential per coefficient. The δ-function PDF (every λ = 0) keeps the parent's
-    // coefficients bit for bit before placement.
-    const bool delta = l.is_delta();
+    // complex exponential per coefficient.
     std::vector<Complex> turn(std::size_t(p.n_max) + 1);  // e^{−imρ} by powers
     const Complex step = std::polar(1.0, -g.rotation);
     turn[0] = 1.0;
     for (std::size_t m = 1; m < turn.size(); ++m) turn[m] = turn[m - 1] * step;
     ShapeletModel model(0.0, 0.0, beta_pix, p.n_max);
-    double norm = 0.0, change = 0.0;
-    for (std::size_t k = 0; k < count; ++k) {
+    for (std::size_t k = 0; k < shape.size(); ++k) {
         const int m = index[k].m;
-        Complex shape;
-        if (m == 0) shape = Complex(modulus[k], 0.0);
-        else if (delta) shape = p.shape[k];
-        else shape = std::polar(modulus[k], phase[k]);
-        norm += std::norm(p.shape[k]);
-        change += std::norm(shape - p.shape[k]);
         if (m == 0) {
-            model.coeffs[k] = a00 * shape;
+            model.coeffs[k] = a00 * shape[k];
         } else {
-            const Complex placed = g.reflected ? std::conj(shape) : shape;
+            const Complex placed = g.reflected ? std::conj(shape[k]) : shape[k];
             model.coeffs[k] = a00 * placed * turn[std::size_t(m)];
         }
     }
-    g.perturbation = std::sqrt(change / norm);
+    g.perturbation = norm > 0.0 ? std::sqrt(change / norm) : 0.0;
     g.model = std::move(model);
     return g;
 }

@@ -28,6 +28,19 @@
 // magnitude (flux = 2√π β_pix a_{0,0} Σ_{n even} c'_{n,0}), then a uniform rotation and a
 // fair-coin reflection. Perturbing c = a/a_{0,0} with a fixed λ is the paper's adaptive
 // kernel: in a the width is a_{0,0}·λ, wider for brighter, rarer galaxies.
+//
+// Conditional on magnitude (DrawOptions::neighbours = K > 0, not in δ mode). The paper's draw
+// copies a parent's shape at its own magnitude, so a field with one bright galaxy fills a
+// large simulation's bright end with copies of it (the HDF cut: all 63 galaxies brighter than
+// I = 22 in 6 arcmin² from one spiral). Here the magnitude is drawn as before (a parent by
+// weight, perturbed by λ_mag: the counts stay the data's, smoothed), and the shape comes from
+// one of the K parents nearest to that magnitude, chosen uniformly: a bright draw picks among
+// the K brightest, so no parent supplies much more than 1/K of them. Only parents within
+// `max_mag_shift` of the drawn magnitude qualify (the nearest always does): a field with one
+// bright galaxy still gives it to most bright draws, and more fields are the cure (a faint
+// galaxy's shape blown up five magnitudes is no bright galaxy). The shape parent's β is
+// scaled to the drawn magnitude by the size–luminosity relation r ∝ L^s
+// (β·10^{−0.4·s·(m − m_parent)}, s = `size_slope`), then perturbed by λ_β.
 #pragma once
 
 #include "shapesim/model.hpp"
@@ -124,24 +137,45 @@ Morphology build_morphology(const std::vector<ShapeletRecord>& records, const Sm
 /// One drawn galaxy, centred at (0, 0), before placement on the sky.
 struct DrawnGalaxy {
     ShapeletModel model;    ///< rotated and reflected, β in pixels of the target scale
-    std::size_t parent = 0; ///< index into Morphology::points
+    std::size_t parent = 0; ///< index into Morphology::points: the shape's parent
+    std::size_t mag_parent = 0;  ///< the parent whose magnitude was perturbed (= parent
+                                 ///< unless drawn conditionally on magnitude)
     double mag = 0.0, flux = 0.0, beta = 0.0;  ///< beta in arcsec
     double rotation = 0.0;  ///< radians, applied after the parent's alignment
     bool reflected = false; ///< reflected about x before the rotation
     double perturbation = 0.0;  ///< ‖c' − c‖/‖c‖ over the shape vector
-    int redraws = 0;        ///< perturbations refused (non-positive flux, β ≤ 0, too faint)
+    int redraws = 0;        ///< perturbations refused (non-positive flux, β ≤ 0, too faint,
+                            ///< too large)
 };
 
 /// Cumulative parent weights for draw_galaxy(), over the points with mag ≤ `mag_limit`.
 /// Throws Error when no point qualifies.
 std::vector<double> parent_table(const Morphology& morphology, double mag_limit);
 
-/// Draw one galaxy from `stream` (parent, perturbation, rotation, reflection — in that order).
-/// Perturbations giving a non-positive flux sum, β ≤ 0 or mag > `mag_limit` are redrawn (at
-/// most 1000 times, then the parent unperturbed).
+/// How draw_galaxy() chooses shapes (see "Conditional on magnitude" above).
+struct DrawOptions {
+    int neighbours = 0;       ///< K; 0: the paper's draw (shape and magnitude of one parent)
+    double size_slope = 0.3;  ///< s in r ∝ L^s when a shape moves to another magnitude
+    double max_mag_shift = 2.0;  ///< only parents this close to the drawn magnitude (and the
+                                 ///< nearest): a shape is not stretched across the field's range
+    /// Perturbations with ‖c' − c‖/‖c‖ above this are redrawn: a shape changed by as much as
+    /// it has is no longer its parent's (nor, often, a galaxy's).
+    double max_perturbation = 0.5;
+    std::vector<std::size_t> by_magnitude;  ///< the parents in magnitude order (magnitude_order)
+    void validate() const;
+};
+
+/// The points parent_table() can draw (weight > 0, mag ≤ `mag_limit`), brightest first (ties
+/// by index).
+std::vector<std::size_t> magnitude_order(const Morphology& morphology, double mag_limit);
+
+/// Draw one galaxy from `stream` (parent, perturbation, rotation, reflection — in that order;
+/// conditional: parent, magnitude, shape parent, the rest). Perturbations giving a
+/// non-positive flux sum, β ≤ 0, mag > `mag_limit` or a perturbation above
+/// `max_perturbation` are redrawn (at most 1000 times, then the parent unperturbed).
 DrawnGalaxy draw_galaxy(const Morphology& morphology, const std::vector<double>& parents,
                         RandomStream& stream, double pixel_scale, double zero_point,
-                        double mag_limit);
+                        double mag_limit, const DrawOptions& draw = DrawOptions{});
 
 /// Radius (pixels) beyond which a model of scale β_pix and order n_max contributes less than
 /// ~1e-6 of its peak: β(√(2 n_max + 1) + 5) — the Gaussian envelope past the basis's last

@@ -70,6 +70,7 @@ void SampleOptions::validate() const {
     if (!std::isfinite(mag_limit)) throw Error("must be finite", "", 0, "mag_limit");
     if (!std::isfinite(zero_point)) throw Error("must be finite", "", 0, "zero_point");
     if (!(margin >= 0.0 && std::isfinite(margin))) throw Error("must be ≥ 0", "", 0, "margin");
+    draw.validate();
     // The star counts matter only when there are stars to draw.
     if (stars.density > 0.0 || (star_count && *star_count > 0)) stars.validate();
 }
@@ -133,6 +134,8 @@ SampleSummary sample_field(const Morphology& morphology, const FieldGeometry& fi
 
     // Galaxies.
     const std::vector<double> parents = parent_table(morphology, options.mag_limit);
+    DrawOptions draw = options.draw;
+    draw.by_magnitude = magnitude_order(morphology, options.mag_limit);
     if (options.count) {
         summary.galaxies = *options.count;
     } else {
@@ -141,8 +144,20 @@ SampleSummary sample_field(const Morphology& morphology, const FieldGeometry& fi
     }
     // No galaxy reaches further than the widest parent, perturbed, at the top order: a tile
     // skips the shape draw of objects beyond that.
+    // A shape moved to another magnitude is scaled by 10^{−0.4 s (m − m_parent)}, m within
+    // [brightest parent − λ_mag, mag_limit].
+    const bool conditional = draw.neighbours > 0 && !morphology.lambda.is_delta();
+    double brightest = options.mag_limit;
+    for (const auto& p : morphology.points) brightest = std::min(brightest, p.mag);
+    brightest -= morphology.lambda.mag;
     double beta_max = 0.0;
-    for (const auto& p : morphology.points) beta_max = std::max(beta_max, p.beta);
+    for (const auto& p : morphology.points) {
+        double scale_up = 1.0;
+        if (conditional)
+            scale_up = std::max(std::pow(10.0, -0.4 * draw.size_slope * (brightest - p.mag)),
+                                std::pow(10.0, -0.4 * draw.size_slope * (options.mag_limit - p.mag)));
+        beta_max = std::max(beta_max, p.beta * scale_up);
+    }
     const double reach_bound =
         model_reach((beta_max + morphology.lambda.beta) / scale, morphology.n_max) + options.margin;
     for (std::uint64_t k = 0; k < summary.galaxies; ++k) {
@@ -151,7 +166,8 @@ SampleSummary sample_field(const Morphology& morphology, const FieldGeometry& fi
         if (tile && !tile->reaches(p.x, p.y, reach_bound)) continue;
         RandomStream stream(options.seed, k, "galaxy");
         const DrawnGalaxy g =
-            draw_galaxy(morphology, parents, stream, scale, options.zero_point, options.mag_limit);
+            draw_galaxy(morphology, parents, stream, scale, options.zero_point, options.mag_limit,
+                        draw);
         const double reach = model_reach(g.model.beta_pix, g.model.n_max) + options.margin;
         if (tile && !tile->reaches(p.x, p.y, reach)) continue;
         summary.redraws += std::uint64_t(g.redraws);
@@ -166,6 +182,7 @@ SampleSummary sample_field(const Morphology& morphology, const FieldGeometry& fi
         o.extra["rotation"] = g.rotation / degree;
         o.extra["reflected"] = g.reflected;
         o.extra["perturbation"] = g.perturbation;
+        if (g.mag_parent != g.parent) o.extra["mag_parent"] = morphology.points[g.mag_parent].id;
         o.extra["reach"] = reach;
         emit(o);
         ++summary.galaxies_out;

@@ -53,6 +53,8 @@ struct SampleOptions {
     double mag_limit = 29.0;           ///< nothing fainter
     double zero_point = 0.0;           ///< of the output fluxes
     double margin = 0.0;               ///< pixels added to every reach (PSF, …)
+    /// Shapes conditional on magnitude (morphology.hpp; `by_magnitude` is filled here).
+    DrawOptions draw{0, 0.3, 2.0, 0.5, {}};
     StarCounts stars;
     std::optional<std::uint64_t> star_count;
     void validate() const;
@@ -102,8 +104,9 @@ private:
 
 /// Draw the field's objects and call `emit` for each one in the tile (all, without one),
 /// galaxies first, each kind in order of its number. Records carry x, y (field pixels), ra,
-/// dec, mag, flux, β, n_max, coefficients at the field's pixel scale, `parent`, and extra
-/// `rotation` (degrees), `reflected`, `perturbation`, `reach` (pixels, with the margin).
+/// dec, mag, flux, β, n_max, coefficients at the field's pixel scale, `parent` (the shape's),
+/// and extra `rotation` (degrees), `reflected`, `perturbation`, `reach` (pixels, with the
+/// margin) and, when the shape came from another parent than the magnitude, `mag_parent`.
 SampleSummary sample_field(const Morphology& morphology, const FieldGeometry& field,
                            const SampleOptions& options, const std::optional<Tile>& tile,
                            const std::function<void(const ObjectRecord&)>& emit);

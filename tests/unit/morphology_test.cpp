@@ -12,6 +12,7 @@
 #include <algorithm>
 #include <cmath>
 #include <iostream>
+#include <map>
 
 using namespace shapesim;
 
@@ -253,4 +254,120 @@ TEST(Morphology, ParentTableHonoursLimitAndWeights) {
     EXPECT_EQ(counts[1], 0);
     EXPECT_NEAR(counts[2] / double(counts[0]), 3.0, 0.3);
     EXPECT_THROW(parent_table(morph, 20.0), Error);
+}
+
+// =============================================================================================
+// Drawing conditional on magnitude (DrawOptions::neighbours).
+
+namespace {
+
+// 40 parents at I = 20, 20.25, …, 29.75, each a distinct random model with β = 0.1″.
+Morphology ladder() {
+    std::vector<ShapeletRecord> records;
+    for (int i = 0; i < 40; ++i) {
+        ShapeletModel m = test::random_model(2, 2.5, 0.0, 0.0, 100 + i, true, 0.3);
+        m.coeffs[0] = 5.0;
+        records.push_back(record_of(m, "p" + std::to_string(i), 20.0 + 0.25 * i));
+    }
+    Morphology morph = build_morphology(records, SmoothOptions{});
+    for (auto& c : morph.lambda.coefficient) c = 0.0;
+    morph.lambda.beta = 0.0;
+    morph.lambda.mag = 0.3;
+    return morph;
+}
+
+}  // namespace
+
+// The shape comes from one of the K parents nearest the drawn magnitude, uniformly: among the
+// draws brighter than 21 no parent supplies much more than 1/K = 0.125 (measured 0.13; the
+// paper's draw copies the magnitude parent, p0 … p3 at I = 20 … 20.75: 0.23). β follows the drawn magnitude as
+// L^s exactly when λ_β = 0.
+TEST(MorphologyConditional, BrightDrawsSpreadOverTheNearestParents) {
+    const Morphology morph = ladder();
+    const std::vector<double> parents = parent_table(morph, 99.0);
+    DrawOptions draw;
+    draw.neighbours = 8;
+    draw.by_magnitude = magnitude_order(morph, 99.0);
+    ASSERT_EQ(draw.by_magnitude.size(), 40u);
+    std::map<std::size_t, int> conditional, paper;
+    int bright = 0;
+    for (int i = 0; i < 40000; ++i) {
+        RandomStream a(3, std::uint64_t(i), "galaxy"), b(3, std::uint64_t(i), "galaxy");
+        const DrawnGalaxy g = draw_galaxy(morph, parents, a, 0.04, 25.0, 99.0, draw);
+        const DrawnGalaxy h = draw_galaxy(morph, parents, b, 0.04, 25.0, 99.0);
+        const MorphologyPoint& p = morph.points[g.parent];
+        EXPECT_LE(std::abs(p.mag - g.mag), 8 * 0.25 + 1e-9);  // one of the 8 nearest
+        EXPECT_NEAR(g.beta, p.beta * std::pow(10.0, -0.4 * 0.3 * (g.mag - p.mag)),
+                    1e-12 * p.beta);
+        EXPECT_EQ(h.parent, h.mag_parent);
+        if (g.mag < 21.0) {
+            ++bright;
+            ++conditional[g.parent];
+        }
+        if (h.mag < 21.0) ++paper[h.parent];
+    }
+    int largest = 0, largest_paper = 0;
+    for (const auto& [k, n] : conditional) largest = std::max(largest, n);
+    for (const auto& [k, n] : paper) largest_paper = std::max(largest_paper, n);
+    std::cout << "  [measured] draws brighter than 21: " << bright << ", largest share "
+              << double(largest) / bright << " (paper's draw " << double(largest_paper) / bright
+              << ")\n";
+    ASSERT_GT(bright, 1000);
+    EXPECT_GE(conditional.size(), 8u);
+    EXPECT_LT(double(largest) / bright, 0.16);       // 1/8 and its noise
+    EXPECT_GT(double(largest_paper) / bright, 0.2);  // p0 … p3 share the paper's bright draws
+}
+
+// Only parents within max_mag_shift qualify (the nearest always): with parents at 20 and 25
+// alone a bright draw keeps the bright one. In δ mode the draw is the paper's.
+TEST(MorphologyConditional, ShiftLimitAndDeltaMode) {
+    const ShapeletModel m = test::random_model(2, 2.0, 0.0, 0.0, 1);
+    Morphology morph =
+        build_morphology({record_of(m, "bright", 20.0), record_of(m, "faint", 25.0)}, SmoothOptions{});
+    morph.lambda.mag = 0.2;
+    const std::vector<double> parents = parent_table(morph, 99.0);
+    DrawOptions draw;
+    draw.neighbours = 8;
+    draw.by_magnitude = magnitude_order(morph, 99.0);
+    for (int i = 0; i < 2000; ++i) {
+        RandomStream stream(4, std::uint64_t(i), "galaxy");
+        const DrawnGalaxy g = draw_galaxy(morph, parents, stream, 0.04, 25.0, 99.0, draw);
+        EXPECT_EQ(g.parent, g.mag_parent) << i;
+    }
+    SmoothOptions delta;
+    delta.delta = true;
+    const Morphology d = build_morphology({record_of(m, "a", 20.0), record_of(m, "b", 20.5)}, delta);
+    DrawOptions draw_d = draw;
+    draw_d.by_magnitude = magnitude_order(d, 99.0);
+    const std::vector<double> pd = parent_table(d, 99.0);
+    for (int i = 0; i < 200; ++i) {
+        RandomStream a(5, std::uint64_t(i), "galaxy"), b(5, std::uint64_t(i), "galaxy");
+        const DrawnGalaxy g = draw_galaxy(d, pd, a, 0.04, 25.0, 99.0, draw_d);
+        const DrawnGalaxy h = draw_galaxy(d, pd, b, 0.04, 25.0, 99.0);
+        EXPECT_EQ(g.parent, h.parent);
+        EXPECT_EQ(g.model.coeffs, h.model.coeffs);  // bit for bit
+    }
+    draw.max_mag_shift = -1.0;
+    EXPECT_THROW(draw.validate(), Error);
+}
+
+// No draw changes its shape by more than max_perturbation; larger ones are redrawn.
+TEST(MorphologyConditional, LargePerturbationsAreRedrawn) {
+    const ShapeletModel m = test::random_model(4, 2.0, 0.0, 0.0, 7, true, 0.3);
+    Morphology morph = build_morphology({record_of(m, "a", 25.0)}, SmoothOptions{});
+    for (std::size_t k = 1; k < morph.lambda.coefficient.size(); ++k) morph.lambda.coefficient[k] = 0.2;
+    const std::vector<double> parents = parent_table(morph, 99.0);
+    DrawOptions draw;
+    draw.max_perturbation = 0.3;
+    long redraws = 0;
+    double largest = 0.0;
+    for (int i = 0; i < 2000; ++i) {
+        RandomStream stream(6, std::uint64_t(i), "galaxy");
+        const DrawnGalaxy g = draw_galaxy(morph, parents, stream, 0.04, 25.0, 99.0, draw);
+        redraws += g.redraws;
+        largest = std::max(largest, g.perturbation);
+    }
+    std::cout << "  [measured] redraws " << redraws << ", largest perturbation " << largest << "\n";
+    EXPECT_GT(redraws, 0);
+    EXPECT_LE(largest, 0.3);
 }

@@ -112,6 +112,27 @@ rc=0; "$BIN/$prog" --area 1 >out 2>err || rc=$?
 expect_error "$rc" 2 'MODEL'
 
 # Bad input.
+# Shapes conditional on magnitude: a 6 arcmin² field's bright end no longer copies one parent
+# alone (the summary's largest share at I < 22 falls), tiles still reproduce the field, and a
+# shape taken from another parent than the magnitude names both.
+"$BIN/$prog" morph.json --area 6 --pixel-scale 0.03985 --seed 7 >paper6.jsonl 2>paper6.err ||
+  fail "6 arcmin² failed"
+"$BIN/$prog" morph.json --area 6 --pixel-scale 0.03985 --seed 7 --neighbours 16 \
+  >cond6.jsonl 2>cond6.err || fail "--neighbours 16 failed"
+python3 - <<'PY' || fail "--neighbours does not spread the bright end: $(cat paper6.err cond6.err)"
+import json, re
+def share(path):  # "I < 22: 43/63 from 117"
+    m = re.search(r"I < 22: (\d+)/(\d+)", open(path).read())
+    return int(m.group(1)) / int(m.group(2))
+assert share("cond6.err") < share("paper6.err"), (share("cond6.err"), share("paper6.err"))
+rows = [json.loads(l) for l in open("cond6.jsonl")]
+moved = [r for r in rows if "mag_parent" in r]
+assert moved and all(r["mag_parent"] != r["parent"] for r in moved)
+assert all(r["perturbation"] <= 0.5 for r in rows if r["kind"] == "galaxy")
+PY
+rc=0; "$BIN/$prog" morph.json --area 1 --neighbours -1 >out 2>err || rc=$?
+expect_error "$rc" 2 'neighbours'
+
 rc=0; "$BIN/$prog" nosuch.json --area 1 >out 2>err || rc=$?
 expect_error "$rc" 1 'nosuch.json: cannot open'
 rc=0; "$BIN/$prog" shapelets.jsonl --area 1 >out 2>err || rc=$?
