@@ -10,6 +10,7 @@
 #include "shapesim/geometry.hpp"
 #include "shapesim/jsonl.hpp"
 #include "shapesim/parallel.hpp"
+#include "shapesim/polar.hpp"
 #include "shapesim/psf.hpp"
 #include "shapesim/records.hpp"
 
@@ -42,7 +43,7 @@ const char* const description =
 
 struct Settings {
     std::string stamps, models, ids, stars;
-    std::string psf_image;
+    std::string psf_image, psf;
     double psf_pixel_scale = 0.0, pixel_scale = 0.0, psf_residual = 0.01;
     std::vector<double> psf_box;
     int psf_stamp = 41, psf_n_max_cap = 20;
@@ -62,7 +63,11 @@ void declare(app::ProgramOptions& options, Settings& s) {
          "stamps file (default: each record's stamp_file)")
         ("stars", po::value(&s.stars)->value_name("FILE"),
          "star records (shapesim-detect --stars): flag galaxies whose model reaches a "
-         "brighter star's wings \"bright_star\"");
+         "brighter star's wings \"bright_star\"")
+        ("psf", po::value(&s.psf)->value_name("FILE"),
+         "fit each galaxy's intrinsic model through this PSF (a record of the PSF mode below; "
+         "forward modelling): the records are marked \"frame\": \"intrinsic\" and "
+         "shapesim-render convolves them with its --psf");
     options.group("Optimiser").add_options()
         ("n-max-cap", po::value(&f.n_max_cap)->default_value(15)
              ->notifier(in_range("n-max-cap", 0, 100)), "highest n_max")
@@ -125,6 +130,7 @@ struct Job {
     std::optional<double> zero_point;  // absent or null: no magnitudes
     double noise_correlation = 1.0;
     long line = 0;
+    std::optional<CartesianModel> psf;  // --psf at this record's pixel scale
 };
 
 struct Outcome {
@@ -192,6 +198,7 @@ int run(int argc, const char* const argv[]) {
     JsonlReader reader(s.input, {SourceRecord::schema});
     std::map<std::string, std::unique_ptr<FitsReader>> stamp_files;
     std::vector<Job> jobs;
+    std::map<double, std::optional<CartesianModel>> psfs;  // --psf by pixel scale, read once
     SourceRecord source;
     // Field errors from the record's extra fields, placed at the reader's file and line.
     const auto placed = [&](const auto& read) {
@@ -236,6 +243,11 @@ int run(int argc, const char* const argv[]) {
             return *v;
         });
         job.zero_point = placed([&] { return optional_double(source.extra, "zero_point"); });
+        if (!s.psf.empty()) {
+            auto& at_scale = psfs[job.pixel_scale];
+            if (!at_scale) at_scale = to_cartesian(read_psf_model(s.psf, job.pixel_scale));
+            job.psf = at_scale;
+        }
         job.source = source;
         jobs.push_back(std::move(job));
     }
@@ -249,6 +261,7 @@ int run(int argc, const char* const argv[]) {
         try {
             DecomposeOptions fit = s.fit;
             fit.noise_correlation = job.noise_correlation;
+            fit.psf = job.psf;
             MaskArray mask = (job.stamp.mask != 0.0).cast<std::uint8_t>();
             const double x = job.source.x - (job.stamp.x0 - 1);
             const double y = job.source.y - (job.stamp.y0 - 1);
@@ -256,7 +269,8 @@ int run(int argc, const char* const argv[]) {
             out.decomposition = decompose(job.stamp.image, job.stamp.weight, &mask, x, y,
                                           beta, fit);
             out.record = shapelet_record(job.source, *out.decomposition, job.stamp,
-                                         job.pixel_scale, job.zero_point);
+                                         job.pixel_scale, job.zero_point,
+                                         job.psf ? &*job.psf : nullptr);
             const ShapeletModel& m = out.decomposition->fit.model;
             if (near_bright_star(out.record->x, out.record->y,
                                  m.beta_pix * std::sqrt(m.n_max + 1.0), job.source.flux,

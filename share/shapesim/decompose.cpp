@@ -1,5 +1,6 @@
 #include "shapesim/decompose.hpp"
 
+#include "shapesim/convolve.hpp"
 #include "shapesim/error.hpp"
 #include "shapesim/jsonl.hpp"
 #include "shapesim/model.hpp"
@@ -38,6 +39,15 @@ double effective_chi2r(const ShapeletFit& fit, double noise_correlation) {
     return fit.chi2 / effective_dof(fit, noise_correlation);
 }
 
+ShapeletFit fit_model(const ImageArray& image, const ImageArray& weight, const MaskArray* mask,
+                      double x, double y, double beta_pix, int n_max,
+                      const DecomposeOptions& options) {
+    if (options.psf)
+        return fit_convolved_shapelets(image, weight, mask, x, y, beta_pix, n_max, *options.psf,
+                                       options.solver);
+    return fit_shapelets(image, weight, mask, x, y, beta_pix, n_max, options.solver);
+}
+
 double noise_uptake(int from, int to, const DecomposeOptions& options) {
     const double extra = double(real_count(to) - real_count(from));
     const double f2 = options.noise_correlation * options.noise_correlation;
@@ -66,7 +76,7 @@ public:
         ++fits_;
         try {
             ShapeletFit fit =
-                fit_shapelets(image_, weight_, mask_, x, y, beta, n_max_, options_.solver);
+                fit_model(image_, weight_, mask_, x, y, beta, n_max_, options_);
             const double chi2r = effective_chi2r(fit, options_.noise_correlation);
             if (!std::isfinite(chi2r)) return infinite;
             if (chi2r < best_chi2r_) {
@@ -257,10 +267,10 @@ Decomposition decompose(const ImageArray& image, const ImageArray& weight, const
     constexpr double h = 0.05;
     try {
         const ShapeletModel& m = out.fit.model;
-        const ShapeletFit lo = fit_shapelets(image, weight, mask, m.x, m.y, m.beta_pix * std::exp(-h),
-                                             m.n_max, options.solver);
-        const ShapeletFit hi = fit_shapelets(image, weight, mask, m.x, m.y, m.beta_pix * std::exp(h),
-                                             m.n_max, options.solver);
+        const ShapeletFit lo =
+            fit_model(image, weight, mask, m.x, m.y, m.beta_pix * std::exp(-h), m.n_max, options);
+        const ShapeletFit hi =
+            fit_model(image, weight, mask, m.x, m.y, m.beta_pix * std::exp(h), m.n_max, options);
         out.fits += 2;
         const double curvature = (lo.chi2 + hi.chi2 - 2.0 * out.fit.chi2) / (h * h);
         const double slope = (flux(hi.model) - flux(lo.model)) / (2.0 * h);
@@ -277,8 +287,8 @@ Decomposition decompose(const ImageArray& image, const ImageArray& weight, const
     // least-squares fits: Var(F' − F) = σ'² − σ²).
     try {
         const ShapeletModel& m = out.fit.model;
-        const ShapeletFit up = fit_shapelets(image, weight, mask, m.x, m.y, m.beta_pix,
-                                             m.n_max + truncation_orders, options.solver);
+        const ShapeletFit up = fit_model(image, weight, mask, m.x, m.y, m.beta_pix,
+                                         m.n_max + truncation_orders, options);
         ++out.fits;
         const double change = flux(up.model) - flux(m);
         const double up_error = flux_error(up);
@@ -329,12 +339,17 @@ double masked_fraction(const Stamp& stamp, double x, double y, double radius) {
 
 ShapeletRecord shapelet_record(const SourceRecord& source, const Decomposition& decomposition,
                                const Stamp& stamp, double pixel_scale,
-                               std::optional<double> zero_point) {
+                               std::optional<double> zero_point, const CartesianModel* psf) {
     const ShapeletFit& fit = decomposition.fit;
     ShapeletModel model = fit.model;
     model.x += stamp.x0 - 1;
     model.y += stamp.y0 - 1;
     ShapeletRecord r = ShapeletRecord::from_model(model, pixel_scale, source.id);
+    if (psf) {
+        r.extra["frame"] = "intrinsic";
+        r.extra["psf_beta"] = psf->beta_pix * pixel_scale;
+        r.extra["psf_n_max"] = psf->n_max;
+    }
     r.chi2r = decomposition.chi2r;
     if (zero_point && r.flux && *r.flux > 0.0)
         r.mag = *zero_point - 2.5 * std::log10(*r.flux);

@@ -57,6 +57,11 @@ struct DecomposeOptions {
     double bad_fit_chi2r = 1.5;    ///< a kept fit above this χ²_r is flagged "bad_fit"
     double noise_correlation = 1.0;///< F for the effective degrees of freedom (see above)
     LsqSolver solver = LsqSolver::automatic;
+    /// With a PSF (unit flux, the stamp's pixels) every fit is of the intrinsic model through
+    /// it (lsq.hpp fit_convolved_shapelets): β, n_max, centre and the constraints are the
+    /// intrinsic model's, χ² that of its convolution. Without one, the observed-frame model
+    /// (the paper's choice).
+    std::optional<CartesianModel> psf;
 
     /// Throws Error (field named) when a value is out of range.
     void validate() const;
@@ -86,6 +91,10 @@ struct Decomposition {
 
 /// Orders above the chosen n_max fitted to estimate the truncation error of the flux.
 constexpr int truncation_orders = 4;
+/// One fit at (x, y, β, n_max): through `options.psf` when given, else the plain fit.
+ShapeletFit fit_model(const ImageArray& image, const ImageArray& weight, const MaskArray* mask,
+                      double x, double y, double beta_pix, int n_max,
+                      const DecomposeOptions& options);
 /// Effective degrees of freedom of `fit`: pixels − p·F² (≥ 1).
 double effective_dof(const ShapeletFit& fit, double noise_correlation);
 /// χ²_r of `fit` with those degrees of freedom.
@@ -127,10 +136,13 @@ double flux_error(const ShapeletFit& fit);
 ///    caller's: it needs the star list.)
 ///  - the source's fields are carried through; those the schema reuses (x, y, flux, flux_err,
 ///    mag, flags, …) as `source_x`, `source_flux`, `source_flags`, ….
-/// Without a zero point (absent or null in the source record) `mag` is left out.
+/// Without a zero point (absent or null in the source record) `mag` is left out. A model fitted
+/// through `psf` (DecomposeOptions::psf) is intrinsic: "frame": "intrinsic", with the PSF's
+/// `psf_beta` (arcsec) and `psf_n_max`.
 ShapeletRecord shapelet_record(const SourceRecord& source, const Decomposition& decomposition,
                                const Stamp& stamp, double pixel_scale,
-                               std::optional<double> zero_point);
+                               std::optional<double> zero_point,
+                               const CartesianModel* psf = nullptr);
 
 /// Whether a star brighter than the galaxy lies close enough for its wings to touch the
 /// galaxy's model: the star's circle of twice its Kron radius (kron_radius·a, or 1.5·FWHM when

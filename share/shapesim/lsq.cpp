@@ -1,6 +1,7 @@
 #include "shapesim/lsq.hpp"
 
 #include "shapesim/basis1d.hpp"
+#include "shapesim/convolve.hpp"
 #include "shapesim/error.hpp"
 #include "shapesim/polar.hpp"
 #include "shapesim/render.hpp"
@@ -46,9 +47,14 @@ struct Solution {
     Eigen::MatrixXd cov_cart;  // their covariance
 };
 
-// Normal equations built separably (see lsq.hpp), LDLT solve; empty when ill-conditioned.
-std::optional<Solution> solve_normal(const CleanStamp& s, const Eigen::MatrixXd& phi_x,
-                                     const Eigen::MatrixXd& phi_y, int n_max, bool required) {
+// The normal equations AᵀWA c = AᵀW I, built separably (see lsq.hpp).
+struct NormalSystem {
+    Eigen::MatrixXd normal;
+    Eigen::VectorXd rhs;
+};
+
+NormalSystem normal_system(const CleanStamp& s, const Eigen::MatrixXd& phi_x,
+                           const Eigen::MatrixXd& phi_y, int n_max) {
     const int nb = n_max + 1, nx = int(phi_x.cols()), ny = int(phi_y.cols());
     Eigen::MatrixXd x2(nb * nb, nx), y2(nb * nb, ny);  // products Φ(n,·)Φ(m,·)
     for (int n = 0; n < nb; ++n)
@@ -59,26 +65,33 @@ std::optional<Solution> solve_normal(const CleanStamp& s, const Eigen::MatrixXd&
     const Eigen::MatrixXd h = (x2 * s.weight.transpose()) * y2.transpose();
     const Eigen::MatrixXd rhs_b = phi_x * s.image.cwiseProduct(s.weight).transpose() * phi_y.transpose();
     const int nc = real_count(n_max);
-    Eigen::MatrixXd normal(nc, nc);
-    Eigen::VectorXd rhs(nc);
+    NormalSystem system{Eigen::MatrixXd(nc, nc), Eigen::VectorXd(nc)};
     for (int n = 0; n <= n_max; ++n)
         for (int n1 = 0; n1 <= n; ++n1) {
             const int row = cartesian_index(n1, n - n1);
-            rhs(row) = rhs_b(n1, n - n1);
+            system.rhs(row) = rhs_b(n1, n - n1);
             for (int m = 0; m <= n_max; ++m)
                 for (int m1 = 0; m1 <= m; ++m1)
-                    normal(row, cartesian_index(m1, m - m1)) = h(n1 * nb + m1, (n - n1) * nb + (m - m1));
+                    system.normal(row, cartesian_index(m1, m - m1)) =
+                        h(n1 * nb + m1, (n - n1) * nb + (m - m1));
         }
-    Eigen::LDLT<Eigen::MatrixXd> ldlt(normal);
-    if (!required && (ldlt.info() != Eigen::Success || !(ldlt.rcond() > 1e-10))) return std::nullopt;
-    return Solution{ldlt.solve(rhs), ldlt.solve(Eigen::MatrixXd::Identity(nc, nc))};
+    return system;
 }
 
-// Column-pivoting QR of the weighted design matrix; throws when rank-deficient.
+// LDLT solve of the normal equations; empty when ill-conditioned (unless `required`).
+std::optional<Solution> solve_normal(const NormalSystem& system, bool required) {
+    const Eigen::Index nc = system.normal.rows();
+    Eigen::LDLT<Eigen::MatrixXd> ldlt(system.normal);
+    if (!required && (ldlt.info() != Eigen::Success || !(ldlt.rcond() > 1e-10))) return std::nullopt;
+    return Solution{ldlt.solve(system.rhs), ldlt.solve(Eigen::MatrixXd::Identity(nc, nc))};
+}
+
+// Column-pivoting QR of the weighted design matrix (times `transform` when given: the
+// coefficients fitted are transform's columns); throws when rank-deficient.
 Solution solve_qr(const CleanStamp& s, const Eigen::MatrixXd& phi_x, const Eigen::MatrixXd& phi_y,
-                  int n_max) {
-    const int nc = real_count(n_max);
-    Eigen::MatrixXd design(s.used, nc);
+                  int n_max, const Eigen::MatrixXd* transform = nullptr) {
+    const int nb = real_count(n_max);
+    Eigen::MatrixXd basis(s.used, nb);
     Eigen::VectorXd rhs(s.used);
     long r = 0;
     for (Eigen::Index j = 0; j < s.weight.rows(); ++j)
@@ -87,9 +100,11 @@ Solution solve_qr(const CleanStamp& s, const Eigen::MatrixXd& phi_x, const Eigen
             const double sw = std::sqrt(s.weight(j, i));
             for (int n = 0; n <= n_max; ++n)
                 for (int n1 = 0; n1 <= n; ++n1)
-                    design(r, cartesian_index(n1, n - n1)) = sw * phi_x(n1, i) * phi_y(n - n1, j);
+                    basis(r, cartesian_index(n1, n - n1)) = sw * phi_x(n1, i) * phi_y(n - n1, j);
             rhs(r++) = sw * s.image(j, i);
         }
+    const Eigen::MatrixXd design = transform ? Eigen::MatrixXd(basis * *transform) : basis;
+    const Eigen::Index nc = design.cols();
     Eigen::ColPivHouseholderQR<Eigen::MatrixXd> qr(design);
     if (qr.rank() < nc)
         throw Error("the pixels do not constrain every coefficient (rank " +
@@ -102,46 +117,89 @@ Solution solve_qr(const CleanStamp& s, const Eigen::MatrixXd& phi_x, const Eigen
     const auto& p = qr.colsPermutation();
     return Solution{qr.solve(rhs), p * (r_inverse * r_inverse.transpose()) * p.transpose()};
 }
+
+// The fit's polar model, covariance, images and χ² from a Cartesian solution; `observed` is
+// the Cartesian model whose image the data are compared with.
+ShapeletFit finish_fit(const ImageArray& image, const CleanStamp& s, const Solution& sol,
+                       double x, double y, double beta_pix, int n_max,
+                       const CartesianModel& observed) {
+    ShapeletFit fit;
+    // B cov Bᵀ with B the (block-diagonal) Cartesian → real parameter map.
+    constexpr BasisChange to_real = BasisChange::cartesian_to_real;
+    fit.model = ShapeletModel(x, y, beta_pix, n_max);
+    set_real_parameters(fit.model, change_basis_rows(to_real, sol.cart, n_max));
+    fit.covariance = change_basis_rows(
+        to_real, change_basis_rows(to_real, sol.cov_cart, n_max).transpose(), n_max);
+    const int nx = int(image.cols()), ny = int(image.rows());
+    fit.model_image = render_stamp(observed, nx, ny);
+    fit.residual = image - fit.model_image;
+    fit.chi2 = (s.weight.array() * (s.image.array() - fit.model_image).square()).sum();
+    fit.pixels_used = s.used;
+    fit.dof = s.used - real_count(n_max);
+    fit.chi2r = fit.chi2 / double(fit.dof);
+    return fit;
+}
+
+void check_fit_inputs(int n_max, double beta_pix) {
+    require(n_max >= 0, "fit_shapelets: n_max must be >= 0");
+    if (!(beta_pix > 0.0) || !std::isfinite(beta_pix))
+        throw Error("must be finite and > 0, got " + std::to_string(beta_pix), {}, 0, "beta");
+}
+
+void check_pixels(const CleanStamp& s, int n_max) {
+    const int nc = real_count(n_max);
+    if (s.used <= nc)
+        throw Error(std::to_string(s.used) + " usable pixels for " + std::to_string(nc) +
+                    " coefficients (n_max " + std::to_string(n_max) + ")");
+}
 }  // namespace
 
 ShapeletFit fit_shapelets(const ImageArray& image, const ImageArray& weight,
                           const MaskArray* mask, double x, double y, double beta_pix,
                           int n_max, LsqSolver solver) {
-    require(n_max >= 0, "fit_shapelets: n_max must be >= 0");
-    if (!(beta_pix > 0.0) || !std::isfinite(beta_pix))
-        throw Error("must be finite and > 0, got " + std::to_string(beta_pix), {}, 0, "beta");
+    check_fit_inputs(n_max, beta_pix);
     const CleanStamp s = clean_stamp(image, weight, mask);
-    const int nc = real_count(n_max);
-    if (s.used <= nc)
-        throw Error(std::to_string(s.used) + " usable pixels for " + std::to_string(nc) +
-                    " coefficients (n_max " + std::to_string(n_max) + ")");
-
+    check_pixels(s, n_max);
     const int nx = int(image.cols()), ny = int(image.rows());
     const Eigen::MatrixXd phi_x = pixel_basis_1d(n_max, beta_pix, 1.0 - x, nx);
     const Eigen::MatrixXd phi_y = pixel_basis_1d(n_max, beta_pix, 1.0 - y, ny);
     std::optional<Solution> sol;
     if (solver != LsqSolver::qr)
-        sol = solve_normal(s, phi_x, phi_y, n_max, solver == LsqSolver::normal);
-    ShapeletFit fit;
-    fit.solver_used = sol ? LsqSolver::normal : LsqSolver::qr;
+        sol = solve_normal(normal_system(s, phi_x, phi_y, n_max), solver == LsqSolver::normal);
+    const LsqSolver used = sol ? LsqSolver::normal : LsqSolver::qr;
     if (!sol) sol = solve_qr(s, phi_x, phi_y, n_max);
+    CartesianModel observed(x, y, beta_pix, n_max);
+    observed.b = unpack_cartesian(sol->cart, n_max);
+    ShapeletFit fit = finish_fit(image, s, *sol, x, y, beta_pix, n_max, observed);
+    fit.solver_used = used;
+    return fit;
+}
 
-    // B cov Bᵀ with B the (block-diagonal) Cartesian → real parameter map.
-    constexpr BasisChange to_real = BasisChange::cartesian_to_real;
-    fit.model = ShapeletModel(x, y, beta_pix, n_max);
-    set_real_parameters(fit.model, change_basis_rows(to_real, sol->cart, n_max));
-    fit.covariance = change_basis_rows(
-        to_real, change_basis_rows(to_real, sol->cov_cart, n_max).transpose(), n_max);
-
-    // Model and residual images; χ² from the residuals of the used pixels.
-    CartesianModel cart_model(x, y, beta_pix, n_max);
-    cart_model.b = unpack_cartesian(sol->cart, n_max);
-    fit.model_image = render_stamp(cart_model, nx, ny);
-    fit.residual = image - fit.model_image;
-    fit.chi2 = (s.weight.array() * (s.image.array() - fit.model_image).square()).sum();
-    fit.pixels_used = s.used;
-    fit.dof = s.used - nc;
-    fit.chi2r = fit.chi2 / double(fit.dof);
+ShapeletFit fit_convolved_shapelets(const ImageArray& image, const ImageArray& weight,
+                                    const MaskArray* mask, double x, double y, double beta_pix,
+                                    int n_max, const CartesianModel& psf, LsqSolver solver) {
+    check_fit_inputs(n_max, beta_pix);
+    const CleanStamp s = clean_stamp(image, weight, mask);
+    check_pixels(s, n_max);
+    const int n_out = n_max + psf.n_max;
+    const double gamma = convolved_beta(beta_pix, psf.beta_pix);
+    const Eigen::MatrixXd transform = cartesian_convolution_matrix(psf, beta_pix, n_max);
+    const int nx = int(image.cols()), ny = int(image.rows());
+    const Eigen::MatrixXd phi_x = pixel_basis_1d(n_out, gamma, 1.0 - x, nx);
+    const Eigen::MatrixXd phi_y = pixel_basis_1d(n_out, gamma, 1.0 - y, ny);
+    std::optional<Solution> sol;
+    if (solver != LsqSolver::qr) {
+        const NormalSystem full = normal_system(s, phi_x, phi_y, n_out);
+        const NormalSystem system{transform.transpose() * full.normal * transform,
+                                  transform.transpose() * full.rhs};
+        sol = solve_normal(system, solver == LsqSolver::normal);
+    }
+    const LsqSolver used = sol ? LsqSolver::normal : LsqSolver::qr;
+    if (!sol) sol = solve_qr(s, phi_x, phi_y, n_out, &transform);
+    CartesianModel observed(x, y, gamma, n_out);
+    observed.b = unpack_cartesian(transform * sol->cart, n_out);
+    ShapeletFit fit = finish_fit(image, s, *sol, x, y, beta_pix, n_max, observed);
+    fit.solver_used = used;
     return fit;
 }
 

@@ -57,4 +57,16 @@ ShapeletFit fit_shapelets(const ImageArray& image, const ImageArray& weight,
                           const MaskArray* mask, double x, double y, double beta_pix, int n_max,
                           LsqSolver solver = LsqSolver::automatic);
 
+/// Forward modelling through a PSF (the stable form of the paper's §2.3 deconvolution): the
+/// *intrinsic* model of scale beta_pix and order n_max whose convolution with `psf` (unit
+/// flux, field pixels; convolve.hpp) best fits the image. The design matrix is the
+/// pixel-integrated basis at γ = √(β² + b²), order n_max + psf.n_max, times the exact
+/// convolution map (convolve.hpp cartesian_convolution_matrix), so the unknowns stay the
+/// intrinsic coefficients. `model`, `covariance` and `dof` are the intrinsic model's;
+/// `model_image`, `residual` and χ² are of its convolution, what the data are compared with.
+ShapeletFit fit_convolved_shapelets(const ImageArray& image, const ImageArray& weight,
+                                    const MaskArray* mask, double x, double y, double beta_pix,
+                                    int n_max, const CartesianModel& psf,
+                                    LsqSolver solver = LsqSolver::automatic);
+
 }  // namespace shapesim

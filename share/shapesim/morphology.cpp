@@ -171,6 +171,21 @@ Morphology build_morphology(const std::vector<ShapeletRecord>& records,
         else if (*zp != *z) agree = false;
     }
     if (agree) out.zero_point = zp;
+    // One frame: observed-frame models hold their image's PSF, intrinsic ones none.
+    for (std::size_t k = 0; k < records.size(); ++k) {
+        const Json& e = records[k].extra;
+        const std::string frame =
+            e.contains("frame") && e.at("frame").is_string() ? e.at("frame").get<std::string>()
+                                                             : "observed";
+        if (frame != "observed" && frame != "intrinsic")
+            throw Error("must be \"observed\" or \"intrinsic\", got \"" + frame + "\" (record " +
+                            records[k].id + ")", "", 0, "frame");
+        if (k == 0) out.frame = frame;
+        else if (frame != out.frame)
+            throw Error("record " + records[k].id + " is " + frame + ", record " + records[0].id +
+                            " " + out.frame + ": one morphology model holds one frame",
+                        "", 0, "frame");
+    }
     out.prepare();
     return out;
 }
@@ -196,6 +211,7 @@ Json Morphology::to_json() const {
     doc["schema"] = schema;
     doc["n_max"] = n_max;
     if (zero_point) doc["zero_point"] = *zero_point;
+    if (frame != "observed") doc["frame"] = frame;
     Json lam = Json::object();
     lam["phase_deg"] = lambda.phase_deg;
     lam["beta"] = lambda.beta;
@@ -243,6 +259,12 @@ Morphology Morphology::from_json(const Json& doc) {
     if (m.n_max < 0 || m.n_max > 100) throw Error("must be in [0, 100]", "", 0, "n_max");
     if (doc.contains("zero_point") && !doc.at("zero_point").is_null())
         m.zero_point = number(doc, "zero_point", "");
+    if (doc.contains("frame")) {
+        if (!doc.at("frame").is_string() ||
+            (doc.at("frame") != "observed" && doc.at("frame") != "intrinsic"))
+            throw Error("must be \"observed\" or \"intrinsic\"", "", 0, "frame");
+        m.frame = doc.at("frame").get<std::string>();
+    }
     if (!doc.contains("lambda")) throw Error("missing", "", 0, "lambda");
     const Json& lam = doc.at("lambda");
     m.lambda.phase_deg = number(lam, "phase_deg", "lambda.");

@@ -113,6 +113,9 @@ struct Morphology {
     std::vector<MorphologyPoint> points;
     SmoothingLengths lambda;
     std::optional<double> zero_point;    ///< of the magnitudes (when every input agreed)
+    /// "observed": models hold their image's PSF (the paper's); "intrinsic": fitted through
+    /// it (shapesim-decompose --psf), drawn through the target PSF. One frame per model.
+    std::string frame = "observed";
     std::optional<SourceField> source_field;  ///< when smooth was told the real field's area
     Json provenance = Json::object();    ///< input hash, options, program version
 

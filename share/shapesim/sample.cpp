@@ -182,6 +182,7 @@ SampleSummary sample_field(const Morphology& morphology, const FieldGeometry& fi
         o.extra["rotation"] = g.rotation / degree;
         o.extra["reflected"] = g.reflected;
         o.extra["perturbation"] = g.perturbation;
+        if (morphology.frame != "observed") o.extra["frame"] = morphology.frame;
         if (g.mag_parent != g.parent) o.extra["mag_parent"] = morphology.points[g.mag_parent].id;
         o.extra["reach"] = reach;
         emit(o);

@@ -133,9 +133,15 @@ PreparedObject prepare_object(const ObjectRecord& record, double field_pixel_sca
         p.intrinsic = moments(m);
         p.flux = p.intrinsic->flux;
         model = to_cartesian(m);
-        if (kernels.galaxy) {
+        // An intrinsic model (fitted through its image's PSF) is observed through the PSF
+        // itself; an observed-frame one through the galaxy kernel.
+        const bool intrinsic = record.extra.contains("frame") && record.extra.at("frame") == "intrinsic";
+        if (intrinsic && !kernels.star)
+            throw Error("object " + record.id + " is an intrinsic model: give --psf", "", 0, "frame");
+        const std::optional<CartesianModel>& kernel = intrinsic ? kernels.star : kernels.galaxy;
+        if (kernel) {
             ConvolveWorkspace local;
-            model = convolve(model, *kernels.galaxy, workspace ? *workspace : local);
+            model = convolve(model, *kernel, workspace ? *workspace : local);
         }
     } else {
         if (!kernels.star)

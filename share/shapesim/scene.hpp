@@ -72,7 +72,8 @@ struct SceneOptions {
 };
 
 /// What the galaxies and stars are convolved with. Models in field pixels, unit flux,
-/// centred on their basis centre.
+/// centred on their basis centre. Galaxies whose record says "frame": "intrinsic" (fitted
+/// through their own image's PSF) are convolved with `star`, the PSF itself.
 struct SceneKernels {
     std::optional<CartesianModel> galaxy;  ///< none: galaxies drawn as they are
     std::optional<CartesianModel> star;    ///< the PSF stars are drawn as (required for stars)

@@ -5,7 +5,8 @@
     fitsdata.py FILE sum             print NAXIS1 NAXIS2 and the sum of the pixels
 
 As a module: read(path) -> (cards dict, nx, ny, pixels as a list of rows, bottom row first),
-from the first HDU holding a 2-D image; BITPIX -32, -64, 8, 16, 32.
+from the first HDU holding a 2-D image (or the one whose EXTNAME is `extname`); BITPIX -32,
+-64, 8, 16, 32.
 """
 import struct
 import sys
@@ -29,8 +30,9 @@ def _header(data, pos, path):
                     else text.split("/")[0].strip()
 
 
-def read(path):
-    """The first HDU with a 2-D image: (cards, nx, ny, rows bottom first)."""
+def read(path, extname=None):
+    """The first HDU with a 2-D image (named `extname`, when given): (cards, nx, ny, rows
+    bottom first)."""
     with open(path, "rb") as f:
         data = f.read()
     pos = 0
@@ -43,13 +45,13 @@ def read(path):
             count *= int(cards[f"NAXIS{k}"])
         if naxis == 0:
             count = 0
-        if naxis == 2:
+        if naxis == 2 and (extname is None or cards.get("EXTNAME") == extname):
             nx, ny = int(cards["NAXIS1"]), int(cards["NAXIS2"])
             fmt = {-32: "f", -64: "d", 8: "B", 16: "h", 32: "i"}[bitpix]
             values = struct.unpack(f">{nx * ny}{fmt}", data[pos:pos + nx * ny * size])
             return cards, nx, ny, [values[j * nx:(j + 1) * nx] for j in range(ny)]
         pos += -(-count * size // 2880) * 2880
-    raise ValueError(f"{path}: no 2-D image")
+    raise ValueError(f"{path}: no 2-D image" + (f" named {extname}" if extname else ""))
 
 
 if __name__ == "__main__":
