@@ -15,6 +15,14 @@ fits_card() {  # the value of header card $2 in the first image HDU of FITS file
   fold -w 80 "$f" | grep -a -m1 "^$card *=" | sed "s/^$card *= *//; s/ *\/.*//; s/'//g; s/ *$//"
 }
 
+# Among the objects of catalogue $1 brighter than I = $2: "largest/all from PARENT", the most
+# any one real parent supplied.
+parent_share() {
+  awk -v limit="$2" 'match($0, /"mag":[-0-9.e+]+/) { m = substr($0, RSTART + 6, RLENGTH - 6) + 0;
+      if (m < limit && match($0, /"parent":"[^"]*"/)) { n++; p[substr($0, RSTART + 10, RLENGTH - 11)]++ } }
+    END { best = 0; who = "–"; for (q in p) if (p[q] > best || (p[q] == best && q < who)) { best = p[q]; who = q }
+          if (n == 0) printf "0/0"; else printf "%d/%d (%.0f%%) from %s", best, n, 100 * best / n, who }' "$1"
+}
 # Objects of catalogue $1 brighter than I = $2, and how many real parents they were drawn from.
 bright_parents() {
   awk -v limit="$2" 'match($0, /"mag":[-0-9.e+]+/) { m = substr($0, RSTART + 6, RLENGTH - 6) + 0;
@@ -102,6 +110,25 @@ $(fits_card "$out/sim6.fits" FIELDNX) × $(fits_card "$out/sim6.fits" FIELDNY) p
 the bootstrap can only copy the bright galaxies the real cut has, and a 512² cut has few.
 
 ![the larger simulation](figures/sim6.png)
+
+## Every shipped field, one model
+
+The same 6 arcmin² field drawn from a model trained on both shipped F814W-like fields: the HDF
+cut (WFPC2, 0.04″) and the XDF cutout (ACS, 0.06″, PSF-matched to the infrared). Each galaxy
+is fitted through its own image's PSF (\`shapesim-decompose --psf\`: intrinsic models), so both
+cameras live in one model; \`shapesim-smooth --field\` combines their counts where each is
+complete ($(grep -o '"completeness":[0-9.]*' "$out/merged.json" | cut -d: -f2 | paste -sd/ -) mag), and \`shapesim-sample --neighbours\`
+draws shapes conditional on magnitude. Rendered through the HDF's PSF and noise, measured in
+the Table above as \`merged6\`. Its $(morph_points "$out/merged.json") parents ($(grep -c . "$out/intrinsic.jsonl") HDF and
+$(grep -c . "$out/xdf/intrinsic.jsonl") XDF models fitted).
+
+The largest share of one real parent among the galaxies brighter than each magnitude:
+
+| brighter than | HDF model (\`sim6\`) | merged model (\`merged6\`) |
+|---|---|---|
+| I = 22 | $(parent_share "$out/sim6.objects.jsonl" 22) | $(parent_share "$out/merged6.objects.jsonl" 22) |
+| I = 24 | $(parent_share "$out/sim6.objects.jsonl" 24) | $(parent_share "$out/merged6.objects.jsonl" 24) |
+| I = 26 | $(parent_share "$out/sim6.objects.jsonl" 26) | $(parent_share "$out/merged6.objects.jsonl" 26) |
 
 ## Smoothing the PDF (Fig. 3)
 

@@ -100,6 +100,57 @@ $(OUT)/delta.fits $(OUT)/delta.truth.jsonl &: $(OUT)/delta.objects.jsonl $(OUT)/
 $(OUT)/sim6.fits $(OUT)/sim6.truth.jsonl &: $(OUT)/sim6.objects.jsonl $(OUT)/psf.jsonl $(OUT)/hdf.noise.jsonl $(call prog,render)
 	$(RENDER) $(LARGE_FIELD) -o $(OUT)/sim6.fits --truth $(OUT)/sim6.truth.jsonl < $<
 
+# --- the merged run: every shipped F814W-like field, intrinsic models (issue 14 §2–4) -------
+# Each field's galaxies are fitted through its own PSF (forward modelling): the HDF's TinyTim
+# model, and for the XDF cutout (no PSF shipped, probably matched to F160W) a model of its
+# bright star. One morphology model holds both, their counts combined where each is complete
+# and each galaxy weighted by the area counted at its magnitude; shapes are drawn conditional
+# on magnitude, and the 6 arcmin² field is rendered through the HDF's PSF and noise.
+XDF_DATA   ?= $(R)share/data/xdf
+XDF_IMAGE  := $(XDF_DATA)/f814w_sci.fits
+XDF_WEIGHT := $(XDF_DATA)/f814w_wht.fits
+XDF_ZERO_POINT ?= 25.959
+# e⁻ per (e⁻/s): the F814W stack's exposure (share/data/xdf/README.md).
+XDF_GAIN   ?= 50800
+XDF_SCALE  := 0.06
+XDF_STAR   := [87:145,352:410]
+# arcmin²: (512 × 0.03985″)² and (500 × 0.06″)².
+HDF_AREA   := 0.115643
+XDF_AREA   := 0.25
+NEIGHBOURS ?= 16
+INPUTS     += $(XDF_IMAGE) $(XDF_WEIGHT)
+
+$(OUT)/xdf/psf.jsonl: $(XDF_IMAGE) $(call prog,decompose)
+	@mkdir -p $(@D)
+	$(call prog,decompose) --psf-image '$(XDF_IMAGE)$(XDF_STAR)' --psf-pixel-scale $(XDF_SCALE) \
+	  --pixel-scale $(XDF_SCALE) > $(tmp)
+	mv $(tmp) $@
+$(OUT)/xdf/sources.jsonl $(OUT)/xdf/stamps.fits $(OUT)/xdf/stars.jsonl &: $(XDF_IMAGE) $(XDF_WEIGHT) $(OUT)/xdf/psf.jsonl $(call prog,detect)
+	$(call prog,detect) $(XDF_IMAGE) --weight $(XDF_WEIGHT) --pixel-scale $(XDF_SCALE) \
+	  --zero-point $(XDF_ZERO_POINT) --gain $(XDF_GAIN) --psf-model $(OUT)/xdf/psf.jsonl \
+	  --stamps $(OUT)/xdf/stamps.fits --stars $(OUT)/xdf/stars.jsonl > $(OUT)/xdf/sources.jsonl.tmp
+	mv $(OUT)/xdf/sources.jsonl.tmp $(OUT)/xdf/sources.jsonl
+$(OUT)/xdf/intrinsic.jsonl: $(OUT)/xdf/sources.jsonl $(OUT)/xdf/stars.jsonl $(OUT)/xdf/psf.jsonl $(call prog,decompose)
+	$(call prog,decompose) -j $(THREADS) --psf $(OUT)/xdf/psf.jsonl --stars $(OUT)/xdf/stars.jsonl \
+	  < $< > $(tmp)
+	mv $(tmp) $@
+$(OUT)/intrinsic.jsonl: $(OUT)/sources.jsonl $(OUT)/stars.jsonl $(OUT)/psf.jsonl $(call prog,decompose)
+	$(call prog,decompose) -j $(THREADS) --psf $(OUT)/psf.jsonl --stars $(OUT)/stars.jsonl \
+	  < $< > $(tmp)
+	mv $(tmp) $@
+$(OUT)/merged.json: $(OUT)/intrinsic.jsonl $(OUT)/xdf/intrinsic.jsonl $(call prog,smooth)
+	cat $(OUT)/intrinsic.jsonl $(OUT)/xdf/intrinsic.jsonl | $(call prog,smooth) -v \
+	  --field $(IMAGE)=$(HDF_AREA) --field $(XDF_IMAGE)=$(XDF_AREA) > $(tmp)
+	mv $(tmp) $@
+$(OUT)/merged6.objects.jsonl: $(OUT)/merged.json $(OUT)/params/seed $(OUT)/params/area $(call prog,sample)
+	$(call prog,sample) $< $(LARGE_FIELD) --seed $(SEED) --zero-point $(ZERO_POINT) \
+	  --neighbours $(NEIGHBOURS) > $(tmp)
+	mv $(tmp) $@
+$(OUT)/merged6.fits $(OUT)/merged6.truth.jsonl &: $(OUT)/merged6.objects.jsonl $(OUT)/psf.jsonl $(OUT)/hdf.noise.jsonl $(call prog,render)
+	$(call prog,render) --psf $(OUT)/psf.jsonl --noise-model $(OUT)/hdf.noise.jsonl --gain $(GAIN) \
+	  --seed $(SEED) -j $(THREADS) $(LARGE_FIELD) -o $(OUT)/merged6.fits \
+	  --truth $(OUT)/merged6.truth.jsonl < $<
+
 # --- measure all four images alike, and compare -----------------------------------------
 MEASURE = $(call prog,measure) --zero-point $(ZERO_POINT) --mag-limit $(MAG_LIMIT) -j $(THREADS)
 $(OUT)/hdf.morph.jsonl: $(IMAGE) $(WEIGHT) $(call prog,measure)
@@ -118,7 +169,7 @@ $(OUT)/sky.md: $(OUT)/hdf.noise.jsonl $(OUT)/delta.noise.jsonl $(OUT)/sim.noise.
 	$(call prog,measure) --compare-sky $(foreach c,hdf delta sim,$c=$(OUT)/$c.noise.jsonl) > $(tmp)
 	mv $(tmp) $@
 
-CATALOGUES := hdf delta sim sim6
+CATALOGUES := hdf delta sim sim6 merged6
 $(OUT)/table.md: $(CATALOGUES:%=$(OUT)/%.morph.jsonl) $(PAPER) $(call prog,measure)
 	$(call prog,measure) --compare $(foreach c,$(CATALOGUES),$c=$(OUT)/$c.morph.jsonl) \
 	  --paper $(PAPER) --out $(OUT)/compare
@@ -145,7 +196,8 @@ $(OUT)/figures/perturbations.png $(OUT)/perturbations.md &: $(OUT)/morphology.js
 
 FIGURES := $(OUT)/figures/hdf_delta_sim.png $(OUT)/figures/sim6.png $(OUT)/figures/perturbations.png
 $(OUT)/report.md: $(R)pipelines/report.sh $(OUT)/table.md $(OUT)/sky.md $(OUT)/morphology.json $(OUT)/perturbations.md \
-    $(FIGURES) $(INPUTS) $(OUT)/sim.truth.jsonl $(OUT)/delta.truth.jsonl $(OUT)/sim6.truth.jsonl
+    $(FIGURES) $(INPUTS) $(OUT)/sim.truth.jsonl $(OUT)/delta.truth.jsonl $(OUT)/sim6.truth.jsonl \
+    $(OUT)/merged.json $(OUT)/merged6.objects.jsonl $(OUT)/sim6.objects.jsonl
 	$(R)pipelines/report.sh $(OUT) $(INPUTS) > $(tmp)
 	mv $(tmp) $@
 

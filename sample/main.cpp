@@ -83,7 +83,11 @@ int run(int argc, const char* const argv[]) {
          "a shape moved to another magnitude has its beta scaled as L^this")
         ("max-perturbation", po::value(&o.draw.max_perturbation)->default_value(0.5)
              ->notifier(in_range("max-perturbation", 1e-6, 1e6)),
-         "redraw perturbations changing the shape by more than this fraction, |c'-c|/|c|");
+         "redraw perturbations changing the shape by more than this fraction, |c'-c|/|c|")
+        ("hole-allowance", po::value(&o.draw.hole_allowance)->default_value(0.01)
+             ->notifier(in_range("hole-allowance", 0.0, 1e6)),
+         "redraw perturbations whose model dips below zero deeper than the real galaxy's by "
+         "more than this fraction of the peak");
     options.group("Stars").add_options()
         ("star-density", po::value(&o.stars.density)->default_value(0.0)
              ->notifier(in_range("star-density", 0.0, 1e8)), "stars per arcmin^2 (Poisson)")
@@ -121,8 +125,8 @@ int run(int argc, const char* const argv[]) {
         o.zero_point = *morphology.zero_point;
     }
     // The real field's density at this magnitude limit, when smooth recorded it (--like).
-    if (!options.given("density") && morphology.source_field)
-        o.density = morphology.source_field->density(o.mag_limit);
+    if (!options.given("density") && !morphology.source_fields.empty())
+        o.density = field_density(morphology.source_fields, o.mag_limit);
     o.seed = options.common().seed;
     if (options.given("count")) o.count = s.count;
     if (options.given("star-count")) o.star_count = s.star_count;

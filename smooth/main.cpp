@@ -42,6 +42,7 @@ struct Settings {
     std::string input = "-", require, reject = "edge,bright_star,noise,bad_fit", weight_field;
     double k = 4.0, phase = 15.0, beta = 0.0, mag = 0.0, modulus = 0.0, mag_limit = 0.0, area = 0.0;
     bool delta = false;
+    std::vector<std::string> fields;
 };
 
 bool has(const std::vector<std::string>& flags, const std::string& flag) {
@@ -78,6 +79,11 @@ int run(int argc, const char* const argv[]) {
          "drop records fainter than this")
         ("area", po::value(&s.area)->value_name("ARCMIN2")->notifier(in_range("area", 1e-9, 1e9)),
          "area of the real field the records come from (or --like its image)")
+        ("field", po::value(&s.fields)->value_name("IMAGE=ARCMIN2[@MAG]")->composing(),
+         "one of several real fields the records come from (their \"image\"), its area and "
+         "the magnitude its counts are complete to (default: their turnover); repeat for "
+         "each: the counts are combined field by field where complete, and each galaxy "
+         "weighted so the drawn magnitudes follow them")
         ("weight-field", po::value(&s.weight_field)->value_name("NAME"),
          "parent-selection weight from this numeric record field (default: all 1)");
     options.group("Smoothing").add_options()
@@ -106,13 +112,42 @@ int run(int argc, const char* const argv[]) {
     const std::vector<std::string> required = app::split_list(s.require),
                                    rejected = app::split_list(s.reject);
 
-    std::optional<SourceField> source_field;
-    if (!options.common().like.empty() && options.given("area"))
-        throw po::error("give --like or --area, not both");
+    std::vector<SourceField> fields;
+    if (int(!options.common().like.empty()) + int(options.given("area")) + int(!s.fields.empty()) > 1)
+        throw po::error("give one of --like, --area and --field");
     if (!options.common().like.empty())
-        source_field = SourceField{read_field_geometry(options.common().like).area_arcmin2(), {}};
+        fields.push_back(SourceField{"", read_field_geometry(options.common().like).area_arcmin2(), {}});
     else if (options.given("area"))
-        source_field = SourceField{s.area, {}};
+        fields.push_back(SourceField{"", s.area, {}});
+    std::vector<bool> completeness_given;
+    for (const std::string& text : s.fields) {
+        const std::size_t eq = text.rfind('=');
+        if (eq == std::string::npos || eq == 0)
+            throw po::error("--field wants IMAGE=ARCMIN2[@MAG], got '" + text + "'");
+        SourceField f;
+        f.image = text.substr(0, eq);
+        const std::string rest = text.substr(eq + 1);
+        const std::size_t at = rest.find('@');
+        try {
+            std::size_t used = 0;
+            f.area_arcmin2 = std::stod(rest.substr(0, at), &used);
+            if (used != rest.substr(0, at).size()) throw std::invalid_argument("trailing");
+            if (at != std::string::npos) {
+                f.completeness = std::stod(rest.substr(at + 1), &used);
+                if (used != rest.size() - at - 1) throw std::invalid_argument("trailing");
+            }
+        } catch (const std::exception&) {
+            throw po::error("--field wants IMAGE=ARCMIN2[@MAG], got '" + text + "'");
+        }
+        if (!(f.area_arcmin2 > 0.0) || !(std::isfinite(f.area_arcmin2)) ||
+            (at != std::string::npos && !std::isfinite(f.completeness)))
+            throw po::error("--field " + text + ": the area must be > 0, the magnitude finite");
+        for (const SourceField& g : fields)
+            if (g.image == f.image) throw po::error("--field " + f.image + " given twice");
+        completeness_given.push_back(at != std::string::npos);
+        fields.push_back(std::move(f));
+    }
+    std::vector<std::size_t> kept_field;  // each kept record's field
 
     JsonlReader reader(s.input, {ShapeletRecord::schema});
     std::vector<ShapeletRecord> kept;
@@ -132,8 +167,16 @@ int run(int argc, const char* const argv[]) {
         // The input's identity for the provenance: FNV-1a over the records' compact dumps.
         hash ^= fnv1a_64(record.dump());
         hash *= 0x100000001b3ULL;
-        if (source_field && r.mag && record.value("kind", std::string("galaxy")) != "star")
-            source_field->mags.push_back(*r.mag);
+        std::size_t field = 0;
+        if (!s.fields.empty()) {
+            const std::string image = record.value("image", std::string());
+            while (field < fields.size() && fields[field].image != image) ++field;
+            if (field == fields.size())
+                throw reader.locate(Error("record " + r.id + " comes from '" + image +
+                                              "', none of the --field images", "", 0, "image"));
+        }
+        if (!fields.empty() && r.mag && record.value("kind", std::string("galaxy")) != "star")
+            fields[field].mags.push_back(*r.mag);
         std::string why;
         for (const auto& f : required)
             if (!has_any(r.flags, f)) why = "not " + f;
@@ -159,16 +202,33 @@ int run(int argc, const char* const argv[]) {
         }
         kept.push_back(std::move(r));
         weights.push_back(weight);
+        kept_field.push_back(field);
     }
     if (kept.empty())
         throw Error("no record left to smooth (" + std::to_string(read) +
                     " read; see --require, --reject, --mag-limit)", reader.name());
     Morphology morphology = build_morphology(kept, smooth);
+    for (SourceField& f : fields) std::sort(f.mags.begin(), f.mags.end());
+    for (std::size_t k = 0; k < s.fields.size(); ++k)
+        if (!completeness_given[k]) fields[k].completeness = count_turnover(fields[k].mags);
+    // Several fields: each galaxy stands for 1/(area counted at its magnitude) galaxies per
+    // arcmin², none where its own field is not counted (fainter than its completeness).
+    if (fields.size() > 1)
+        for (std::size_t i = 0; i < weights.size(); ++i) {
+            const auto counted = fields_counted(fields, *kept[i].mag);
+            double area = 0.0;
+            bool mine = false;
+            for (std::size_t k : counted) {
+                area += fields[k].area_arcmin2;
+                mine = mine || k == kept_field[i];
+            }
+            weights[i] = mine ? weights[i] / area : 0.0;
+        }
     for (std::size_t i = 0; i < weights.size(); ++i) morphology.points[i].weight = weights[i];
-    if (source_field) {
-        std::sort(source_field->mags.begin(), source_field->mags.end());
-        morphology.source_field = std::move(source_field);
-    }
+    for (std::size_t k = 0; k < s.fields.size(); ++k)
+        log.verbose("field ", fields[k].image, ": ", fields[k].area_arcmin2, " arcmin^2, ",
+                    fields[k].mags.size(), " galaxies, complete to ", fields[k].completeness);
+    morphology.source_fields = std::move(fields);
     char hex[17];
     std::snprintf(hex, sizeof hex, "%016llx", static_cast<unsigned long long>(hash));
     Json dropped_json = Json::object();

@@ -3,9 +3,11 @@
 #include "shapesim/error.hpp"
 #include "shapesim/jsonl.hpp"
 #include "shapesim/moments.hpp"
+#include "shapesim/render.hpp"
 #include "shapesim/transform.hpp"
 
 #include <algorithm>
+#include <map>
 #include <fstream>
 #include <iostream>
 #include <sstream>
@@ -128,6 +130,8 @@ Morphology build_morphology(const std::vector<ShapeletRecord>& records,
         p.n_max = r.n_max;
         p.beta = r.beta;
         p.mag = *r.mag;
+        if (r.extra.contains("psf_beta") && r.extra.at("psf_beta").is_number())
+            p.psf_beta = r.extra.at("psf_beta").get<double>();
         const ShapeletModel aligned = align(model, &p.alignment);
         p.shape.resize(aligned.coeffs.size());
         for (std::size_t k = 0; k < aligned.coeffs.size(); ++k) p.shape[k] = aligned.coeffs[k] / a00;
@@ -190,6 +194,20 @@ Morphology build_morphology(const std::vector<ShapeletRecord>& records,
     return out;
 }
 
+double hole_depth(const ShapeletModel& model) {
+    if (model.n_max == 0) return 0.0;  // a Gaussian of positive flux
+    constexpr double beta = 3.0;
+    const int half = int(std::ceil(beta * (std::sqrt(2.0 * model.n_max + 1.0) + 2.0)));
+    const int side = 2 * half + 1;
+    ShapeletModel m = model;
+    m.beta_pix = beta;
+    m.x = m.y = half + 1.0;
+    const ImageArray image = render_stamp(m, side, side);
+    const double peak = image.maxCoeff();
+    if (!(peak > 0.0)) return std::numeric_limits<double>::infinity();
+    return std::max(0.0, -image.minCoeff()) / peak;
+}
+
 void Morphology::prepare() {
     for (MorphologyPoint& p : points) {
         p.modulus.resize(p.shape.size());
@@ -198,12 +216,61 @@ void Morphology::prepare() {
             p.modulus[k] = std::abs(p.shape[k]);
             p.phase[k] = std::arg(p.shape[k]);
         }
+        ShapeletModel m(0.0, 0.0, 1.0, p.n_max);
+        m.coeffs = p.shape;
+        p.hole = hole_depth(m);
     }
 }
 
 double SourceField::density(double mag_limit) const {
     const auto n = std::upper_bound(mags.begin(), mags.end(), mag_limit) - mags.begin();
     return double(n) / area_arcmin2;
+}
+
+std::vector<std::size_t> fields_counted(const std::vector<SourceField>& fields, double mag) {
+    double deepest = -std::numeric_limits<double>::infinity();
+    for (const SourceField& f : fields) deepest = std::max(deepest, f.completeness);
+    std::vector<std::size_t> counted;
+    for (std::size_t k = 0; k < fields.size(); ++k)
+        if (fields[k].completeness >= std::min(mag, deepest)) counted.push_back(k);
+    return counted;
+}
+
+double field_density(const std::vector<SourceField>& fields, double mag_limit) {
+    if (fields.empty()) return 0.0;
+    if (fields.size() == 1) return fields.front().density(mag_limit);
+    double brightest = mag_limit;
+    for (const SourceField& f : fields)
+        if (!f.mags.empty()) brightest = std::min(brightest, f.mags.front());
+    constexpr double width = 0.25;
+    double density = 0.0;
+    // Bins (lo, hi] from just below the brightest galaxy up to the limit.
+    for (double lo = std::floor(brightest / width) * width - width; lo < mag_limit; lo += width) {
+        const double hi = std::min(lo + width, mag_limit);
+        double count = 0.0, area = 0.0;
+        for (std::size_t k : fields_counted(fields, hi)) {
+            const auto& m = fields[k].mags;
+            count += double(std::upper_bound(m.begin(), m.end(), hi) -
+                            std::upper_bound(m.begin(), m.end(), lo));
+            area += fields[k].area_arcmin2;
+        }
+        if (area > 0.0) density += count / area;
+    }
+    return density;
+}
+
+double count_turnover(const std::vector<double>& sorted_mags) {
+    if (sorted_mags.size() < 10) return std::numeric_limits<double>::infinity();
+    constexpr double width = 0.5;
+    std::map<long, long> bins;
+    for (double m : sorted_mags) ++bins[long(std::floor(m / width))];
+    long best = bins.begin()->first, most = 0;
+    for (const auto& [bin, n] : bins)
+        if (n > most) {
+            most = n;
+            best = bin;
+        }
+    return double(best + 1) * width;
 }
 
 Json Morphology::to_json() const {
@@ -230,10 +297,24 @@ Json Morphology::to_json() const {
                        {"rotation", p.alignment.rotation},
                        {"reflected", p.alignment.reflected},
                        {"shape", shape}});
+        if (p.psf_beta > 0.0) pts.back()["psf_beta"] = p.psf_beta;
     }
     doc["points"] = pts;
-    if (source_field)
-        doc["source_field"] = {{"area_arcmin2", source_field->area_arcmin2}, {"mags", source_field->mags}};
+    if (!source_fields.empty()) {
+        Json fields = Json::array();
+        for (const SourceField& f : source_fields) {
+            Json j = {{"area_arcmin2", f.area_arcmin2}, {"mags", f.mags}};
+            if (!f.image.empty()) j["image"] = f.image;
+            if (std::isfinite(f.completeness)) j["completeness"] = f.completeness;
+            fields.push_back(std::move(j));
+        }
+        // One plain field keeps the first version's form.
+        if (source_fields.size() == 1 && source_fields[0].image.empty() &&
+            !std::isfinite(source_fields[0].completeness))
+            doc["source_field"] = fields[0];
+        else
+            doc["source_fields"] = fields;
+    }
     doc["provenance"] = provenance;
     return doc;
 }
@@ -296,6 +377,8 @@ Morphology Morphology::from_json(const Json& doc) {
         if (!(p.beta > 0.0)) throw Error("must be > 0", "", 0, where + "beta");
         p.mag = number(pj, "mag", where);
         p.weight = pj.contains("weight") ? number(pj, "weight", where) : 1.0;
+        p.psf_beta = pj.contains("psf_beta") ? number(pj, "psf_beta", where) : 0.0;
+        if (!(p.psf_beta >= 0.0)) throw Error("must be ≥ 0", "", 0, where + "psf_beta");
         if (!(p.weight >= 0.0)) throw Error("must be ≥ 0", "", 0, where + "weight");
         p.alignment.rotation = pj.contains("rotation") ? number(pj, "rotation", where) : 0.0;
         p.alignment.reflected = pj.value("reflected", false);
@@ -312,20 +395,33 @@ Morphology Morphology::from_json(const Json& doc) {
         }
         m.points.push_back(std::move(p));
     }
-    if (doc.contains("source_field")) {
-        const Json& f = doc.at("source_field");
+    const auto read_field = [](const Json& f, const std::string& where) {
         SourceField field;
-        field.area_arcmin2 = number(f, "area_arcmin2", "source_field.");
-        if (!(field.area_arcmin2 > 0.0)) throw Error("must be > 0", "", 0, "source_field.area_arcmin2");
+        if (!f.is_object()) throw Error("must be an object", "", 0, where);
+        field.area_arcmin2 = number(f, "area_arcmin2", where + ".");
+        if (!(field.area_arcmin2 > 0.0)) throw Error("must be > 0", "", 0, where + ".area_arcmin2");
         if (!f.contains("mags") || !f.at("mags").is_array())
-            throw Error("must be an array of numbers", "", 0, "source_field.mags");
+            throw Error("must be an array of numbers", "", 0, where + ".mags");
         for (const Json& v : f.at("mags")) {
             if (!v.is_number() || !std::isfinite(v.get<double>()))
-                throw Error("must be finite numbers", "", 0, "source_field.mags");
+                throw Error("must be finite numbers", "", 0, where + ".mags");
             field.mags.push_back(v.get<double>());
         }
         std::sort(field.mags.begin(), field.mags.end());
-        m.source_field = std::move(field);
+        if (f.contains("image")) {
+            if (!f.at("image").is_string()) throw Error("must be a string", "", 0, where + ".image");
+            field.image = f.at("image").get<std::string>();
+        }
+        if (f.contains("completeness")) field.completeness = number(f, "completeness", where + ".");
+        return field;
+    };
+    if (doc.contains("source_field")) m.source_fields.push_back(read_field(doc.at("source_field"), "source_field"));
+    if (doc.contains("source_fields")) {
+        if (!doc.at("source_fields").is_array())
+            throw Error("must be an array", "", 0, "source_fields");
+        std::size_t k = 0;
+        for (const Json& f : doc.at("source_fields"))
+            m.source_fields.push_back(read_field(f, "source_fields[" + std::to_string(k++) + "]"));
     }
     if (doc.contains("provenance")) m.provenance = doc.at("provenance");
     m.prepare();
@@ -383,6 +479,7 @@ void DrawOptions::validate() const {
     if (!std::isfinite(size_slope)) throw Error("must be finite", "", 0, "size_slope");
     if (!(max_mag_shift >= 0.0)) throw Error("must be ≥ 0", "", 0, "max_mag_shift");
     if (!(max_perturbation > 0.0)) throw Error("must be > 0", "", 0, "max_perturbation");
+    if (!(hole_allowance >= 0.0)) throw Error("must be ≥ 0", "", 0, "hole_allowance");
 }
 
 std::vector<std::size_t> magnitude_order(const Morphology& morphology, double mag_limit) {
@@ -472,6 +569,9 @@ DrawnGalaxy draw_galaxy(const Morphology& morphology, const std::vector<double>&
         }
         const std::size_t count = p->shape.size();
         const bool prepared = p->modulus.size() == count && p->phase.size() == count;
+        // A shape that keeps failing (holes, too large a change) is perturbed less: halved
+        // every 100 redraws, so it ends as new as positivity allows rather than a copy.
+        const double shrink = std::ldexp(1.0, -(g.redraws / 100));
         shape.assign(count, Complex(0.0, 0.0));
         shape[0] = 1.0;
         sum = 1.0;
@@ -482,21 +582,30 @@ DrawnGalaxy draw_galaxy(const Morphology& morphology, const std::vector<double>&
             norm += std::norm(c);
             if (k == 0) continue;
             if (index[k].m == 0) {
-                shape[k] = Complex(c.real() + l.coefficient[k] * stream.epanechnikov(), 0.0);
+                shape[k] = Complex(c.real() + shrink * l.coefficient[k] * stream.epanechnikov(), 0.0);
                 if (index[k].n % 2 == 0) sum += shape[k].real();
             } else {
-                const double modulus =
-                    (prepared ? p->modulus[k] : std::abs(c)) + l.coefficient[k] * stream.epanechnikov();
-                const double phase =
-                    (prepared ? p->phase[k] : std::arg(c)) + lambda_phase * stream.epanechnikov();
+                const double modulus = (prepared ? p->modulus[k] : std::abs(c)) +
+                                       shrink * l.coefficient[k] * stream.epanechnikov();
+                const double phase = (prepared ? p->phase[k] : std::arg(c)) +
+                                     shrink * lambda_phase * stream.epanechnikov();
                 // The δ-function PDF keeps the parent's coefficients bit for bit.
                 shape[k] = delta ? c : std::polar(modulus, phase);
             }
             change += std::norm(shape[k] - c);
         }
         if (beta > 0.0 && sum > 0.0 && mag <= mag_limit &&
-            change <= draw.max_perturbation * draw.max_perturbation * norm)
-            break;
+            change <= draw.max_perturbation * draw.max_perturbation * norm) {
+            if (delta || p->n_max == 0) break;
+            ShapeletModel candidate(0.0, 0.0, 1.0, p->n_max);
+            candidate.coeffs = shape;
+            // The parent's own holes are allowed at the depth (in flux) they had: a shape drawn
+            // brighter or more compact than its parent keeps them shallower relative to its peak.
+            const double peak_ratio = std::pow(10.0, -0.4 * (mag - p->mag)) *
+                                      (p->beta / beta) * (p->beta / beta);
+            if (hole_depth(candidate) <= p->hole / std::max(peak_ratio, 1.0) + draw.hole_allowance)
+                break;
+        }
     }
     const MorphologyPoint& p = morphology.points[g.parent];
     g.mag = mag;

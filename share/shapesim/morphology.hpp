@@ -47,6 +47,7 @@
 #include "shapesim/records.hpp"
 #include "shapesim/rng.hpp"
 
+#include <limits>
 #include <optional>
 #include <string>
 #include <vector>
@@ -71,11 +72,18 @@ struct MorphologyPoint {
     double beta = 0.0;  ///< arcsec
     double mag = 0.0;
     double weight = 1.0;            ///< parent-selection weight (relative)
+    double psf_beta = 0.0;          ///< an intrinsic model's PSF scale (arcsec; 0: none)
     std::vector<Complex> shape;     ///< c_{n,m} = a_{n,m}/a_{0,0}, aligned; c_{0,0} = 1
     Alignment alignment;            ///< how the real model was aligned
     /// |c| and arg c of `shape` (derived: Morphology::prepare() fills them for the draws).
     std::vector<double> modulus, phase;
+    double hole = 0.0;  ///< hole_depth() of the shape (derived, prepare())
 };
+
+/// How far a model dips below zero, as a fraction of its peak: max(0, −min)/max of the model
+/// pixel-integrated with β = 3 pixels out to β(√(2n+1) + 2). A galaxy's light is never
+/// negative; its model dips where the data's noise or a truncated series ring.
+double hole_depth(const ShapeletModel& model);
 
 /// Smoothing length of every axis.
 struct SmoothingLengths {
@@ -96,15 +104,28 @@ struct SmoothOptions {
     void validate() const;
 };
 
-/// The real field the models came from: its area and the magnitude of every galaxy detected
-/// in it (all of them, kept as models or not), so that a simulation can draw the real number
+/// A real field the models came from: its area and the magnitude of every galaxy detected in
+/// it (all of them, kept as models or not), so that a simulation can draw the real number
 /// density at any magnitude limit.
 struct SourceField {
+    std::string image;           ///< the records' "image" (empty: the one field of them all)
     double area_arcmin2 = 0.0;
-    std::vector<double> mags;  ///< sorted
+    std::vector<double> mags;    ///< sorted
+    /// Its counts are complete to this magnitude (∞: to every one, the single-field case).
+    double completeness = std::numeric_limits<double>::infinity();
     /// Galaxies per arcmin² with mag ≤ `mag_limit`.
     double density(double mag_limit) const;
 };
+
+/// Several fields of different depths, counted together (issue 14 §2–3). Each magnitude bin
+/// (0.25 mag wide) takes its galaxies from the fields whose counts are complete through it, over
+/// their total area; where none is, from the deepest ones. One field: its own density().
+double field_density(const std::vector<SourceField>& fields, double mag_limit);
+/// The fields counted at magnitude `mag` by field_density() (indices).
+std::vector<std::size_t> fields_counted(const std::vector<SourceField>& fields, double mag);
+/// Where a field's counts stop being complete: the upper edge of the 0.5-mag bin holding most
+/// of its galaxies (the turnover); ∞ for fewer than 10 galaxies.
+double count_turnover(const std::vector<double>& sorted_mags);
 
 /// The morphology model that `shapesim-smooth` writes and `shapesim-sample` reads.
 struct Morphology {
@@ -116,7 +137,9 @@ struct Morphology {
     /// "observed": models hold their image's PSF (the paper's); "intrinsic": fitted through
     /// it (shapesim-decompose --psf), drawn through the target PSF. One frame per model.
     std::string frame = "observed";
-    std::optional<SourceField> source_field;  ///< when smooth was told the real field's area
+    /// The real fields, when smooth was told their areas; a simulation draws their density
+    /// (field_density) and, with several, the points' weights make the drawn magnitudes follow it.
+    std::vector<SourceField> source_fields;
     Json provenance = Json::object();    ///< input hash, options, program version
 
     Json to_json() const;
@@ -164,6 +187,12 @@ struct DrawOptions {
     /// Perturbations with ‖c' − c‖/‖c‖ above this are redrawn: a shape changed by as much as
     /// it has is no longer its parent's (nor, often, a galaxy's).
     double max_perturbation = 0.5;
+    /// Draws whose holes are deeper than their parent's by more than this fraction of the
+    /// peak (hole_depth) are redrawn: a perturbation must not ring below zero where the real
+    /// galaxy does not. A draw with a higher peak than its parent's (brighter, or smaller) is
+    /// allowed the parent's holes only at their depth in flux (parent hole × parent peak /
+    /// draw peak, the peak ∝ flux/β²).
+    double hole_allowance = 0.01;
     std::vector<std::size_t> by_magnitude;  ///< the parents in magnitude order (magnitude_order)
     void validate() const;
 };
@@ -174,8 +203,9 @@ std::vector<std::size_t> magnitude_order(const Morphology& morphology, double ma
 
 /// Draw one galaxy from `stream` (parent, perturbation, rotation, reflection — in that order;
 /// conditional: parent, magnitude, shape parent, the rest). Perturbations giving a
-/// non-positive flux sum, β ≤ 0, mag > `mag_limit` or a perturbation above
-/// `max_perturbation` are redrawn (at most 1000 times, then the parent unperturbed).
+/// non-positive flux sum, β ≤ 0, mag > `mag_limit`, a perturbation above `max_perturbation`
+/// or holes deeper than the parent's by `hole_allowance` are redrawn, the shape's perturbation
+/// halved every 100 redraws (at most 1000 times, then the parent unperturbed).
 DrawnGalaxy draw_galaxy(const Morphology& morphology, const std::vector<double>& parents,
                         RandomStream& stream, double pixel_scale, double zero_point,
                         double mag_limit, const DrawOptions& draw = DrawOptions{});

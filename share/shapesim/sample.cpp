@@ -183,6 +183,8 @@ SampleSummary sample_field(const Morphology& morphology, const FieldGeometry& fi
         o.extra["reflected"] = g.reflected;
         o.extra["perturbation"] = g.perturbation;
         if (morphology.frame != "observed") o.extra["frame"] = morphology.frame;
+        if (morphology.points[g.parent].psf_beta > 0.0)
+            o.extra["psf_beta"] = morphology.points[g.parent].psf_beta;
         if (g.mag_parent != g.parent) o.extra["mag_parent"] = morphology.points[g.mag_parent].id;
         o.extra["reach"] = reach;
         emit(o);

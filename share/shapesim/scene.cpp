@@ -139,6 +139,22 @@ PreparedObject prepare_object(const ObjectRecord& record, double field_pixel_sca
         if (intrinsic && !kernels.star)
             throw Error("object " + record.id + " is an intrinsic model: give --psf", "", 0, "frame");
         const std::optional<CartesianModel>& kernel = intrinsic ? kernels.star : kernels.galaxy;
+        // Never sharper than it was seen: an intrinsic model fitted through a PSF broader than
+        // the target's carries no real structure below that PSF's scale (only the fit's
+        // ringing), so it is first smoothed by the Gaussian that brings the target's scale to
+        // its own (Gaussian scales add in quadrature; an n_max 0 kernel keeps the order).
+        if (intrinsic && kernels.star && record.extra.contains("psf_beta") &&
+            record.extra.at("psf_beta").is_number()) {
+            const double seen = record.extra.at("psf_beta").get<double>() / field_pixel_scale;
+            const double target = kernels.star->beta_pix;
+            if (seen > target) {
+                CartesianModel gaussian(0.0, 0.0, std::sqrt(seen * seen - target * target), 0);
+                gaussian.b(0, 0) = 1.0;
+                gaussian.b(0, 0) = 1.0 / flux(to_polar(gaussian));  // unit flux
+                ConvolveWorkspace local;
+                model = convolve(model, gaussian, workspace ? *workspace : local);
+            }
+        }
         if (kernel) {
             ConvolveWorkspace local;
             model = convolve(model, *kernel, workspace ? *workspace : local);

@@ -151,15 +151,16 @@ TEST(Morphology, SmoothingLengthsMatchBruteForce) {
     const Morphology back = Morphology::from_json(morph.to_json());
     EXPECT_EQ(back.to_json(), morph.to_json());
     Morphology with_field = morph;
-    with_field.source_field = SourceField{0.5, {24.0, 26.5, 28.0, 29.0, 29.5}};
+    with_field.source_fields = {SourceField{"", 0.5, {24.0, 26.5, 28.0, 29.0, 29.5}}};
     const Morphology field_back = Morphology::from_json(with_field.to_json());
-    ASSERT_TRUE(field_back.source_field.has_value());
+    ASSERT_EQ(field_back.source_fields.size(), 1u);
     EXPECT_EQ(field_back.to_json(), with_field.to_json());
     // Galaxies per arcmin² brighter than the limit, the limit included.
-    EXPECT_EQ(field_back.source_field->density(29.0), 8.0);
-    EXPECT_EQ(field_back.source_field->density(23.0), 0.0);
-    EXPECT_EQ(field_back.source_field->density(30.0), 10.0);
+    EXPECT_EQ(field_back.source_fields[0].density(29.0), 8.0);
+    EXPECT_EQ(field_back.source_fields[0].density(23.0), 0.0);
+    EXPECT_EQ(field_back.source_fields[0].density(30.0), 10.0);
     Json bad = with_field.to_json();
+    EXPECT_TRUE(with_field.to_json().contains("source_field"));  // the first version's form
     bad["source_field"]["area_arcmin2"] = 0.0;
     EXPECT_THROW(Morphology::from_json(bad), Error);
 }
@@ -179,7 +180,9 @@ TEST(Morphology, PerturbationsFollowTheEpanechnikovKernel) {
     const int k42 = polar_index(4, 2), k20 = polar_index(2, 0);
     for (int i = 0; i < 20000; ++i) {
         RandomStream stream(1, std::uint64_t(i), "galaxy");
-        const DrawnGalaxy g = draw_galaxy(morph, parents, stream, 0.04, 25.0, 99.0);
+        DrawOptions any_holes;  // the kernel's shape alone: no positivity redraws
+        any_holes.hole_allowance = 1e9;
+        const DrawnGalaxy g = draw_galaxy(morph, parents, stream, 0.04, 25.0, 99.0, any_holes);
         ASSERT_EQ(g.redraws, 0);
         dbeta.push_back((g.beta - p.beta) / morph.lambda.beta);
         dmag.push_back((g.mag - p.mag) / morph.lambda.mag);
@@ -370,4 +373,75 @@ TEST(MorphologyConditional, LargePerturbationsAreRedrawn) {
     std::cout << "  [measured] redraws " << redraws << ", largest perturbation " << largest << "\n";
     EXPECT_GT(redraws, 0);
     EXPECT_LE(largest, 0.3);
+}
+
+// =============================================================================================
+// Several fields of different depths.
+
+// A shallow field (1 arcmin², complete to 26) and a deep one (3 arcmin², complete to 28):
+// brighter than 26 both count, over 4 arcmin²; from 26 to 28 only the deep one, over 3.
+TEST(SourceFields, DensityCombinesTheFieldsWhereComplete) {
+    SourceField shallow{"a.fits", 1.0, {22.1, 24.6, 25.3, 26.6, 27.9}, 26.0};
+    SourceField deep{"b.fits", 3.0, {21.0, 23.2, 25.9, 26.4, 26.9, 27.2, 27.7, 29.1}, 28.0};
+    const std::vector<SourceField> both{shallow, deep};
+    EXPECT_DOUBLE_EQ(field_density(both, 26.0), 6.0 / 4.0);
+    EXPECT_DOUBLE_EQ(field_density(both, 28.0), 6.0 / 4.0 + 4.0 / 3.0);
+    // Beyond every completeness limit, the deepest field alone.
+    EXPECT_DOUBLE_EQ(field_density(both, 30.0), 6.0 / 4.0 + 4.0 / 3.0 + 1.0 / 3.0);
+    EXPECT_EQ(fields_counted(both, 25.0), (std::vector<std::size_t>{0, 1}));
+    EXPECT_EQ(fields_counted(both, 27.0), (std::vector<std::size_t>{1}));
+    EXPECT_EQ(fields_counted(both, 29.0), (std::vector<std::size_t>{1}));
+    // One field: its own density.
+    EXPECT_EQ(field_density({deep}, 27.0), deep.density(27.0));
+    // Written as source_fields and read back.
+    Morphology m = build_morphology({record_of(test::random_model(2, 2.0, 0.0, 0.0, 1), "a", 25.0)},
+                                    SmoothOptions{});
+    m.source_fields = both;
+    const Json doc = m.to_json();
+    ASSERT_TRUE(doc.contains("source_fields"));
+    const Morphology back = Morphology::from_json(doc);
+    ASSERT_EQ(back.source_fields.size(), 2u);
+    EXPECT_EQ(back.source_fields[1].image, "b.fits");
+    EXPECT_EQ(back.source_fields[1].completeness, 28.0);
+    EXPECT_DOUBLE_EQ(field_density(back.source_fields, 28.0), 6.0 / 4.0 + 4.0 / 3.0);
+}
+
+// The turnover: the upper edge of the fullest 0.5-mag bin.
+TEST(SourceFields, CountTurnover) {
+    std::vector<double> mags;
+    for (int i = 0; i < 40; ++i) mags.push_back(24.0 + 0.1 * i);  // 24.0 … 27.9, 5 per bin
+    for (int i = 0; i < 6; ++i) mags.push_back(27.05 + 0.01 * i);  // the 27.0–27.5 bin: 11
+    std::sort(mags.begin(), mags.end());
+    EXPECT_DOUBLE_EQ(count_turnover(mags), 27.5);
+    EXPECT_TRUE(std::isinf(count_turnover({25.0, 26.0})));
+}
+
+// Positivity: perturbed shapes whose model dips below zero deeper than the parent's (by more
+// than 1% of the peak) are redrawn with smaller perturbations; without the rule many draws of
+// this n_max 8 parent ring below −1%.
+TEST(MorphologyConditional, DrawsDoNotRingBelowZero) {
+    const ShapeletModel m = test::random_model(8, 2.0, 0.0, 0.0, 17, true, 0.25);
+    Morphology morph = build_morphology({record_of(m, "a", 24.0)}, SmoothOptions{});
+    for (std::size_t k = 1; k < morph.lambda.coefficient.size(); ++k) morph.lambda.coefficient[k] = 0.08;
+    const double parent_hole = morph.points[0].hole;
+    const std::vector<double> parents = parent_table(morph, 99.0);
+    DrawOptions loose;
+    loose.hole_allowance = 1e9;
+    int holed = 0, holed_loose = 0;
+    for (int i = 0; i < 300; ++i) {
+        RandomStream a(8, std::uint64_t(i), "galaxy"), b(8, std::uint64_t(i), "galaxy");
+        const DrawnGalaxy g = draw_galaxy(morph, parents, a, 0.04, 25.0, 99.0);
+        const DrawnGalaxy h = draw_galaxy(morph, parents, b, 0.04, 25.0, 99.0, loose);
+        // In the aligned frame, as the rule sees it (rotation moves the pixel grid).
+        const auto aligned = [](const DrawnGalaxy& d) {
+            ShapeletModel s = rotate(d.model, -d.rotation);
+            return d.reflected ? reflect_x(s) : s;
+        };
+        holed += hole_depth(aligned(g)) > parent_hole + 0.01 + 1e-9;
+        holed_loose += hole_depth(aligned(h)) > parent_hole + 0.01;
+    }
+    std::cout << "  [measured] parent hole " << parent_hole << "; draws deeper by > 1% of the peak: "
+              << holed << " (without the rule " << holed_loose << " of 300)\n";
+    EXPECT_EQ(holed, 0);
+    EXPECT_GT(holed_loose, 30);
 }

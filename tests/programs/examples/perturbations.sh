@@ -1,7 +1,8 @@
 #!/usr/bin/env bash
 # The perturbations example (the paper's negative-flux diagnostic and Fig. 3) on the HDF
-# morphology: a table of five k rows whose hole fraction does not fall as k grows and whose
-# perturbation is 0 at k = 0 and grows with k; a PGM of 5 rows × 6 galaxies.
+# morphology: a table of five k rows whose perturbation is 0 at k = 0 and grows with k, and whose
+# hole fraction stays that of the real galaxies (k = 0) within 0.03 however hard they are
+# perturbed (draws ringing deeper than their parent are redrawn); a PGM of 5 rows × 6 galaxies.
 source "$(dirname "${BASH_SOURCE[0]}")/../lib.sh"
 data=$(cd ../../../share/data/hdfn && pwd)
 cd "$TMPDIR"
@@ -15,7 +16,7 @@ holes = [float(r[1]) for r in rows]
 pert = [float(r[3]) for r in rows]
 assert k == [0, 1, 2, 4, 8], k
 assert pert[0] == 0 and all(b > a for a, b in zip(pert, pert[1:])), pert
-assert holes[-1] >= holes[0], holes
+assert max(holes) <= holes[0] + 0.03, holes
 PY
 [ "$(head -c 2 fig.pgm)" = "P5" ] || fail "not a PGM"
 exit 0

@@ -12,7 +12,8 @@ run
 for f in report.md table.md sim.fits delta.fits sim6.fits sources.jsonl shapelets.jsonl psf.jsonl \
          morphology.json delta.json hdf.morph.jsonl sim.morph.jsonl delta.morph.jsonl sim6.morph.jsonl \
          sim.truth.jsonl compare/distances.md compare/counts.png compare/c_a.png \
-         figures/hdf_delta_sim.png figures/sim6.png figures/perturbations.png pipeline.log; do
+         figures/hdf_delta_sim.png figures/sim6.png figures/perturbations.png pipeline.log \
+         xdf/psf.jsonl xdf/intrinsic.jsonl intrinsic.jsonl merged.json merged6.fits merged6.morph.jsonl; do
   [ -s "$out/$f" ] || fail "no $f"
 done
 ls "$out" | grep -q '\.tmp' && fail "temporary files left: $(ls "$out")"
@@ -35,7 +36,7 @@ rows = {}
 for line in open(out + "/table.md"):
     cells = [c.strip() for c in line.strip().strip("|").split("|")]
     if len(cells) == 11: rows[cells[0]] = cells
-for name in ("hdf", "sim", "sim6", "delta", "paper: HDF-N", "paper: full simulation"):
+for name in ("hdf", "sim", "sim6", "delta", "merged6", "paper: HDF-N", "paper: full simulation"):
     assert name in rows, ("no row", name)
 assert rows["paper: HDF-N"][2] == "3.110", rows["paper: HDF-N"]
 for name in ("hdf", "sim"):
@@ -55,6 +56,23 @@ drawn=$(wc -l <"$out/sim.truth.jsonl")
 python3 -c "import math,sys; sys.exit(abs($drawn - $real) > 4 * math.sqrt($real))" ||
   fail "simulated $drawn galaxies, the HDF has $real brighter than I = 29"
 
+# The merged model: both fields, intrinsic models, the XDF's star kept out, the report's
+# parent-share table filled.
+python3 - "$out" <<'PY' || fail "the merged run is wrong"
+import json, sys
+out = sys.argv[1]
+m = json.load(open(out + "/merged.json"))
+assert m.get("frame") == "intrinsic", m.get("frame")
+images = {f["image"] for f in m["source_fields"]}
+assert len(images) == 2 and any("xdf" in i for i in images), images
+assert sum(1 for l in open(out + "/xdf/stars.jsonl")) >= 1  # the bright star, by its own PSF
+xdf = [json.loads(l) for l in open(out + "/xdf/intrinsic.jsonl")]
+assert all(r["frame"] == "intrinsic" for r in xdf)
+objects = [json.loads(l) for l in open(out + "/merged6.objects.jsonl")]
+assert objects and all(o.get("frame") == "intrinsic" for o in objects if o["kind"] == "galaxy")
+PY
+grep -q '^| I = 24 | .* | .* from ' "$out/report.md" || fail "report.md lacks the parent shares"
+
 # Nothing changed: nothing runs.
 run
 grep -q 'bin/shapesim-[a-z]* ' "$TMPDIR/log" && fail "a rerun ran programs: $(grep shapesim- "$TMPDIR/log" | head -3)"
@@ -67,9 +85,11 @@ run SEED=8
 for p in shapesim-sample shapesim-render shapesim-measure; do
   grep -q "^[^ ]*bin/$p " "$TMPDIR/log" || fail "SEED=8 did not run $p"
 done
-for p in shapesim-decompose shapesim-smooth; do
+for p in shapesim-decompose; do
   grep -q "^[^ ]*bin/$p " "$TMPDIR/log" && fail "SEED=8 reran $p"
 done
+grep -q "^[^ ]*bin/shapesim-smooth " "$TMPDIR/log" && fail "SEED=8 reran shapesim-smooth"
+grep -q "shapesim-smooth -v" "$TMPDIR/log" && fail "SEED=8 reran the merged smooth"
 # detect runs again only on the new simulations (their skies), never on the real image.
 grep -q "^[^ ]*bin/shapesim-detect [^ ]*hdfn_f814w_v2.fits" "$TMPDIR/log" && fail "SEED=8 reran detect on the HDF"
 grep -q "^[^ ]*bin/shapesim-detect [^ ]*/sim.fits " "$TMPDIR/log" || fail "SEED=8 did not measure the new sky"

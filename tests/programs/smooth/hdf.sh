@@ -83,7 +83,22 @@ expect_error "$rc" 1 'nosuch'
 rc=0; "$BIN/$prog" --k -1 <shapelets.jsonl >out 2>err || rc=$?
 expect_error "$rc" 2 'k'
 rc=0; "$BIN/$prog" --like "$data/hdfn_f814w_v2.fits" --area 1 <shapelets.jsonl >out 2>err || rc=$?
-expect_error "$rc" 2 'give --like or --area, not both'
+expect_error "$rc" 2 'give one of --like, --area and --field'
+# --field: one field named by the records' image gives --area's density; records from an
+# image no --field names, or a malformed --field, are refused.
+"$BIN/$prog" -q --area 0.115643 <shapelets.jsonl >area.json || fail "--area failed"
+"$BIN/$prog" -q --field "$HDF_IMAGE=0.115643" <shapelets.jsonl >field.json || fail "--field failed"
+python3 -c 'import json
+a, f = json.load(open("area.json")), json.load(open("field.json"))
+[one] = f["source_fields"]
+assert one["area_arcmin2"] == a["source_field"]["area_arcmin2"] and one["mags"] == a["source_field"]["mags"]
+assert one["completeness"] > 28, one["completeness"]  # the turnover of the HDF counts
+assert [p["weight"] if "weight" in p else 1 for p in f["points"]] == [1] * len(f["points"])' ||
+  fail "--field does not record the field as --area does"
+rc=0; "$BIN/$prog" --field other.fits=1 <shapelets.jsonl >out 2>err || rc=$?
+expect_error "$rc" 1 'none of the --field images'
+rc=0; "$BIN/$prog" --field "$HDF_IMAGE=big" <shapelets.jsonl >out 2>err || rc=$?
+expect_error "$rc" 2 'IMAGE=ARCMIN2'
 rc=0; "$BIN/$prog" --like nosuch.fits <shapelets.jsonl >out 2>err || rc=$?
 expect_error "$rc" 1 'nosuch.fits'
 [ ! -s out ] || fail "output written for a missing --like image"
