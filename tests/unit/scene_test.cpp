@@ -335,3 +335,39 @@ TEST(Scene, DifferenceKernelReobservesWithABroaderPsf) {
     report("difference_kernel_max_pixel_error_over_peak", err);
     EXPECT_LT(err, 1e-3);
 }
+
+// Intrinsic galaxies are drawn through the PSF itself (not the galaxy kernel) and never
+// sharper than the PSF they were fitted through: with psf_beta above the target PSF's β the
+// model is first smoothed by the Gaussian of scale √(b_seen² − b_target²); below it, not.
+TEST(Scene, IntrinsicModelsThroughThePsfNeverSharperThanSeen) {
+    SceneOptions o;
+    o.noise_free = true;
+    SceneKernels k;
+    const ShapeletModel psf = psf_model();
+    k.star = to_cartesian(psf);
+    const ShapeletModel g = test::random_model(6, 2.0, 0.0, 0.0, 12, true, 0.25);
+    ObjectRecord r = galaxy_record(g, 30.0, 30.0, "g");
+    r.extra["frame"] = "intrinsic";
+    const auto coefficients_match = [](const CartesianModel& a, const CartesianModel& b) {
+        return a.n_max == b.n_max && std::abs(a.beta_pix - b.beta_pix) < 1e-12 * b.beta_pix &&
+               (a.b - b.b).cwiseAbs().maxCoeff() < 1e-12 * b.b.cwiseAbs().maxCoeff();
+    };
+    ShapeletModel placed = g;
+    placed.x = placed.y = 30.0;
+    // No psf_beta, or one sharper than the target: the PSF alone.
+    const CartesianModel through_psf = convolve(to_cartesian(placed), k.star.value());
+    EXPECT_TRUE(coefficients_match(prepare_object(r, 0.04, k, o).model, through_psf));
+    r.extra["psf_beta"] = 0.5 * psf.beta_pix * 0.04;
+    EXPECT_TRUE(coefficients_match(prepare_object(r, 0.04, k, o).model, through_psf));
+    // Seen through a PSF twice as broad: smoothed to its scale first.
+    r.extra["psf_beta"] = 2.0 * psf.beta_pix * 0.04;
+    CartesianModel gaussian(0.0, 0.0, std::sqrt(3.0) * psf.beta_pix, 0);
+    gaussian.b(0, 0) = 1.0;
+    gaussian.b(0, 0) = 1.0 / flux(to_polar(gaussian));
+    const CartesianModel smoothed = convolve(convolve(to_cartesian(placed), gaussian), k.star.value());
+    const PreparedObject p = prepare_object(r, 0.04, k, o);
+    EXPECT_TRUE(coefficients_match(p.model, smoothed));
+    EXPECT_NEAR(flux(to_polar(p.model)), flux(g), 1e-9 * flux(g));  // unit-flux kernels
+    // Without a PSF an intrinsic model is refused.
+    EXPECT_THROW(prepare_object(r, 0.04, SceneKernels{}, o), Error);
+}
