@@ -538,6 +538,12 @@ DetectionResult detect_sources(const ImageArray& image, const ImageArray* invers
             pixels.push_back({value, double(pixel % nx) - cat.x[k], double(pixel / nx) - cat.y[k]});
         }
         d.fwhm = sextractor_fwhm(pixels, cat.peak[k], lowest, cat.a[k], cat.b[k]);
+        // An unresolved spike (a hot pixel, a cosmic ray) has a fitted core narrower than the
+        // undersampling correction: no FWHM, flagged, and the catalogue goes on (issue 15).
+        if (!(d.fwhm > 0.0) || !std::isfinite(d.fwhm)) {
+            d.fwhm = std::numeric_limits<double>::quiet_NaN();
+            d.flags.push_back("fwhm_failed");
+        }
 
         // Kron radius within 6 a (SExtractor), then the AUTO ellipse, each on a cutout with
         // the neighbours mirrored out.

@@ -106,14 +106,15 @@ struct Detection {
     double flux_auto = 0.0;               ///< FLUX_AUTO
     double flux_auto_err = 0.0;           ///< FLUXERR_AUTO
     double kron_radius = 0.0;             ///< KRON_RADIUS, units of a, b
-    double fwhm = 0.0;                    ///< FWHM_IMAGE, pixels (Gaussian core)
+    double fwhm = 0.0;                    ///< FWHM_IMAGE, pixels (Gaussian core); NaN and the
+                                          ///< flag "fwhm_failed" when the fit gives none > 0
     int iso_area = 0;                     ///< ISOAREA_IMAGE: pixels above ANALYSIS_THRESH
     int npix = 0;                         ///< pixels in the segmentation map
     double peak = 0.0;                    ///< FLUX_MAX, background-subtracted
     double sigma = 0.0;                   ///< pixel noise σ at the peak (rescaled map)
     double threshold = 0.0;               ///< detection threshold at the peak, image units
     std::vector<std::string> flags;       ///< "blended", "truncated", "aperture_truncated",
-                                          ///< "aperture_masked", "singular"
+                                          ///< "aperture_masked", "singular", "fwhm_failed"
 };
 
 /// Everything detection produced; later stages (stamps, stellarity) read from it.

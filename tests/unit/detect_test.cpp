@@ -1289,3 +1289,28 @@ TEST(DetectAperture, OverrunningTheLowEdgeIsTruncated) {
     EXPECT_TRUE(circular_aperture_flux(image, nullptr, nullptr, nullptr, 0, 59.8, 30.0, 5.0)
                     .truncated);  // the mirror case at the high edge is flagged
 }
+
+// A hot pixel (a cosmic ray) has no resolved core: its FWHM fit gives none > 0. It is flagged
+// fwhm_failed with no FWHM, its record is valid without one, and the galaxy beside it is
+// measured as usual: one odd object never costs the catalogue (issue 15).
+TEST(DetectOdd, HotPixelIsFlaggedNotFatal) {
+    const std::vector<Blob> blobs{{30.2, 30.4, 3000.0, 2.5}};
+    ImageArray image = blobs_image(64, 64, blobs) + white_noise(64, 64, 1.0, 51);
+    image(44, 49) += 400.0;  // pixel (50, 45) in FITS
+    const DetectionResult r = detect_sources(image, nullptr, DetectionOptions{});
+    const Match hot = nearest(r.objects, 50.0, 45.0), galaxy = nearest(r.objects, 30.2, 30.4);
+    ASSERT_LT(hot.distance, 0.5);
+    ASSERT_LT(galaxy.distance, 0.5);
+    const Detection& h = r.objects[std::size_t(hot.index)];
+    EXPECT_TRUE(std::isnan(h.fwhm));
+    EXPECT_NE(std::find(h.flags.begin(), h.flags.end(), "fwhm_failed"), h.flags.end());
+    const Detection& g = r.objects[std::size_t(galaxy.index)];
+    EXPECT_GT(g.fwhm, 0.0);
+    EXPECT_EQ(std::find(g.flags.begin(), g.flags.end(), "fwhm_failed"), g.flags.end());
+    SourceContext context;
+    context.pixel_scale = 0.04;
+    const SourceRecord record = source_record(h, CoreFraction{}, 0.0, nullptr, context);
+    EXPECT_FALSE(record.fwhm.has_value());
+    const SourceRecord back = SourceRecord::from_json(record.to_json());
+    EXPECT_FALSE(back.fwhm.has_value());
+}
