@@ -199,6 +199,10 @@ int run(int argc, const char* const argv[]) {
     std::map<std::string, std::unique_ptr<FitsReader>> stamp_files;
     std::vector<Job> jobs;
     std::map<double, std::optional<CartesianModel>> psfs;  // --psf by pixel scale, read once
+    // Named inputs are opened before any record is read: a missing file is an error even when
+    // there is nothing to fit.
+    if (!s.stamps.empty()) stamp_files[s.stamps] = std::make_unique<FitsReader>(s.stamps);
+    if (!s.psf.empty()) read_psf_model(s.psf, 1.0);
     SourceRecord source;
     // Field errors from the record's extra fields, placed at the reader's file and line.
     const auto placed = [&](const auto& read) {

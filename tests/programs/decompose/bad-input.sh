@@ -69,6 +69,11 @@ rc=0
 "$BIN/$prog" --models nosuch/models.fits <four.jsonl >out 2>err || rc=$?
 expect_error "$rc" 1 '^shapesim-decompose: nosuch/models\.fits: '
 [ ! -s out ] || fail "unwritable --models: wrote to stdout"
+# A missing --stamps or --psf file is an error even on empty input (issue 15).
+rc=0; "$BIN/$prog" --stamps nosuch.fits </dev/null >out 2>err || rc=$?
+expect_error "$rc" 1 '^shapesim-decompose: nosuch\.fits: cannot open'
+rc=0; "$BIN/$prog" --psf nosuch.jsonl </dev/null >out 2>err || rc=$?
+expect_error "$rc" 1 '^shapesim-decompose: nosuch\.jsonl: cannot open'
 
 # expect_skipped INPUT STAMPS LINE: the object on LINE is skipped with one warning naming it;
 # the other three are written as in the good run; exit 0; the models file has their images.
