@@ -161,6 +161,11 @@ int run_psf(const Settings& s, const app::ProgramOptions& options, const app::Lo
     log.info("PSF n_max ", psf.n_max, ", beta ", psf.model.beta_pix * target, "\" (",
              psf.model.beta_pix, " px): max |residual| ", psf.max_residual_fraction,
              " of the peak, rms ", psf.rms_residual_fraction, " (", log.elapsed(), " s)");
+    if (!psf.reached_target)
+        log.warn("the PSF model misses its residual target: max |residual| ",
+                 psf.max_residual_fraction, " of the peak > --psf-residual ", s.psf_residual,
+                 " at n_max ", psf.n_max, " (--psf-n-max-cap ", s.psf_n_max_cap,
+                 "); the record is flagged residual_above_target");
     if (!s.models.empty()) {
         FitsWriter models(s.models, "shapesim-decompose");
         models.write_image(psf.image, {"psf.data", -64, {}, {}, {}, {}});

@@ -15,6 +15,12 @@ awk -v r="$res" 'BEGIN { exit !(r < 0.01) }' || fail "max residual $res ≥ 1% o
 for plane in data model residual; do
   grep -a -q "EXTNAME = 'psf.$plane'" psf.fits || fail "no psf.$plane HDU"
 done
+# A cap too low for the residual target: flagged and said on stderr (issue 15).
+"$BIN/shapesim-decompose" --psf-image "$data/wfpc2_f814w_tinytim_psf.fits" \
+  --like "$data/hdfn_f814w_v2.fits" --psf-box 0.0996 0.05 --psf-n-max-cap 4 >low.jsonl 2>low.err ||
+  fail "PSF mode with a low cap failed"
+grep -q '"flags":\["residual_above_target"\]' low.jsonl || fail "no residual_above_target flag"
+grep -q 'warning: the PSF model misses its residual target' low.err || fail "no warning: $(cat low.err)"
 # PSF mode needs a target scale.
 rc=0
 "$BIN/shapesim-decompose" --psf-image "$data/wfpc2_f814w_tinytim_psf.fits" >out 2>err || rc=$?
