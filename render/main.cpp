@@ -270,6 +270,19 @@ int run(int argc, const char* const argv[]) {
         FitsKeyword("FIELDNX", (long long)field.nx, "field width, pixels"),
         FitsKeyword("FIELDNY", (long long)field.ny, "field height, pixels"),
     };
+    // The objects' own zero point (mag + 2.5 log₁₀ flux, when every object with both agrees):
+    // a simulation measured without --zero-point gets its true magnitudes.
+    std::optional<double> zero_point;
+    bool agree = true;
+    for (const ObjectRecord& r : records) {
+        if (!r.mag || !(r.flux > 0.0)) continue;
+        const double zp = *r.mag + 2.5 * std::log10(r.flux);
+        if (!zero_point) zero_point = zp;
+        else if (std::abs(zp - *zero_point) > 1e-6) agree = false;
+    }
+    if (zero_point && agree)
+        spec.keywords.emplace_back("MAGZERO", std::round(*zero_point * 1e6) / 1e6,
+                                   "AB zero point: mag = MAGZERO - 2.5 log10(value)");
     FitsWriter fits(output, "shapesim-render");
     fits.write_image(image, spec);
 
