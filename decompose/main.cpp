@@ -13,6 +13,7 @@
 #include "shapesim/polar.hpp"
 #include "shapesim/psf.hpp"
 #include "shapesim/records.hpp"
+#include "shapesim/transform.hpp"
 
 #include <exception>
 #include <iostream>
@@ -203,11 +204,13 @@ int run(int argc, const char* const argv[]) {
     JsonlReader reader(s.input, {SourceRecord::schema});
     std::map<std::string, std::unique_ptr<FitsReader>> stamp_files;
     std::vector<Job> jobs;
-    std::map<double, std::optional<CartesianModel>> psfs;  // --psf by pixel scale, read once
     // Named inputs are opened before any record is read: a missing file is an error even when
-    // there is nothing to fit.
+    // there is nothing to fit. The PSF is read once, in arcsec (pixel scale 1), and dilated
+    // (flux kept) to each record's pixel scale.
     if (!s.stamps.empty()) stamp_files[s.stamps] = std::make_unique<FitsReader>(s.stamps);
-    if (!s.psf.empty()) read_psf_model(s.psf, 1.0);
+    std::optional<ShapeletModel> psf_arcsec;
+    if (!s.psf.empty()) psf_arcsec = read_psf_model(s.psf, 1.0);
+    std::map<double, CartesianModel> psfs;  // by pixel scale
     SourceRecord source;
     // Field errors from the record's extra fields, placed at the reader's file and line.
     const auto placed = [&](const auto& read) {
@@ -252,10 +255,13 @@ int run(int argc, const char* const argv[]) {
             return *v;
         });
         job.zero_point = placed([&] { return optional_double(source.extra, "zero_point"); });
-        if (!s.psf.empty()) {
-            auto& at_scale = psfs[job.pixel_scale];
-            if (!at_scale) at_scale = to_cartesian(read_psf_model(s.psf, job.pixel_scale));
-            job.psf = at_scale;
+        if (psf_arcsec) {
+            auto at_scale = psfs.find(job.pixel_scale);
+            if (at_scale == psfs.end())
+                at_scale = psfs.emplace(job.pixel_scale,
+                                        to_cartesian(dilate(*psf_arcsec, 1.0 / job.pixel_scale)))
+                               .first;
+            job.psf = at_scale->second;
         }
         job.source = source;
         jobs.push_back(std::move(job));

@@ -15,19 +15,22 @@ fits_card() {  # the value of header card $2 in the first image HDU of FITS file
   fold -w 80 "$f" | grep -a -m1 "^$card *=" | sed "s/^$card *= *//; s/ *\/.*//; s/'//g; s/ *$//"
 }
 
-# Among the objects of catalogue $1 brighter than I = $2: "largest/all from PARENT", the most
-# any one real parent supplied.
-parent_share() {
+# The objects of catalogue $1 brighter than I = $2, by real parent: "N K BEST PARENT" (objects,
+# distinct parents, the most one parent supplied, that parent).
+parent_counts() {
   awk -v limit="$2" 'match($0, /"mag":[-0-9.e+]+/) { m = substr($0, RSTART + 6, RLENGTH - 6) + 0;
       if (m < limit && match($0, /"parent":"[^"]*"/)) { n++; p[substr($0, RSTART + 10, RLENGTH - 11)]++ } }
-    END { best = 0; who = "–"; for (q in p) if (p[q] > best || (p[q] == best && q < who)) { best = p[q]; who = q }
-          if (n == 0) printf "0/0"; else printf "%d/%d (%.0f%%) from %s", best, n, 100 * best / n, who }' "$1"
+    END { k = 0; best = 0; who = "–"
+          for (q in p) { k++; if (p[q] > best || (p[q] == best && q < who)) { best = p[q]; who = q } }
+          printf "%d %d %d %s", n, k, best, who }' "$1"
 }
-# Objects of catalogue $1 brighter than I = $2, and how many real parents they were drawn from.
+# "largest/all (share) from PARENT", the most any one real parent supplied.
+parent_share() {
+  parent_counts "$1" "$2" | awk '{ if ($1 == 0) printf "0/0"; else printf "%d/%d (%.0f%%) from %s", $3, $1, 100 * $3 / $1, $4 }'
+}
+# "N objects from K real galaxies".
 bright_parents() {
-  awk -v limit="$2" 'match($0, /"mag":[-0-9.e+]+/) { m = substr($0, RSTART + 6, RLENGTH - 6) + 0;
-      if (m < limit && match($0, /"parent":"[^"]*"/)) { n++; p[substr($0, RSTART + 10, RLENGTH - 11)]++ } }
-    END { k = 0; for (q in p) k++; printf "%d objects from %d real galaxies", n, k }' "$1"
+  parent_counts "$1" "$2" | awk '{ printf "%d objects from %d real galaxies", $1, $2 }'
 }
 
 version=$(grep -a -m1 -o 'shapesim) [^ ]*' "$out/pipeline.log" 2>/dev/null | tail -1 | cut -d' ' -f2 || true)

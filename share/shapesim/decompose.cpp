@@ -235,7 +235,7 @@ Decomposition decompose(const ImageArray& image, const ImageArray& weight, const
         }
         const double chi2r = search.best_chi2r();
         const ShapeletFit& best = *search.best();
-        out.trials.push_back({n, best.model.beta_pix, chi2r, best.chi2});
+        out.trials.push_back({n, best.model.beta_pix, chi2r});
         x = best.model.x;
         y = best.model.y;
         beta = best.model.beta_pix;

@@ -72,7 +72,6 @@ struct OrderTrial {
     int n_max = 0;
     double beta_pix = 0.0;
     double chi2r = 0.0;
-    double chi2 = 0.0;  ///< the fit's χ² (weights as given)
 };
 
 /// The result of decompose().

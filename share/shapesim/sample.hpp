@@ -54,7 +54,7 @@ struct SampleOptions {
     double zero_point = 0.0;           ///< of the output fluxes
     double margin = 0.0;               ///< pixels added to every reach (PSF, …)
     /// Shapes conditional on magnitude (morphology.hpp; `by_magnitude` is filled here).
-    DrawOptions draw{0, 0.3, 2.0, 0.5, 0.01, {}};
+    DrawOptions draw;
     StarCounts stars;
     std::optional<std::uint64_t> star_count;
     void validate() const;
