@@ -445,3 +445,38 @@ TEST(MorphologyConditional, DrawsDoNotRingBelowZero) {
     EXPECT_EQ(holed, 0);
     EXPECT_GT(holed_loose, 30);
 }
+
+// A draw brighter than its parent keeps the parent's holes only at their depth in flux: its
+// hole, relative to its own peak, is at most the parent's × (parent peak / draw peak) + 1%,
+// the peak ∝ flux/β². A deeply holed parent whose shape cannot be perturbed (λ = 0) is thus
+// never drawn much brighter than itself (the redraws pick another magnitude), while without
+// the rule a quarter of its draws are.
+TEST(MorphologyConditional, BrighterDrawsKeepHolesOnlyAtTheirFluxDepth) {
+    const ShapeletModel holed = test::random_model(8, 2.0, 0.0, 0.0, 17, true, 0.25);
+    Morphology morph = build_morphology({record_of(holed, "faint", 24.0)}, SmoothOptions{});
+    for (auto& c : morph.lambda.coefficient) c = 0.0;
+    morph.lambda.beta = 0.0;
+    morph.lambda.mag = 0.3;
+    morph.lambda.phase_deg = 0.0;  // the shape itself fixed: only the magnitude moves
+    const MorphologyPoint& p = morph.points[0];
+    ASSERT_GT(p.hole, 0.1);  // a deeply holed shape: the rule has something to do
+    const std::vector<double> parents = parent_table(morph, 99.0);
+    DrawOptions loose;
+    loose.hole_allowance = 1e9;
+    int brighter = 0, brighter_loose = 0;
+    for (int i = 0; i < 400; ++i) {
+        RandomStream a(10, std::uint64_t(i), "galaxy"), b(10, std::uint64_t(i), "galaxy");
+        const DrawnGalaxy g = draw_galaxy(morph, parents, a, 0.04, 25.0, 99.0);
+        const DrawnGalaxy h = draw_galaxy(morph, parents, b, 0.04, 25.0, 99.0, loose);
+        const double ratio = std::pow(10.0, -0.4 * (g.mag - p.mag));  // β unchanged
+        ShapeletModel s = rotate(g.model, -g.rotation);
+        if (g.reflected) s = reflect_x(s);
+        EXPECT_LE(hole_depth(s), p.hole / std::max(ratio, 1.0) + 0.01 + 1e-9) << i;
+        brighter += g.mag < p.mag - 0.1;
+        brighter_loose += h.mag < p.mag - 0.1;
+    }
+    std::cout << "  [measured] draws > 0.1 mag brighter than the holed parent: " << brighter
+              << " (without the rule " << brighter_loose << " of 400)\n";
+    EXPECT_EQ(brighter, 0);
+    EXPECT_GT(brighter_loose, 100);
+}
