@@ -92,6 +92,11 @@ void declare(app::ProgramOptions& options, Settings& s) {
         ("bad-fit-chi2r", po::value(&f.bad_fit_chi2r)->default_value(1.5)
              ->notifier(in_range("bad-fit-chi2r", 1e-3, 1e6)),
          "flag fits kept with chi2_r above this bad_fit")
+        ("max-hole", po::value(&f.max_hole)->default_value(0.1)
+             ->notifier(in_range("max-hole", 0.0, 1e6)),
+         "flag holes a model dipping below zero by more than this fraction of its peak, or "
+         "with more than this fraction of its light below zero (an intrinsic model as seen "
+         "through its PSF)")
         ("noise-correlation", po::value(&s.noise_correlation)->value_name("F")
              ->notifier(in_range("noise-correlation", 1.0, 100.0)),
          "correlated-noise factor for the effective degrees of freedom (default: the "

@@ -116,14 +116,16 @@ the bootstrap can only copy the bright galaxies the real cut has, and a 512² cu
 
 ## Every shipped field, one model
 
-The same 6 arcmin² field drawn from a model trained on both shipped F814W-like fields: the HDF
-cut (WFPC2, 0.04″) and the XDF cutout (ACS, 0.06″, PSF-matched to the infrared). Each galaxy
-is fitted through its own image's PSF (\`shapesim-decompose --psf\`: intrinsic models), so both
-cameras live in one model; \`shapesim-smooth --field\` combines their counts where each is
-complete ($(grep -o '"completeness":[0-9.]*' "$out/merged.json" | cut -d: -f2 | paste -sd/ -) mag), and \`shapesim-sample --neighbours\`
+The same 6 arcmin² field drawn from a model trained on every shipped F814W-like image: the HDF
+cut (WFPC2, 0.04″), the XDF cutout (ACS, 0.06″, PSF-matched to the infrared) and six COSMOS/AEGIS
+cutouts of single galaxies (ACS, 0.03″). Each galaxy is fitted through its own image's PSF
+(\`shapesim-decompose --psf\`: intrinsic models), so the cameras live in one model;
+\`shapesim-smooth --field\` combines the two fields' counts where each is complete
+($(grep -o '"completeness":[0-9.]*' "$out/merged.json" | cut -d: -f2 | paste -sd/ -) mag) and takes the cutouts as shape-only parents (\`IMAGE=shapes\`: they
+shape the draws near their magnitude but are not counted), and \`shapesim-sample --neighbours\`
 draws shapes conditional on magnitude. Rendered through the HDF's PSF and noise, measured in
-the Table above as \`merged6\`. Its $(morph_points "$out/merged.json") parents ($(grep -c . "$out/intrinsic.jsonl") HDF and
-$(grep -c . "$out/xdf/intrinsic.jsonl") XDF models fitted).
+the Table above as \`merged6\`. The model has $(morph_points "$out/merged.json") parents, $(grep -o '"shape_only":true' "$out/merged.json" | grep -c .) of them shape-only, from
+$(grep -c . "$out/intrinsic.jsonl") HDF, $(grep -c . "$out/xdf/intrinsic.jsonl") XDF and $(cat "$out"/stamps/{aegis?,cosmos}.jsonl | grep -c .) cutout models fitted.
 
 The largest share of one real parent among the galaxies brighter than each magnitude:
 

@@ -138,9 +138,55 @@ $(OUT)/intrinsic.jsonl: $(OUT)/sources.jsonl $(OUT)/stars.jsonl $(OUT)/psf.jsonl
 	$(call prog,decompose) -j $(THREADS) --psf $(OUT)/psf.jsonl --stars $(OUT)/stars.jsonl \
 	  < $< > $(tmp)
 	mv $(tmp) $@
-$(OUT)/merged.json: $(OUT)/intrinsic.jsonl $(OUT)/xdf/intrinsic.jsonl $(call prog,smooth)
-	cat $(OUT)/intrinsic.jsonl $(OUT)/xdf/intrinsic.jsonl | $(call prog,smooth) -v \
-	  --field $(IMAGE)=$(HDF_AREA) --field $(XDF_IMAGE)=$(XDF_AREA) > $(tmp)
+# The COSMOS/AEGIS stamps (share/data/cosmos_aegis/README.md): isolated galaxies, each fitted
+# through its own PSF; shape-only parents (a cutout has no area to count).
+STAMP_DATA ?= $(R)share/data/cosmos_aegis
+STAMP_ZERO_POINT ?= 25.94
+# Stamp name → image[HDU], PSF image[HDU], gain (the exposure).
+STAMPS := aegis1 aegis2 aegis3 aegis4 aegis5 cosmos
+aegis_images = $(STAMP_DATA)/AEGIS_F814w_images_0$(1).fits
+aegis_psfs   = $(STAMP_DATA)/AEGIS_F814w_PSF_images_0$(1).fits
+stamp_file_aegis1 := $(call aegis_images,1)
+stamp_hdu_aegis1 := [0]
+stamp_file_aegis2 := $(call aegis_images,1)
+stamp_hdu_aegis2 := [1]
+stamp_file_aegis3 := $(call aegis_images,1)
+stamp_hdu_aegis3 := [2]
+stamp_file_aegis4 := $(call aegis_images,2)
+stamp_hdu_aegis4 := [0]
+stamp_file_aegis5 := $(call aegis_images,2)
+stamp_hdu_aegis5 := [1]
+stamp_file_cosmos := $(STAMP_DATA)/100610.img.fits
+stamp_hdu_cosmos :=
+$(foreach s,aegis1 aegis2 aegis3,$(eval stamp_psf_$(s) := $(call aegis_psfs,1)))
+$(foreach s,aegis4 aegis5,$(eval stamp_psf_$(s) := $(call aegis_psfs,2)))
+stamp_psf_cosmos := $(call aegis_psfs,1)
+$(foreach s,aegis1 aegis2 aegis3 aegis4 aegis5,$(eval stamp_psf_hdu_$(s) := $(stamp_hdu_$(s))))
+stamp_psf_hdu_cosmos := [0]
+$(foreach s,aegis1 aegis2 aegis3 aegis4 aegis5,$(eval stamp_gain_$(s) := 2100))
+stamp_gain_cosmos := 4056
+stamp_image = $(stamp_file_$(1))$(stamp_hdu_$(1))
+INPUTS += $(STAMP_DATA)/AEGIS_F814w_images_01.fits $(STAMP_DATA)/AEGIS_F814w_images_02.fits \
+          $(STAMP_DATA)/AEGIS_F814w_PSF_images_01.fits $(STAMP_DATA)/AEGIS_F814w_PSF_images_02.fits \
+          $(STAMP_DATA)/100610.img.fits
+
+.SECONDEXPANSION:
+.SECONDARY: $(STAMPS:%=$(OUT)/stamps/%.psf.jsonl)
+$(OUT)/stamps/%.psf.jsonl: $$(stamp_psf_$$*) $(call prog,decompose)
+	@mkdir -p $(@D)
+	$(call prog,decompose) --psf-image '$(stamp_psf_$*)$(stamp_psf_hdu_$*)' --psf-pixel-scale 0.03 \
+	  --pixel-scale 0.03 > $(tmp)
+	mv $(tmp) $@
+$(OUT)/stamps/%.jsonl: $(OUT)/stamps/%.psf.jsonl $$(stamp_file_$$*) $(call prog,detect) $(call prog,decompose)
+	$(call prog,detect) '$(call stamp_image,$*)' --pixel-scale 0.03 --zero-point $(STAMP_ZERO_POINT) \
+	  --gain $(stamp_gain_$*) --stamps $(OUT)/stamps/$*.fits > $(OUT)/stamps/$*.sources.jsonl
+	$(call prog,decompose) --psf $< < $(OUT)/stamps/$*.sources.jsonl > $(tmp)
+	mv $(tmp) $@
+
+$(OUT)/merged.json: $(OUT)/intrinsic.jsonl $(OUT)/xdf/intrinsic.jsonl $(STAMPS:%=$(OUT)/stamps/%.jsonl) $(call prog,smooth)
+	cat $(OUT)/intrinsic.jsonl $(OUT)/xdf/intrinsic.jsonl $(STAMPS:%=$(OUT)/stamps/%.jsonl) | \
+	  $(call prog,smooth) -v --field $(IMAGE)=$(HDF_AREA) --field $(XDF_IMAGE)=$(XDF_AREA) \
+	  $(foreach s,$(STAMPS),--field '$(call stamp_image,$(s))=shapes') > $(tmp)
 	mv $(tmp) $@
 $(OUT)/merged6.objects.jsonl: $(OUT)/merged.json $(OUT)/params/seed $(OUT)/params/area $(call prog,sample)
 	$(call prog,sample) $< $(LARGE_FIELD) --seed $(SEED) --zero-point $(ZERO_POINT) \

@@ -47,6 +47,7 @@ struct Settings {
     std::vector<double> shear;
     double kappa = 0.0, exposure = 1.0;
     int bitpix = -32, difference_order = -1;
+    bool keep_negative = false;
     SceneOptions scene;
 };
 
@@ -120,6 +121,11 @@ int run(int argc, const char* const argv[]) {
         ("sky", po::value(&o.sky)->default_value(0.0)->notifier(in_range("sky", -1e30, 1e30)),
          "sky level added, image units")
         ("noise-free", po::bool_switch(&o.noise_free), "no noise");
+    options.group("Models").add_options()
+        ("keep-negative", po::bool_switch(&s.keep_negative),
+         "draw each galaxy's shapelet series exactly, negative pixels too (default: a galaxy's "
+         "pixels below zero are set to zero, since light is never negative and a truncated "
+         "series rings; the truth's flux is what was drawn)");
     options.group("Output").add_options()
         ("truth", po::value(&s.truth)->value_name("FILE"),
          "write what was drawn, for the objects centred in the image or --tile (JSON lines:\n"
@@ -237,7 +243,9 @@ int run(int argc, const char* const argv[]) {
             in_window.push_back(std::move(p));
     }
     const auto t_paint = clock::now();
-    ImageArray image = paint(in_window, window, o);
+    o.clip_negative = !s.keep_negative;
+    std::vector<ClippedLight> clipped;
+    ImageArray image = paint(in_window, window, o, &clipped);
     const auto t_noise = clock::now();
     add_noise(image, window, field.nx, o);
     const auto t_write = clock::now();
@@ -303,8 +311,12 @@ int run(int argc, const char* const argv[]) {
             t["dec"] = rec.dec;
             t["x"] = p.model.x;
             t["y"] = p.model.y;
-            t["flux"] = p.flux;
-            if (rec.mag) t["mag"] = *rec.mag - 2.5 * std::log10(p.flux / rec.flux);
+            // The light drawn: the model's, plus the negative light clipped away.
+            const std::size_t i = std::size_t(&p - in_window.data());
+            const double flux = p.flux + clipped[i].flux;
+            t["flux"] = flux;
+            if (rec.mag) t["mag"] = *rec.mag - 2.5 * std::log10(flux / rec.flux);
+            if (clipped[i].flux > 0.0) t["clipped_flux"] = clipped[i].flux;
             if (p.intrinsic) {
                 // Undefined (null) for a model whose second moments are not positive.
                 const Complex e = p.intrinsic->epsilon;
@@ -322,6 +334,19 @@ int run(int argc, const char* const argv[]) {
     fits.commit();
     if (truth) truth->commit();
     const auto t_end = clock::now();
+    long clipped_count = 0;
+    double clipped_share = 0.0, deepest = 0.0;
+    for (std::size_t i = 0; i < clipped.size(); ++i) {
+        if (!(clipped[i].flux > 0.0)) continue;
+        ++clipped_count;
+        clipped_share = std::max(clipped_share, clipped[i].flux / std::abs(in_window[i].flux));
+        deepest = std::min(deepest, clipped[i].deepest);
+    }
+    if (clipped_count > 0)
+        log.info(clipped_count, " galaxies had negative model light, set to zero (at most ",
+                 clipped_share, " of a galaxy's flux; deepest pixel ", deepest,
+                 o.noise_rms > 0.0 ? " = " + std::to_string(deepest / o.noise_rms) + " sigma" : std::string(),
+                 ")");
     auto seconds = [](auto a, auto b) { return std::chrono::duration<double>(b - a).count(); };
     log.info(in_window.size(), " of ", records.size(), " objects drawn into ", window.x1 - window.x0 + 1,
              " x ", window.y1 - window.y0 + 1, " pixels; galaxy kernel: ", kernel_note,

@@ -10,6 +10,7 @@
 #include "shapesim/morphology.hpp"
 #include "shapesim/sample.hpp"
 
+#include <algorithm>
 #include <cmath>
 #include <iostream>
 
@@ -134,6 +135,10 @@ int run(int argc, const char* const argv[]) {
     if (!s.star_histogram.empty()) o.stars.bins = read_star_histogram(s.star_histogram);
     o.margin = s.margin / field.pixel_scale;
 
+    const auto shape_only = std::count_if(morphology.points.begin(), morphology.points.end(),
+                                          [](const MorphologyPoint& p) { return p.shape_only; });
+    if (shape_only > 0 && o.draw.neighbours == 0)
+        log.info(shape_only, " shape-only models unused: only --neighbours draws take their shapes");
     JsonlWriter out(std::cout, "-");
     ParentShares parents;
     const SampleSummary summary = sample_field(morphology, field, o, tile, [&](const ObjectRecord& r) {

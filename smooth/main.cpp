@@ -39,7 +39,7 @@ struct Settings {
     // Every fit that is a faithful model: whatever stopped its order search (converged,
     // flattened at the noise, the cap, the stamp), unless χ²_r says it misses real structure
     // ("bad_fit"). The paper's `converged|n_max_cap` is one --require away.
-    std::string input = "-", require, reject = "edge,bright_star,noise,bad_fit", weight_field;
+    std::string input = "-", require, reject = "edge,bright_star,noise,bad_fit,holes", weight_field;
     double k = 4.0, phase = 15.0, beta = 0.0, mag = 0.0, modulus = 0.0, mag_limit = 0.0, area = 0.0;
     bool delta = false;
     std::vector<std::string> fields;
@@ -72,9 +72,9 @@ int run(int argc, const char* const argv[]) {
          "keep records carrying all these flags (comma-separated; empty: all; A|B: either);\n"
          "the paper's selection: converged|n_max_cap")
         ("reject", po::value(&s.reject)->value_name("FLAGS")
-             ->default_value("edge,bright_star,noise,bad_fit"),
+             ->default_value("edge,bright_star,noise,bad_fit,holes"),
          "drop records carrying any of these flags (bad_fit: chi2_r above "
-         "shapesim-decompose --bad-fit-chi2r)")
+         "shapesim-decompose --bad-fit-chi2r; holes: dips below zero beyond its --max-hole)")
         ("mag-limit", po::value(&s.mag_limit)->value_name("MAG"),
          "drop records fainter than this")
         ("area", po::value(&s.area)->value_name("ARCMIN2")->notifier(in_range("area", 1e-9, 1e9)),
@@ -83,7 +83,9 @@ int run(int argc, const char* const argv[]) {
          "one of several real fields the records come from (their \"image\"), its area and "
          "the magnitude its counts are complete to (default: their turnover); repeat for "
          "each: the counts are combined field by field where complete, and each galaxy "
-         "weighted so the drawn magnitudes follow them")
+         "weighted so the drawn magnitudes follow them; IMAGE=shapes: a shape-only field "
+         "(isolated-galaxy cutouts): its galaxies join the PDF and shape the draws near "
+         "their magnitude (shapesim-sample --neighbours) but add nothing to the counts")
         ("weight-field", po::value(&s.weight_field)->value_name("NAME"),
          "parent-selection weight from this numeric record field (default: all 1)");
     options.group("Smoothing").add_options()
@@ -120,10 +122,21 @@ int run(int argc, const char* const argv[]) {
     else if (options.given("area"))
         fields.push_back(SourceField{"", s.area, {}});
     std::vector<bool> completeness_given;
+    std::vector<std::string> shape_images;  // shape-only fields
     for (const std::string& text : s.fields) {
         const std::size_t eq = text.rfind('=');
         if (eq == std::string::npos || eq == 0)
-            throw po::error("--field wants IMAGE=ARCMIN2[@MAG], got '" + text + "'");
+            throw po::error("--field wants IMAGE=ARCMIN2[@MAG] or IMAGE=shapes, got '" + text + "'");
+        const auto known = [&](const std::string& image) {
+            return std::find(shape_images.begin(), shape_images.end(), image) != shape_images.end() ||
+                   std::any_of(fields.begin(), fields.end(),
+                               [&](const SourceField& g) { return g.image == image; });
+        };
+        if (text.substr(eq + 1) == "shapes") {
+            if (known(text.substr(0, eq))) throw po::error("--field " + text.substr(0, eq) + " given twice");
+            shape_images.push_back(text.substr(0, eq));
+            continue;
+        }
         SourceField f;
         f.image = text.substr(0, eq);
         const std::string rest = text.substr(eq + 1);
@@ -137,17 +150,19 @@ int run(int argc, const char* const argv[]) {
                 if (used != rest.size() - at - 1) throw std::invalid_argument("trailing");
             }
         } catch (const std::exception&) {
-            throw po::error("--field wants IMAGE=ARCMIN2[@MAG], got '" + text + "'");
+            throw po::error("--field wants IMAGE=ARCMIN2[@MAG] or IMAGE=shapes, got '" + text + "'");
         }
         if (!(f.area_arcmin2 > 0.0) || !(std::isfinite(f.area_arcmin2)) ||
             (at != std::string::npos && !std::isfinite(f.completeness)))
             throw po::error("--field " + text + ": the area must be > 0, the magnitude finite");
-        for (const SourceField& g : fields)
-            if (g.image == f.image) throw po::error("--field " + f.image + " given twice");
+        if (known(f.image)) throw po::error("--field " + f.image + " given twice");
         completeness_given.push_back(at != std::string::npos);
         fields.push_back(std::move(f));
     }
-    std::vector<std::size_t> kept_field;  // each kept record's field
+    if (!s.fields.empty() && fields.empty())
+        throw po::error("--field: at least one field must give its area (only shape-only fields given)");
+    std::vector<std::size_t> kept_field;  // each kept record's field (fields.size(): shape-only)
+    std::vector<std::string> kept_image;  // and image
 
     JsonlReader reader(s.input, {ShapeletRecord::schema});
     std::vector<ShapeletRecord> kept;
@@ -171,11 +186,12 @@ int run(int argc, const char* const argv[]) {
         if (!s.fields.empty()) {
             const std::string image = record.value("image", std::string());
             while (field < fields.size() && fields[field].image != image) ++field;
-            if (field == fields.size())
+            if (field == fields.size() &&
+                std::find(shape_images.begin(), shape_images.end(), image) == shape_images.end())
                 throw reader.locate(Error("record " + r.id + " comes from '" + image +
                                               "', none of the --field images", "", 0, "image"));
         }
-        if (!fields.empty() && r.mag && record.value("kind", std::string("galaxy")) != "star")
+        if (field < fields.size() && r.mag && record.value("kind", std::string("galaxy")) != "star")
             fields[field].mags.push_back(*r.mag);
         std::string why;
         for (const auto& f : required)
@@ -203,18 +219,20 @@ int run(int argc, const char* const argv[]) {
         kept.push_back(std::move(r));
         weights.push_back(weight);
         kept_field.push_back(field);
+        kept_image.push_back(record.value("image", std::string()));
     }
     if (kept.empty())
         throw Error("no record left to smooth (" + std::to_string(read) +
                     " read; see --require, --reject, --mag-limit)", reader.name());
     Morphology morphology = build_morphology(kept, smooth);
     for (SourceField& f : fields) std::sort(f.mags.begin(), f.mags.end());
-    for (std::size_t k = 0; k < s.fields.size(); ++k)
+    for (std::size_t k = 0; k < completeness_given.size(); ++k)
         if (!completeness_given[k]) fields[k].completeness = count_turnover(fields[k].mags);
     // Several fields: each galaxy stands for 1/(area counted at its magnitude) galaxies per
     // arcmin², none where its own field is not counted (fainter than its completeness).
     if (fields.size() > 1)
         for (std::size_t i = 0; i < weights.size(); ++i) {
+            if (kept_field[i] == fields.size()) continue;
             const auto counted = fields_counted(fields, *kept[i].mag);
             double area = 0.0;
             bool mine = false;
@@ -224,11 +242,47 @@ int run(int argc, const char* const argv[]) {
             }
             weights[i] = mine ? weights[i] / area : 0.0;
         }
-    for (std::size_t i = 0; i < weights.size(); ++i) morphology.points[i].weight = weights[i];
-    for (std::size_t k = 0; k < s.fields.size(); ++k)
+    // Ids are per image: with several, each point's id gets its image's short name
+    // ("hdfn_f814w_v2:117", "AEGIS_F814w_images_01[1]:6"; the whole name where two clash), so
+    // a simulation's `parent` names one real galaxy.
+    std::vector<std::string> images;
+    for (const SourceField& f : fields) images.push_back(f.image);
+    images.insert(images.end(), shape_images.begin(), shape_images.end());
+    if (images.size() > 1) {
+        std::vector<std::string> labels;
+        for (const std::string& image : images) {
+            std::string label = image.substr(image.find_last_of('/') + 1);
+            const std::size_t fits = label.find(".fits");
+            if (fits != std::string::npos) label.erase(fits, 5);
+            labels.push_back(label);
+        }
+        for (std::size_t k = 0; k < labels.size(); ++k)
+            if (std::count(labels.begin(), labels.end(), labels[k]) > 1) labels[k] = images[k];
+        for (std::size_t i = 0; i < kept.size(); ++i) {
+            const std::size_t k = kept_field[i] < fields.size()
+                                      ? kept_field[i]
+                                      : fields.size() + std::size_t(std::find(shape_images.begin(),
+                                                                              shape_images.end(),
+                                                                              kept_image[i]) -
+                                                                    shape_images.begin());
+            morphology.points[i].id = labels[k] + ":" + morphology.points[i].id;
+        }
+    }
+    long shape_only = 0;
+    for (std::size_t i = 0; i < weights.size(); ++i) {
+        morphology.points[i].shape_only = kept_field[i] == fields.size() && !fields.empty();
+        morphology.points[i].weight = morphology.points[i].shape_only ? 0.0 : weights[i];
+        shape_only += morphology.points[i].shape_only;
+    }
+    if (shape_only > 0 && shape_only == long(kept.size()))
+        throw Error("every kept record comes from a shape-only field: nothing to count", reader.name());
+    for (std::size_t k = 0; k < fields.size() && !s.fields.empty(); ++k)
         log.verbose("field ", fields[k].image, ": ", fields[k].area_arcmin2, " arcmin^2, ",
                     fields[k].mags.size(), " galaxies, complete to ", fields[k].completeness);
+    if (!shape_images.empty())
+        log.verbose(shape_only, " shape-only models from ", shape_images.size(), " field(s)");
     morphology.source_fields = std::move(fields);
+    morphology.shape_fields = shape_images;
     char hex[17];
     std::snprintf(hex, sizeof hex, "%016llx", static_cast<unsigned long long>(hash));
     Json dropped_json = Json::object();

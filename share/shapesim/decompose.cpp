@@ -5,6 +5,8 @@
 #include "shapesim/jsonl.hpp"
 #include "shapesim/model.hpp"
 #include "shapesim/moments.hpp"
+#include "shapesim/polar.hpp"
+#include "shapesim/render.hpp"
 
 #include <algorithm>
 #include <cmath>
@@ -26,6 +28,7 @@ void DecomposeOptions::validate() const {
     if (centre_iterations < 0) fail("centre_iterations", "must be ≥ 0");
     if (!(order_sigmas >= 0.0 && std::isfinite(order_sigmas))) fail("order_sigmas", "must be ≥ 0");
     if (!(bad_fit_chi2r > 0.0)) fail("bad_fit_chi2r", "must be > 0");
+    if (!(max_hole >= 0.0)) fail("max_hole", "must be ≥ 0");
     if (!(noise_correlation >= 1.0 && std::isfinite(noise_correlation)))
         fail("noise_correlation", "must be ≥ 1");
 }
@@ -260,6 +263,13 @@ Decomposition decompose(const ImageArray& image, const ImageArray& weight, const
     if (out.stop == "n_max_cap" && out.fit.model.n_max < options.n_max_cap)
         out.stop = out.converged ? "chi2_target" : "flattened";
     out.bad_fit = out.chi2r > options.bad_fit_chi2r;
+    // In the frame the data see: an intrinsic model through its PSF (ringing finer than the
+    // PSF is not measured, and a render through a broader or matched PSF does not show it).
+    const PixelHoles holes = pixel_holes(options.psf ? convolve(to_cartesian(out.fit.model), *options.psf)
+                                                     : to_cartesian(out.fit.model));
+    out.hole = holes.depth;
+    out.negative_light = holes.negative_light;
+    out.holes = !(out.hole <= options.max_hole && out.negative_light <= options.max_hole);
 
     // β's share of the flux error, from the profile χ² at ln β ± h.
     const double fixed = flux_error(out.fit);
@@ -358,13 +368,19 @@ ShapeletRecord shapelet_record(const SourceRecord& source, const Decomposition& 
     r.flags.push_back(decomposition.converged ? "converged" : "not_converged");
     if (decomposition.stop == "n_max_cap") r.flags.push_back("n_max_cap");
     if (decomposition.bad_fit) r.flags.push_back("bad_fit");
+    if (decomposition.holes) r.flags.push_back("holes");
+    // Undefined (null) for a model with no positive peak or total: all hole.
+    const auto finite_or_null = [](double v) { return std::isfinite(v) ? Json(v) : Json(nullptr); };
+    r.extra["hole_depth"] = finite_or_null(decomposition.hole);
+    r.extra["negative_light"] = finite_or_null(decomposition.negative_light);
     const double reach = fit.model.beta_pix * std::sqrt(fit.model.n_max + 1.0);
     if (has(source.flags, "blended") ||
         masked_fraction(stamp, fit.model.x, fit.model.y, reach) > 0.05)
         r.flags.push_back("neighbour");
-    if (has(source.flags, "edge") || has(source.flags, "truncated") ||
-        has(source.flags, "aperture_truncated"))
-        r.flags.push_back("edge");
+    // The image's edge cuts the object (its segment, or the paper's 3a + 5 square). A Kron
+    // aperture running off the image ("aperture_truncated") costs detection's photometry, not
+    // the model, whose flux is its own: a galaxy filling an isolated-galaxy cutout keeps it.
+    if (has(source.flags, "edge") || has(source.flags, "truncated")) r.flags.push_back("edge");
     // A noise detection is judged by the noise alone: truncation's share says how well the
     // flux is known, not whether the object is there.
     const double sigma_noise = std::sqrt(std::max(

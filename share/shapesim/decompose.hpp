@@ -55,6 +55,11 @@ struct DecomposeOptions {
     int centre_iterations = 5;     ///< and after this many recentrings
     double order_sigmas = 3.0;     ///< an order must beat the noise's take-up by this many σ
     double bad_fit_chi2r = 1.5;    ///< a kept fit above this χ²_r is flagged "bad_fit"
+    /// A model dipping below zero by more than this fraction of its peak, or holding more than
+    /// this fraction of its light below zero, on its image's pixels (render.hpp pixel_holes; an
+    /// intrinsic model through its PSF, as the data see it), is flagged "holes": light is never
+    /// negative, and such a model rings (noise fitted, a truncated series).
+    double max_hole = 0.1;
     double noise_correlation = 1.0;///< F for the effective degrees of freedom (see above)
     LsqSolver solver = LsqSolver::automatic;
     /// With a PSF (unit flux, the stamp's pixels) every fit is of the intrinsic model through
@@ -82,6 +87,9 @@ struct Decomposition {
                            ///< stamp_small
     bool converged = false;///< χ²_r ≤ chi2_target (+ its noise allowance)
     bool bad_fit = false;  ///< χ²_r > bad_fit_chi2r: not a faithful model
+    double hole = 0.0;     ///< its holes' depth, of the peak (render.hpp pixel_holes) …
+    double negative_light = 0.0;  ///< … and the light below zero, of the total
+    bool holes = false;    ///< either above max_hole
     double flux_error = 0.0;  ///< 1σ, with β's and truncation's shares (see decompose())
     double truncation_error = 0.0;  ///< truncation's share alone
     long fits = 0;         ///< linear fits performed
@@ -128,9 +136,11 @@ double flux_error(const ShapeletFit& fit);
 ///    truncation share `flux_err_truncation`), `stop`,
 ///    `beta_pix`, `trials` ([[n_max, β_pix, χ²_r], …]), `fits`.
 ///  - flags: "converged" or "not_converged"; "n_max_cap"; "bad_fit" (χ²_r above
-///    bad_fit_chi2r: the model misses real structure); "neighbour" (the source was
+///    bad_fit_chi2r: the model misses real structure); "holes" (the model dips below zero
+///    by more than max_hole of its peak or of its light; `hole_depth`, `negative_light`);
+///    "neighbour" (the source was
 ///    deblended, or more than 5% of the pixels within the model's reach β√(n_max+1) belong
-///    to a neighbour); "edge" (stamp or aperture cut by the image edge); "noise" (model flux
+///    to a neighbour); "edge" (the segment or the paper's 3a + 5 square cut by the image edge); "noise" (model flux
 ///    below 3σ of the noise, truncation's share left out: a probable noise detection). ("bright_star", near_bright_star(), is the
 ///    caller's: it needs the star list.)
 ///  - the source's fields are carried through; those the schema reuses (x, y, flux, flux_err,

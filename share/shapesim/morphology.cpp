@@ -194,20 +194,6 @@ Morphology build_morphology(const std::vector<ShapeletRecord>& records,
     return out;
 }
 
-double hole_depth(const ShapeletModel& model) {
-    if (model.n_max == 0) return 0.0;  // a Gaussian of positive flux
-    constexpr double beta = 3.0;
-    const int half = int(std::ceil(beta * (std::sqrt(2.0 * model.n_max + 1.0) + 2.0)));
-    const int side = 2 * half + 1;
-    ShapeletModel m = model;
-    m.beta_pix = beta;
-    m.x = m.y = half + 1.0;
-    const ImageArray image = render_stamp(m, side, side);
-    const double peak = image.maxCoeff();
-    if (!(peak > 0.0)) return std::numeric_limits<double>::infinity();
-    return std::max(0.0, -image.minCoeff()) / peak;
-}
-
 void Morphology::prepare() {
     for (MorphologyPoint& p : points) {
         p.modulus.resize(p.shape.size());
@@ -219,6 +205,20 @@ void Morphology::prepare() {
         ShapeletModel m(0.0, 0.0, 1.0, p.n_max);
         m.coeffs = p.shape;
         p.hole = hole_depth(m);
+    }
+    std::vector<double> counted;
+    for (const MorphologyPoint& p : points)
+        if (p.weight > 0.0) counted.push_back(p.mag);
+    std::sort(counted.begin(), counted.end());
+    for (MorphologyPoint& p : points) {
+        // The nearest counted magnitude other than the point's own (one copy of it is itself).
+        const auto at = std::lower_bound(counted.begin(), counted.end(), p.mag);
+        const bool own = p.weight > 0.0;
+        double gap = std::numeric_limits<double>::infinity();
+        if (at != counted.begin()) gap = std::min(gap, p.mag - *(at - 1));
+        const auto after = at + (own && at != counted.end() ? 1 : 0);
+        if (after != counted.end()) gap = std::min(gap, *after - p.mag);
+        p.mag_gap = gap;
     }
 }
 
@@ -298,6 +298,7 @@ Json Morphology::to_json() const {
                        {"reflected", p.alignment.reflected},
                        {"shape", shape}});
         if (p.psf_beta > 0.0) pts.back()["psf_beta"] = p.psf_beta;
+        if (p.shape_only) pts.back()["shape_only"] = true;
     }
     doc["points"] = pts;
     if (!source_fields.empty()) {
@@ -315,6 +316,7 @@ Json Morphology::to_json() const {
         else
             doc["source_fields"] = fields;
     }
+    if (!shape_fields.empty()) doc["shape_fields"] = shape_fields;
     doc["provenance"] = provenance;
     return doc;
 }
@@ -382,6 +384,13 @@ Morphology Morphology::from_json(const Json& doc) {
         if (!(p.weight >= 0.0)) throw Error("must be ≥ 0", "", 0, where + "weight");
         p.alignment.rotation = pj.contains("rotation") ? number(pj, "rotation", where) : 0.0;
         p.alignment.reflected = pj.value("reflected", false);
+        if (pj.contains("shape_only")) {
+            if (!pj.at("shape_only").is_boolean())
+                throw Error("must be true or false", "", 0, where + "shape_only");
+            p.shape_only = pj.at("shape_only").get<bool>();
+            if (p.shape_only && p.weight != 0.0)
+                throw Error("a shape-only point must have weight 0", "", 0, where + "weight");
+        }
         if (!pj.contains("shape") || !pj.at("shape").is_array() ||
             pj.at("shape").size() != std::size_t(polar_count(p.n_max)))
             throw Error("must hold polar_count(n_max) [re, im] pairs", "", 0, where + "shape");
@@ -422,6 +431,14 @@ Morphology Morphology::from_json(const Json& doc) {
         std::size_t k = 0;
         for (const Json& f : doc.at("source_fields"))
             m.source_fields.push_back(read_field(f, "source_fields[" + std::to_string(k++) + "]"));
+    }
+    if (doc.contains("shape_fields")) {
+        const Json& f = doc.at("shape_fields");
+        if (!f.is_array()) throw Error("must be an array of strings", "", 0, "shape_fields");
+        for (const Json& image : f) {
+            if (!image.is_string()) throw Error("must be an array of strings", "", 0, "shape_fields");
+            m.shape_fields.push_back(image.get<std::string>());
+        }
     }
     if (doc.contains("provenance")) m.provenance = doc.at("provenance");
     m.prepare();
@@ -485,12 +502,18 @@ void DrawOptions::validate() const {
 std::vector<std::size_t> magnitude_order(const Morphology& morphology, double mag_limit) {
     std::vector<std::size_t> order;
     for (std::size_t k = 0; k < morphology.points.size(); ++k)
-        if (morphology.points[k].weight > 0.0 && morphology.points[k].mag <= mag_limit)
+        if ((morphology.points[k].weight > 0.0 || morphology.points[k].shape_only) &&
+            morphology.points[k].mag <= mag_limit)
             order.push_back(k);
     std::stable_sort(order.begin(), order.end(), [&](std::size_t a, std::size_t b) {
         return morphology.points[a].mag < morphology.points[b].mag;
     });
     return order;
+}
+
+double conditional_mag_spread(const MorphologyPoint& p, double lambda_mag, const DrawOptions& draw) {
+    const double gap = std::isfinite(p.mag_gap) ? p.mag_gap : 0.0;
+    return std::max(lambda_mag, std::min(gap, 0.5 * draw.max_mag_shift));
 }
 
 namespace {
@@ -541,7 +564,8 @@ DrawnGalaxy draw_galaxy(const Morphology& morphology, const std::vector<double>&
     // The perturbed shape c' (aligned frame) of the shape parent.
     std::vector<Complex> shape;
     double beta = first.beta, mag = first.mag, sum = 0.0, change = 0.0, norm = 0.0;
-    constexpr int max_redraws = 1000;
+    constexpr int max_redraws = 1000, hole_redraws = 500;
+    bool shape_chosen = false;
     for (;; ++g.redraws) {
         const MorphologyPoint* p = &first;
         if (g.redraws == max_redraws) {  // give up perturbing: the parent itself
@@ -556,10 +580,16 @@ DrawnGalaxy draw_galaxy(const Morphology& morphology, const std::vector<double>&
             break;
         }
         if (conditional) {
-            mag = first.mag + l.mag * stream.epanechnikov();
-            g.parent = near_in_magnitude(morphology, draw.by_magnitude, mag,
-                                         std::size_t(draw.neighbours), draw.max_mag_shift,
-                                         stream.uniform());
+            // The shape parent is chosen once, at the first magnitude drawn within the limit:
+            // redraws re-perturb it, so parents that ring (or fail more often) are not
+            // replaced by easier ones.
+            mag = first.mag + conditional_mag_spread(first, l.mag, draw) * stream.epanechnikov();
+            if (!shape_chosen) {
+                g.parent = near_in_magnitude(morphology, draw.by_magnitude, mag,
+                                             std::size_t(draw.neighbours), draw.max_mag_shift,
+                                             stream.uniform());
+                shape_chosen = mag <= mag_limit;
+            }
             p = &morphology.points[g.parent];
             beta = p->beta * std::pow(10.0, -0.4 * draw.size_slope * (mag - p->mag)) +
                    l.beta * stream.epanechnikov();
@@ -596,7 +626,10 @@ DrawnGalaxy draw_galaxy(const Morphology& morphology, const std::vector<double>&
         }
         if (beta > 0.0 && sum > 0.0 && mag <= mag_limit &&
             change <= draw.max_perturbation * draw.max_perturbation * norm) {
-            if (delta || p->n_max == 0) break;
+            // Past `hole_redraws` the shape is as close to its parent as halving makes it: its
+            // holes are the parent's own, which the renderer clips (a copy of the magnitude
+            // parent would be a clone).
+            if (delta || p->n_max == 0 || g.redraws >= hole_redraws) break;
             ShapeletModel candidate(0.0, 0.0, 1.0, p->n_max);
             candidate.coeffs = shape;
             // The parent's own holes are allowed at the depth (in flux) they had: a shape drawn

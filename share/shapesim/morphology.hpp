@@ -72,18 +72,20 @@ struct MorphologyPoint {
     double beta = 0.0;  ///< arcsec
     double mag = 0.0;
     double weight = 1.0;            ///< parent-selection weight (relative)
+    /// From a shape-only field (isolated-galaxy cutouts, a catalogue's selection): weight 0, it
+    /// adds nothing to the counts, but conditional draws (--neighbours) take its shape.
+    bool shape_only = false;
     double psf_beta = 0.0;          ///< an intrinsic model's PSF scale (arcsec; 0: none)
     std::vector<Complex> shape;     ///< c_{n,m} = a_{n,m}/a_{0,0}, aligned; c_{0,0} = 1
     Alignment alignment;            ///< how the real model was aligned
     /// |c| and arg c of `shape` (derived: Morphology::prepare() fills them for the draws).
     std::vector<double> modulus, phase;
     double hole = 0.0;  ///< hole_depth() of the shape (derived, prepare())
+    /// Magnitude gap to the nearest other counted point (weight > 0; derived, prepare(); ∞ when
+    /// alone): conditional draws smooth its magnitude over max(λ_mag, gap), so sparse bright
+    /// parents spread over the gaps between them instead of spiking at their own magnitudes.
+    double mag_gap = 0.0;
 };
-
-/// How far a model dips below zero, as a fraction of its peak: max(0, −min)/max of the model
-/// pixel-integrated with β = 3 pixels out to β(√(2n+1) + 2). A galaxy's light is never
-/// negative; its model dips where the data's noise or a truncated series ring.
-double hole_depth(const ShapeletModel& model);
 
 /// Smoothing length of every axis.
 struct SmoothingLengths {
@@ -140,6 +142,8 @@ struct Morphology {
     /// The real fields, when smooth was told their areas; a simulation draws their density
     /// (field_density) and, with several, the points' weights make the drawn magnitudes follow it.
     std::vector<SourceField> source_fields;
+    /// The shape-only fields' images (their points are `shape_only`).
+    std::vector<std::string> shape_fields;
     Json provenance = Json::object();    ///< input hash, options, program version
 
     Json to_json() const;
@@ -197,8 +201,13 @@ struct DrawOptions {
     void validate() const;
 };
 
-/// The points parent_table() can draw (weight > 0, mag ≤ `mag_limit`), brightest first (ties
-/// by index).
+/// The half-width of a conditional draw's magnitude kernel about its magnitude parent `p`:
+/// λ_mag, widened to the gap to the nearest counted parent (mag_gap) but never past half of
+/// max_mag_shift, so the counts stay smooth where parents are sparse.
+double conditional_mag_spread(const MorphologyPoint& p, double lambda_mag, const DrawOptions& draw);
+
+/// The points a conditional draw can take a shape from (weight > 0 or shape-only, mag ≤
+/// `mag_limit`), brightest first (ties by index).
 std::vector<std::size_t> magnitude_order(const Morphology& morphology, double mag_limit);
 
 /// Draw one galaxy from `stream` (parent, perturbation, rotation, reflection — in that order;

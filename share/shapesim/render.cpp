@@ -4,6 +4,7 @@
 #include "shapesim/polar.hpp"
 
 #include <algorithm>
+#include <limits>
 
 namespace shapesim {
 
@@ -46,6 +47,25 @@ ImageArray render_stamp(const CartesianModel& model, int nx, int ny) {
 
 ImageArray render_stamp(const ShapeletModel& model, int nx, int ny) {
     return render_stamp(to_cartesian(model), nx, ny);
+}
+
+PixelHoles pixel_holes(const CartesianModel& model) {
+    if (model.n_max == 0) return {};  // a Gaussian of positive flux
+    const int half = int(std::ceil(model.beta_pix * (std::sqrt(2.0 * model.n_max + 1.0) + 2.0)));
+    const int side = 2 * half + 1;
+    CartesianModel m = model;
+    m.x = m.y = half + 1.0;
+    const ImageArray image = render_stamp(m, side, side);
+    const double peak = image.maxCoeff(), total = image.sum();
+    constexpr double inf = std::numeric_limits<double>::infinity();
+    if (!(peak > 0.0) || !(total > 0.0)) return {inf, inf};
+    return {std::max(0.0, -image.minCoeff()) / peak, -image.cwiseMin(0.0).sum() / total};
+}
+
+double hole_depth(const ShapeletModel& model) {
+    ShapeletModel m = model;
+    m.beta_pix = 3.0;
+    return pixel_holes(to_cartesian(m)).depth;
 }
 
 }  // namespace shapesim

@@ -40,4 +40,17 @@ void add_to_image(const CartesianModel& model, ImageArray& image, const PixelWin
 ImageArray render_stamp(const CartesianModel& model, int nx, int ny);
 ImageArray render_stamp(const ShapeletModel& model, int nx, int ny);
 
+/// How far a model dips below zero, as a fraction of its peak: max(0, −min)/max of the model
+/// pixel-integrated with β = 3 pixels out to β(√(2n+1) + 2). A galaxy's light is never
+/// negative; its model dips where the data's noise or a truncated series ring.
+double hole_depth(const ShapeletModel& model);
+/// A model's holes as it renders on its own pixels (its β_pix), out to β(√(2n+1) + 2), in the
+/// image it describes: `depth` max(0, −min)/max, and `negative_light` the light below zero over
+/// the total (a shallow but wide negative ring can hold as much light as the galaxy).
+struct PixelHoles {
+    double depth = 0.0;
+    double negative_light = 0.0;
+};
+PixelHoles pixel_holes(const CartesianModel& model);
+
 }  // namespace shapesim

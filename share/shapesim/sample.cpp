@@ -145,11 +145,14 @@ SampleSummary sample_field(const Morphology& morphology, const FieldGeometry& fi
     // No galaxy reaches further than the widest parent, perturbed, at the top order: a tile
     // skips the shape draw of objects beyond that.
     // A shape moved to another magnitude is scaled by 10^{−0.4 s (m − m_parent)}, m within
-    // [brightest parent − λ_mag, mag_limit].
+    // [brightest parent − its λ_mag (conditional: or its gap), mag_limit].
     const bool conditional = draw.neighbours > 0 && !morphology.lambda.is_delta();
     double brightest = options.mag_limit;
-    for (const auto& p : morphology.points) brightest = std::min(brightest, p.mag);
-    brightest -= morphology.lambda.mag;
+    for (const auto& p : morphology.points)
+        if (p.weight > 0.0)
+            brightest = std::min(brightest,
+                                 p.mag - (conditional ? conditional_mag_spread(p, morphology.lambda.mag, draw)
+                                                      : morphology.lambda.mag));
     double beta_max = 0.0;
     for (const auto& p : morphology.points) {
         double scale_up = 1.0;

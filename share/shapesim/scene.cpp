@@ -182,17 +182,19 @@ PreparedObject prepare_object(const ObjectRecord& record, double field_pixel_sca
 }
 
 ImageArray paint(const std::vector<PreparedObject>& objects, const Tile& window,
-                 const SceneOptions& options) {
+                 const SceneOptions& options, std::vector<ClippedLight>* clipped) {
     const long nx = window.x1 - window.x0 + 1, ny = window.y1 - window.y0 + 1;
     require(nx > 0 && ny > 0, "empty window");
     ImageArray image = ImageArray::Zero(ny, nx);
+    if (clipped) clipped->assign(objects.size(), ClippedLight{});
     in_bands(ny, options.threads, [&](long first, long last) {
         RenderWorkspace ws;
         ImageArray stamp;
         // Band rows in field 0-based coordinates: [window.y0 − 1 + first, … + last).
         const long row_lo = window.y0 - 1 + first, row_hi = window.y0 - 1 + last;
         const long col_lo = window.x0 - 1, col_hi = window.x1;
-        for (const PreparedObject& o : objects) {
+        for (std::size_t i = 0; i < objects.size(); ++i) {
+            const PreparedObject& o = objects[i];
             if (!o.drawn) continue;
             const PixelWindow& w = o.window;
             const long r0 = std::max<long>(w.row0, row_lo), r1 = std::min<long>(w.row0 + w.ny, row_hi);
@@ -204,6 +206,15 @@ ImageArray paint(const std::vector<PreparedObject>& objects, const Tile& window,
             local.x -= w.column0;
             local.y -= w.row0;
             add_to_image(local, stamp, PixelWindow{0, 0, w.nx, w.ny}, ws);
+            if (options.clip_negative && o.kind == "galaxy") {
+                const double deepest = stamp.minCoeff();
+                if (deepest < 0.0) {
+                    // The band holding the stamp's first overlapping row reports it (once).
+                    if (clipped && r0 == std::max<long>(w.row0, window.y0 - 1))
+                        (*clipped)[i] = ClippedLight{-(stamp.cwiseMin(0.0).sum()), deepest};
+                    stamp = stamp.cwiseMax(0.0);
+                }
+            }
             image.block(r0 - (window.y0 - 1), c0 - (window.x0 - 1), r1 - r0, c1 - c0) +=
                 stamp.block(r0 - w.row0, c0 - w.column0, r1 - r0, c1 - c0);
         }

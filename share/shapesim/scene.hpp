@@ -64,6 +64,9 @@ struct SceneOptions {
     /// background variance (everywhere when there is no background).
     double photon_tolerance = 1e-3;
     bool noise_free = false;    ///< no noise at all (the truncation then follows the peak)
+    /// A galaxy's pixels below zero are set to zero: light is never negative, and a truncated
+    /// or noisy shapelet series rings (holes, dipoles). Off: the exact series (the paper's).
+    bool clip_negative = false;
     std::uint64_t seed = 0;
     std::optional<Lensing> lensing;
     double lensing_tolerance = 1e-8;  ///< relative truncation of the lensed projection
@@ -109,9 +112,16 @@ PreparedObject prepare_object(const ObjectRecord& record, double field_pixel_sca
                               const SceneKernels& kernels, const SceneOptions& options,
                               ConvolveWorkspace* workspace = nullptr);
 
-/// The noise-free image of `window` (field pixels) holding every prepared object.
+/// What clip_negative removed from one galaxy's stamp (whole, wherever the window is).
+struct ClippedLight {
+    double flux = 0.0;     ///< the negative light set to zero (≥ 0, image units)
+    double deepest = 0.0;  ///< its most negative pixel (≤ 0)
+};
+
+/// The noise-free image of `window` (field pixels) holding every prepared object. With
+/// clip_negative and `clipped`, (*clipped)[i] says what object i lost (its whole stamp).
 ImageArray paint(const std::vector<PreparedObject>& objects, const Tile& window,
-                 const SceneOptions& options);
+                 const SceneOptions& options, std::vector<ClippedLight>* clipped = nullptr);
 
 /// Add the noise of `options` to `image` — on entry the noise-free image, whose signal the
 /// photon noise follows — the window `window` of a field `field_nx` pixels wide (pixel keys).

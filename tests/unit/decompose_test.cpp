@@ -1,5 +1,7 @@
 // The optimiser of decompose.hpp: n_max, β and centre from noisy stamps of known models.
 #include "shapesim/decompose.hpp"
+#include "shapesim/convolve.hpp"
+#include "shapesim/polar.hpp"
 
 #include "shapesim/error.hpp"
 #include "shapesim/moments.hpp"
@@ -380,4 +382,90 @@ TEST(DecomposeOrders, NoiseUptake) {
     EXPECT_DOUBLE_EQ(noise_uptake(2, 4, o), 4.0 * (9.0 + 3.0 * std::sqrt(18.0)));
     o.order_sigmas = -1.0;
     EXPECT_THROW(o.validate(), Error);
+}
+
+// Positivity: a galaxy-sized model that rings below zero (a_{2,0} = a_{0,0}, a_{4,0} = −a_{0,0}/2:
+// hole 50% of its peak) is fitted faithfully, holes and all, and flagged "holes" with its
+// depth; a positive elliptical profile is not, unless max_hole is below its fit's own ringing.
+TEST(DecomposeOrders, ModelsRingingBelowZeroAreFlaggedHoles) {
+    const int side = 41;
+    ShapeletModel ringing(20.5, 20.5, 3.0, 4);
+    ringing.coeffs[0] = 1.0;
+    ringing.coeffs[2] = 1.0;
+    ringing.coeffs[6] = -0.5;
+    ASSERT_GT(hole_depth(ringing), 0.4);
+    const double sigma = render_stamp(ringing, side, side).maxCoeff() / 300.0;
+    const Decomposition d = decompose_in(ringing, side, side, sigma, 5, DecomposeOptions{});
+    report("ringing_hole_depth", d.hole);
+    EXPECT_NEAR(d.hole, hole_depth(ringing), 0.05);
+    EXPECT_TRUE(d.holes);
+    ShapeletModel galaxy(20.5, 20.5, 3.0, 2);  // a peaky, elliptical, positive profile
+    galaxy.coeffs[0] = 1.0;
+    galaxy.coeffs[2] = 0.5;
+    galaxy.coeffs[3] = 0.2;
+    ASSERT_LT(hole_depth(galaxy), 1e-3);
+    const Decomposition g = decompose_in(galaxy, side, side, sigma, 5, DecomposeOptions{});
+    report("galaxy_hole_depth", g.hole);
+    EXPECT_FALSE(g.holes);
+    DecomposeOptions strict;
+    strict.max_hole = 0.5 * d.hole;
+    EXPECT_TRUE(decompose_in(galaxy, side, side, sigma, 5, strict).holes == (g.hole > strict.max_hole));
+    Stamp stamp;
+    stamp.image = ImageArray::Zero(side, side);
+    stamp.weight = ImageArray::Ones(side, side);
+    stamp.mask = ImageArray::Zero(side, side);
+    stamp.x0 = stamp.y0 = 1;
+    SourceRecord source;
+    source.id = "1";
+    const ShapeletRecord r = shapelet_record(source, d, stamp, 0.04, std::nullopt);
+    EXPECT_TRUE(has_flag(r, "holes"));
+    EXPECT_DOUBLE_EQ(r.extra.at("hole_depth").get<double>(), d.hole);
+    EXPECT_FALSE(has_flag(shapelet_record(source, g, stamp, 0.04, std::nullopt), "holes"));
+    // A shallow but wide negative ring (a_{2,0} = −0.5 a_{0,0}: 5% deep, yet 44% of the light
+    // below zero) is a hole too.
+    ShapeletModel wide(20.5, 20.5, 3.0, 2);
+    wide.coeffs[0] = 1.0;
+    wide.coeffs[2] = -0.5;
+    const PixelHoles truth = pixel_holes(to_cartesian(wide));
+    ASSERT_LT(truth.depth, 0.1);
+    ASSERT_GT(truth.negative_light, 0.3);
+    const Decomposition w = decompose_in(wide, side, side, sigma, 5, DecomposeOptions{});
+    report("wide_ring_negative_light", w.negative_light);
+    EXPECT_NEAR(w.negative_light, truth.negative_light, 0.05);
+    EXPECT_TRUE(w.holes);
+    EXPECT_DOUBLE_EQ(shapelet_record(source, w, stamp, 0.04, std::nullopt).extra.at("negative_light").get<double>(),
+                     w.negative_light);
+}
+
+// An intrinsic fit is judged as the data see it, through its PSF: a compact model ringing
+// at order 8 (a_{8,0} = a_{8,2} = 0.3 a_{0,0}, β 1.5 px; 14% holes) dips only 2% below zero
+// through a Gaussian PSF of β 2 px. Fitted intrinsically, its hole is that of its convolution
+// and it is not flagged at max_hole 0.03, though in its own frame its fit dips deeper.
+TEST(DecomposeOrders, IntrinsicHolesAreJudgedThroughThePsf) {
+    const int side = 41;
+    ShapeletModel ringing(20.5, 20.5, 1.5, 8);
+    ringing.coeffs[0] = 1.0;
+    ringing.coeffs[20] = 0.3;  // a_{8,0} (packed polar order)
+    ringing.coeffs[21] = 0.3;  // a_{8,2}
+    ShapeletModel psf(0.0, 0.0, 2.0, 0);
+    psf.coeffs[0] = 1.0;
+    psf.coeffs[0] /= flux(psf);  // unit flux
+    const ShapeletModel seen = convolve(ringing, psf);
+    const double seen_hole = pixel_holes(to_cartesian(seen)).depth;
+    report("ringing_through_psf_hole_depth", seen_hole);
+    ASSERT_LT(seen_hole, 0.05);
+    ASSERT_GT(pixel_holes(to_cartesian(ringing)).depth, 0.1);
+    const double sigma = render_stamp(seen, side, side).maxCoeff() / 1000.0;
+    const ImageArray weight = ImageArray::Constant(side, side, 1.0 / (sigma * sigma));
+    DecomposeOptions o;
+    o.psf = to_cartesian(psf);
+    o.max_hole = 0.03;
+    const Decomposition d =
+        decompose(test::noisy_stamp(seen, side, sigma, 6, 1), weight, nullptr, seen.x, seen.y, 1.5, o);
+    report("intrinsic_fit_hole_depth", d.hole);
+    EXPECT_NEAR(d.hole, seen_hole, 0.02);
+    EXPECT_FALSE(d.holes);
+    // Judged in its own frame, the fitted intrinsic model would be flagged at max_hole 0.03.
+    report("intrinsic_fit_own_frame_hole_depth", pixel_holes(to_cartesian(d.fit.model)).depth);
+    EXPECT_GT(pixel_holes(to_cartesian(d.fit.model)).depth, o.max_hole);
 }

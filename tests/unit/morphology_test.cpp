@@ -4,6 +4,7 @@
 
 #include "shapesim/error.hpp"
 #include "shapesim/moments.hpp"
+#include "shapesim/render.hpp"
 #include "shapesim/transform.hpp"
 #include "test_support.hpp"
 
@@ -479,4 +480,106 @@ TEST(MorphologyConditional, BrighterDrawsKeepHolesOnlyAtTheirFluxDepth) {
               << " (without the rule " << brighter_loose << " of 400)\n";
     EXPECT_EQ(brighter, 0);
     EXPECT_GT(brighter_loose, 100);
+}
+
+// The shape parent of a conditional draw is chosen once: redraws (holes, too large a change)
+// re-perturb it rather than pick again, so a parent whose perturbations often fail keeps its
+// share. Two parents at one magnitude, one deeply holed (most of its perturbations ring), one a
+// clean round profile: each shapes half the draws. Picking anew at every redraw gave the clean
+// one two thirds of them.
+TEST(MorphologyConditional, ShapeParentIsKeptThroughRedraws) {
+    const ShapeletModel holed = test::random_model(8, 2.0, 0.0, 0.0, 17, true, 0.25);
+    ShapeletModel clean(0.0, 0.0, 2.0, 2);
+    clean.coeffs[0] = 1.0;  // a round Gaussian, its perturbations (0.2) seldom ring
+    Morphology morph = build_morphology(
+        {record_of(holed, "holed", 24.0), record_of(clean, "clean", 24.0)}, SmoothOptions{});
+    for (std::size_t k = 1; k < morph.lambda.coefficient.size(); ++k) morph.lambda.coefficient[k] = 0.2;
+    ASSERT_GT(morph.points[0].hole, 0.05);
+    ASSERT_LT(morph.points[1].hole, 1e-12);
+    const std::vector<double> parents = parent_table(morph, 99.0);
+    DrawOptions draw;
+    draw.neighbours = 2;
+    draw.by_magnitude = magnitude_order(morph, 99.0);
+    int from_holed = 0, redraws = 0;
+    const int n = 600;
+    for (int i = 0; i < n; ++i) {
+        RandomStream stream(12, std::uint64_t(i), "galaxy");
+        const DrawnGalaxy g = draw_galaxy(morph, parents, stream, 0.04, 25.0, 99.0, draw);
+        from_holed += g.parent == 0;
+        redraws += g.redraws;
+    }
+    std::cout << "  [measured] shapes from the holed parent: " << from_holed << " of " << n
+              << " (" << redraws << " redraws)\n";
+    EXPECT_GT(redraws, n);  // the holed parent's perturbations do fail often
+    EXPECT_NEAR(double(from_holed) / n, 0.5, 0.06);
+}
+
+// Where counted parents are sparse (the bright end), a conditional draw spreads its magnitude
+// over the gap to the nearest counted parent, at most half of max_mag_shift: parents at 20 and
+// 22 among faint ones (λ_mag 0.05) give draws about 20 over ±1 mag, Epanechnikov, instead of
+// a spike at 20. Shape-only points never count.
+TEST(MorphologyConditional, SparseParentsSpreadOverTheirGap) {
+    ShapeletModel m(0.0, 0.0, 2.0, 0);  // a Gaussian: no holes, so no redraws bias the magnitudes
+    m.coeffs[0] = 1.0;
+    std::vector<ShapeletRecord> records = {record_of(m, "p20", 20.0), record_of(m, "p22", 22.0),
+                                           record_of(m, "shape", 20.5)};
+    for (int i = 0; i < 40; ++i) records.push_back(record_of(m, "f" + std::to_string(i), 26.0 + 0.025 * i));
+    Morphology morph = build_morphology(records, SmoothOptions{});
+    morph.points[2].weight = 0.0;
+    morph.points[2].shape_only = true;
+    morph.lambda.mag = 0.05;
+    morph.prepare();
+    EXPECT_DOUBLE_EQ(morph.points[0].mag_gap, 2.0);  // not 0.5: the shape-only point
+    EXPECT_DOUBLE_EQ(morph.points[1].mag_gap, 2.0);
+    EXPECT_NEAR(morph.points[3].mag_gap, 0.025, 1e-12);
+    const std::vector<double> parents = parent_table(morph, 99.0);
+    DrawOptions draw;
+    draw.neighbours = 4;
+    draw.by_magnitude = magnitude_order(morph, 99.0);
+    EXPECT_DOUBLE_EQ(conditional_mag_spread(morph.points[0], 0.05, draw), 1.0);
+    std::vector<double> offsets;
+    for (int i = 0; offsets.size() < 400 && i < 40000; ++i) {
+        RandomStream stream(13, std::uint64_t(i), "galaxy");
+        const DrawnGalaxy g = draw_galaxy(morph, parents, stream, 0.04, 25.0, 99.0, draw);
+        EXPECT_NE(g.mag_parent, 2u);  // a shape-only point is never a magnitude parent
+        if (g.mag_parent == 0) offsets.push_back(g.mag - 20.0);
+    }
+    ASSERT_EQ(offsets.size(), 400u);
+    const double d = ks_epanechnikov(offsets);
+    std::cout << "  [measured] KS distance of the bright parent's draws from Epanechnikov(±1 mag): "
+              << d << "\n";
+    EXPECT_LT(d, 0.07);  // 400 draws: the 5% critical value is 0.068
+}
+
+// Shape-only points: weight 0, never a magnitude parent, but a conditional draw takes their
+// shape; the flag survives the document, and a shape-only point with weight is refused.
+TEST(MorphologyConditional, ShapeOnlyPointsShapeButDoNotCount) {
+    const ShapeletModel m = test::random_model(2, 2.0, 0.0, 0.0, 6);
+    Morphology morph = build_morphology(
+        {record_of(m, "counted", 21.0), record_of(m, "shape", 21.0)}, SmoothOptions{});
+    morph.points[1].weight = 0.0;
+    morph.points[1].shape_only = true;
+    morph.shape_fields = {"cutout.fits[1]"};
+    morph.prepare();
+    const Morphology back = Morphology::from_json(morph.to_json());
+    ASSERT_TRUE(back.points[1].shape_only);
+    EXPECT_FALSE(back.points[0].shape_only);
+    EXPECT_EQ(back.shape_fields, morph.shape_fields);
+    EXPECT_EQ(magnitude_order(back, 99.0).size(), 2u);
+    const std::vector<double> parents = parent_table(back, 99.0);
+    DrawOptions draw;
+    draw.neighbours = 2;
+    draw.by_magnitude = magnitude_order(back, 99.0);
+    int shaped = 0;
+    for (int i = 0; i < 400; ++i) {
+        RandomStream a(14, std::uint64_t(i), "galaxy"), b(14, std::uint64_t(i), "galaxy");
+        const DrawnGalaxy g = draw_galaxy(back, parents, a, 0.04, 25.0, 99.0, draw);
+        EXPECT_EQ(g.mag_parent, 0u);
+        shaped += g.parent == 1;
+        EXPECT_EQ(draw_galaxy(back, parents, b, 0.04, 25.0, 99.0).parent, 0u);  // the paper's draw
+    }
+    EXPECT_NEAR(shaped / 400.0, 0.5, 0.08);
+    Json doc = morph.to_json();
+    doc["points"][1]["weight"] = 1.0;
+    EXPECT_THROW(Morphology::from_json(doc), Error);
 }

@@ -21,12 +21,17 @@ python3 - <<'PY' || fail "the morphology documents break the checks"
 import json, math
 records = [json.loads(l) for l in open("shapelets.jsonl")]
 want = [r["id"] for r in records
-        if not {"edge", "bright_star", "noise", "bad_fit"} & set(r["flags"])
+        if not {"edge", "bright_star", "noise", "bad_fit", "holes"} & set(r["flags"])
         and r.get("mag") is not None
         and r["coeffs"][0][0] > 0]
 m = json.load(open("morph.json"))
 assert m["schema"] == "shapesim.morphology/1", m["schema"]
 assert [p["id"] for p in m["points"]] == want, "points are not the unflagged models"
+# decompose's positivity flag: "holes" exactly where the model dips below −10% of its peak or
+# holds more than 10% of its light below zero (null: no positive peak or total).
+for r in records:
+    h, n = r["hole_depth"], r["negative_light"]
+    assert ("holes" in r["flags"]) == (h is None or n is None or h > 0.1 or n > 0.1), (r["id"], h, n, r["flags"])
 flattened = [r["id"] for r in records if r["stop"] == "flattened" and r["id"] in want]
 assert flattened, "no noise-limited fit kept: nothing tested"  # the cut's brightest are
 paper = [i for i in want if {"converged", "n_max_cap"} & set(next(r for r in records if r["id"] == i)["flags"])]
@@ -98,7 +103,44 @@ assert [p["weight"] if "weight" in p else 1 for p in f["points"]] == [1] * len(f
 rc=0; "$BIN/$prog" --field other.fits=1 <shapelets.jsonl >out 2>err || rc=$?
 expect_error "$rc" 1 'none of the --field images'
 rc=0; "$BIN/$prog" --field "$HDF_IMAGE=big" <shapelets.jsonl >out 2>err || rc=$?
-expect_error "$rc" 2 'IMAGE=ARCMIN2'
+expect_error "$rc" 2 'IMAGE=ARCMIN2\[@MAG\] or IMAGE=shapes'
+# A shape-only field (isolated-galaxy cutouts): its models join the PDF with weight 0 and
+# "shape_only", add nothing to the counts, and every id names its image; sample takes their
+# shapes only with --neighbours.
+python3 -c 'import json, sys
+for l in open("shapelets.jsonl"):
+    r = json.loads(l); r["image"] = "cutout.fits[1]"; print(json.dumps(r))' >cutout.jsonl
+cat shapelets.jsonl cutout.jsonl | "$BIN/$prog" -v --field "$HDF_IMAGE=0.115643" \
+  --field 'cutout.fits[1]=shapes' >shapes.json 2>err || fail "shape-only field failed: $(cat err)"
+grep -q 'shape-only models from 1 field' err || fail "no shape-only summary: $(cat err)"
+python3 -c 'import json
+f, s = json.load(open("field.json")), json.load(open("shapes.json"))
+assert s["source_fields"] == f["source_fields"], "a shape-only field changed the counts"
+assert s["shape_fields"] == ["cutout.fits[1]"], s.get("shape_fields")
+n = len(f["points"])
+assert len(s["points"]) == 2 * n, (len(s["points"]), n)
+for p, q in zip(f["points"], s["points"][:n]):
+    assert q["id"] == "hdfn_f814w_v2:" + p["id"] and "shape_only" not in q and q["weight"] == 1, q["id"]
+for p, q in zip(f["points"], s["points"][n:]):
+    assert q["id"] == "cutout[1]:" + p["id"] and q["shape_only"] is True and q["weight"] == 0, q["id"]' ||
+  fail "shape-only points are not weight 0, flagged and named by their image"
+"$BIN/shapesim-sample" shapes.json --size 1 --pixel-scale 0.04 --seed 3 --neighbours 8 -q >cond.jsonl ||
+  fail "sample --neighbours on a shape-only model failed"
+"$BIN/shapesim-sample" shapes.json --size 1 --pixel-scale 0.04 --seed 3 >plain.jsonl 2>err ||
+  fail "sample on a shape-only model failed"
+grep -q "shape-only models unused" err || fail "sample does not say the shape-only models go unused"
+python3 -c 'import json
+cond = [json.loads(l) for l in open("cond.jsonl")]
+plain = [json.loads(l) for l in open("plain.jsonl")]
+shaped = sum(r["parent"].startswith("cutout") for r in cond)
+assert 0.3 < shaped / len(cond) < 0.7, (shaped, len(cond))
+assert not any(r["parent"].startswith("cutout") for r in plain)
+assert not any(r.get("mag_parent", "").startswith("cutout") for r in cond)' ||
+  fail "shape-only parents: not drawn conditionally, or drawn for their magnitude"
+rc=0; "$BIN/$prog" --field "cutout.fits[1]=shapes" <cutout.jsonl >out 2>err || rc=$?
+expect_error "$rc" 2 'at least one field must give its area'
+rc=0; "$BIN/$prog" --field "$HDF_IMAGE=1" --field "$HDF_IMAGE=shapes" <shapelets.jsonl >out 2>err || rc=$?
+expect_error "$rc" 2 'given twice'
 rc=0; "$BIN/$prog" --like nosuch.fits <shapelets.jsonl >out 2>err || rc=$?
 expect_error "$rc" 1 'nosuch.fits'
 [ ! -s out ] || fail "output written for a missing --like image"
