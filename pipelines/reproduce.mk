@@ -240,7 +240,33 @@ $(OUT)/figures/perturbations.png $(OUT)/perturbations.md &: $(OUT)/morphology.js
 	mv $(OUT)/figures/perturbations.png.tmp $(OUT)/figures/perturbations.png
 	mv $(OUT)/perturbations.md.tmp $(OUT)/perturbations.md
 
-FIGURES := $(OUT)/figures/hdf_delta_sim.png $(OUT)/figures/sim6.png $(OUT)/figures/perturbations.png
+# The brightest galaxy of each shipped field (HDF, XDF, the AEGIS cutouts, COSMOS) fitted
+# intrinsically, as in the merged run: data | model (through its PSF) | residual, one row each.
+BRIGHTEST_ROWS := hdf xdf aegis cosmos
+BRIGHTEST := $(R)pipelines/brightest.py
+$(OUT)/figures/brightest.png: $(OUT)/sources.jsonl $(OUT)/xdf/sources.jsonl $(STAMPS:%=$(OUT)/stamps/%.jsonl) \
+    $(STAMPS:%=$(OUT)/stamps/%.psf.jsonl) $(OUT)/psf.jsonl $(OUT)/xdf/psf.jsonl $(BRIGHTEST) \
+    $(call prog,decompose) $(EXAMPLES)/montage
+	@mkdir -p $(OUT)/figures/brightest
+	for row in $(BRIGHTEST_ROWS); do \
+	  case $$row in \
+	    hdf) set -- $$($(BRIGHTEST) $(OUT)/sources.jsonl); psf=$(OUT)/psf.jsonl; stars="--stars $(OUT)/stars.jsonl";; \
+	    xdf) set -- $$($(BRIGHTEST) $(OUT)/xdf/sources.jsonl); psf=$(OUT)/xdf/psf.jsonl; stars="--stars $(OUT)/xdf/stars.jsonl";; \
+	    aegis) set -- $$($(BRIGHTEST) $(filter-out %cosmos.sources.jsonl,$(STAMPS:%=$(OUT)/stamps/%.sources.jsonl))); \
+	       psf=$${1%.sources.jsonl}.psf.jsonl; stars=;; \
+	    cosmos) set -- $$($(BRIGHTEST) $(OUT)/stamps/cosmos.sources.jsonl); psf=$(OUT)/stamps/cosmos.psf.jsonl; stars=;; \
+	  esac; \
+	  grep "\"id\":\"$$2\"" $$1 | $(call prog,decompose) -q --psf $$psf $$stars \
+	    --models $(OUT)/figures/brightest/$$row.fits > $(OUT)/figures/brightest/$$row.jsonl; \
+	  $(EXAMPLES)/montage $(OUT)/figures/brightest/$$row.fits $$2 $(OUT)/figures/brightest/$$row.pgm \
+	    $$( [ $$row = xdf ] && echo 1 || echo 2); \
+	done
+	pnmcat -tb -jleft -black $(BRIGHTEST_ROWS:%=$(OUT)/figures/brightest/%.pgm) | pnmtopng > $(tmp)
+	rm $(BRIGHTEST_ROWS:%=$(OUT)/figures/brightest/%.pgm)
+	mv $(tmp) $@
+
+FIGURES := $(OUT)/figures/hdf_delta_sim.png $(OUT)/figures/sim6.png $(OUT)/figures/perturbations.png \
+           $(OUT)/figures/brightest.png
 $(OUT)/report.md: $(R)pipelines/report.sh $(OUT)/table.md $(OUT)/sky.md $(OUT)/morphology.json $(OUT)/perturbations.md \
     $(FIGURES) $(INPUTS) $(OUT)/sim.truth.jsonl $(OUT)/delta.truth.jsonl $(OUT)/sim6.truth.jsonl \
     $(OUT)/merged.json $(OUT)/merged6.objects.jsonl $(OUT)/sim6.objects.jsonl
