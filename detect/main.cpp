@@ -77,7 +77,11 @@ void declare(app::ProgramOptions& options, Settings& s) {
          "largest lag of the measured autocorrelation, pixels")
         ("noise-grow", po::value(&s.noise.grow)->default_value(2)
              ->notifier(in_range("noise-grow", 0, 100)),
-         "sky pixels kept this far from every object and bad pixel, pixels");
+         "sky pixels kept this far from every masked object and bad pixel, pixels")
+        ("noise-mask-snr", po::value(&s.noise.mask_snr)->default_value(4.0)
+             ->notifier(in_range("noise-mask-snr", 0.0, 1e9)),
+         "mask only objects of at least this S/N (fainter ones are mostly the noise's own "
+         "peaks; 0: mask all)");
 }
 
 std::vector<FitsKeyword> provenance(const app::ProgramOptions& options) {

@@ -90,13 +90,13 @@ $(OUT)/sim6.objects.jsonl: $(OUT)/morphology.json $(OUT)/params/seed $(OUT)/para
 
 # Galaxy models already hold the HDF's PSF (--galaxy-psf = --psf: no further convolution);
 # the noise is the HDF sky's, measured by detect (rms and 2-D autocorrelation), plus photon
-# noise.
+# noise; images the HDF's size vary its σ as the HDF's weight map does.
 RENDER = $(call prog,render) --psf $(OUT)/psf.jsonl --galaxy-psf $(OUT)/psf.jsonl \
   --noise-model $(OUT)/hdf.noise.jsonl --gain $(GAIN) --seed $(SEED) -j $(THREADS)
 $(OUT)/sim.fits $(OUT)/sim.truth.jsonl &: $(OUT)/sim.objects.jsonl $(OUT)/psf.jsonl $(OUT)/hdf.noise.jsonl $(call prog,render)
-	$(RENDER) --like $(IMAGE) -o $(OUT)/sim.fits --truth $(OUT)/sim.truth.jsonl < $<
+	$(RENDER) --like $(IMAGE) --noise-weight $(WEIGHT) -o $(OUT)/sim.fits --truth $(OUT)/sim.truth.jsonl < $<
 $(OUT)/delta.fits $(OUT)/delta.truth.jsonl &: $(OUT)/delta.objects.jsonl $(OUT)/psf.jsonl $(OUT)/hdf.noise.jsonl $(call prog,render)
-	$(RENDER) --like $(IMAGE) -o $(OUT)/delta.fits --truth $(OUT)/delta.truth.jsonl < $<
+	$(RENDER) --like $(IMAGE) --noise-weight $(WEIGHT) -o $(OUT)/delta.fits --truth $(OUT)/delta.truth.jsonl < $<
 $(OUT)/sim6.fits $(OUT)/sim6.truth.jsonl &: $(OUT)/sim6.objects.jsonl $(OUT)/psf.jsonl $(OUT)/hdf.noise.jsonl $(call prog,render)
 	$(RENDER) $(LARGE_FIELD) -o $(OUT)/sim6.fits --truth $(OUT)/sim6.truth.jsonl < $<
 

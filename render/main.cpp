@@ -42,7 +42,7 @@ const char* const description =
     "  shapesim-render --psf psf.jsonl --size 1 --noise-free -o clean.fits < objects.jsonl";
 
 struct Settings {
-    std::string input = "-", psf, galaxy_psf, truth, noise_like, noise_model;
+    std::string input = "-", psf, galaxy_psf, truth, noise_like, noise_model, noise_weight;
     app::FieldOptions field;
     std::vector<double> shear;
     double kappa = 0.0, exposure = 1.0;
@@ -110,6 +110,9 @@ int run(int argc, const char* const argv[]) {
         ("noise-model", po::value(&s.noise_model)->value_name("FILE"),
          "the real sky's measured noise (shapesim-detect --noise-model): its rms and 2-D "
          "autocorrelation, drawn as white noise through the kernel that has it")
+        ("noise-weight", po::value(&s.noise_weight)->value_name("FILE"),
+         "the real field's weight map (inverse variance, the rendered field's size): the "
+         "background's sigma varies over the field as 1/sqrt(weight), its mean variance kept")
         ("noise-like", po::value(&s.noise_like)->value_name("FILE"),
          "take the rms and F from shapesim-detect's records (medians of noise_rms, "
          "noise_correlation)")
@@ -176,6 +179,20 @@ int run(int argc, const char* const argv[]) {
         noise_note = s.noise_model;
         log.verbose("noise kernel radius ", o.noise_kernel->radius, ", ",
                     o.noise_kernel->columns.size(), " separable terms");
+    }
+    if (!s.noise_weight.empty()) {
+        const ImageArray weight = read_fits_image(s.noise_weight);
+        if (weight.cols() != field.nx || weight.rows() != field.ny)
+            throw Error("the weight map is " + std::to_string(weight.cols()) + " x " +
+                            std::to_string(weight.rows()) + " pixels, the field " +
+                            std::to_string(field.nx) + " x " + std::to_string(field.ny),
+                        s.noise_weight);
+        try {
+            o.noise_scale = noise_scale_from_weight(weight);
+        } catch (const Error& e) {
+            throw Error(e.what(), s.noise_weight);
+        }
+        noise_note += ", scaled by the weight map";
     }
     o.gain *= s.exposure;
     o.seed = options.common().seed;

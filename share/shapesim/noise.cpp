@@ -135,13 +135,22 @@ NoiseRecord read_noise_record(const std::string& path) {
 
 NoiseRecord measure_sky_noise(const DetectionResult& field, const SkyNoiseOptions& options) {
     require(options.radius >= 0 && options.radius <= 64, "sky noise: radius must be in [0, 64]");
-    require(options.grow >= 0 && options.decimate >= 1 && options.quantiles >= 2,
-            "sky noise: grow ≥ 0, decimate ≥ 1 and quantiles ≥ 2");
+    require(options.grow >= 0 && options.decimate >= 1 && options.quantiles >= 2 &&
+                options.mask_snr >= 0.0,
+            "sky noise: grow ≥ 0, decimate ≥ 1, quantiles ≥ 2 and mask_snr ≥ 0");
     const long nx = field.image.cols(), ny = field.image.rows();
     const std::size_t n = std::size_t(nx * ny);
     std::vector<std::uint8_t> blocked(n, 0);
-    for (std::size_t k = 0; k < n; ++k)
-        blocked[k] = field.segmentation.data()[k] != 0 || field.bad[k] != 0;
+    // Labels (index + 1) of the objects masked: those the noise alone would not make.
+    std::vector<std::uint8_t> masked(field.objects.size() + 1, 0);
+    for (std::size_t i = 0; i < field.objects.size(); ++i) {
+        const Detection& d = field.objects[i];
+        masked[i + 1] = !(d.flux_auto_err > 0.0) || !(d.flux_auto / d.flux_auto_err < options.mask_snr);
+    }
+    for (std::size_t k = 0; k < n; ++k) {
+        const auto label = std::size_t(field.segmentation.data()[k]);
+        blocked[k] = (label != 0 && (label >= masked.size() || masked[label])) || field.bad[k] != 0;
+    }
     std::vector<std::uint8_t> sky = dilate(blocked, nx, ny, options.grow);
     for (auto& s : sky) s = !s;
 
@@ -381,11 +390,22 @@ SkyComparison compare_sky(const NoiseRecord& a, const NoiseRecord& b) {
                 c.max_difference = std::max(c.max_difference, std::abs(d));
         }
     c.rms_ratio = b.rms / a.rms;
+    // The noise about each sky's own median: a constant left by background subtraction (the
+    // mesh sees the galaxies' light, which differs field to field) is not noise.
+    const auto centred = [](const std::vector<double>& q, double& median) {
+        const std::size_t n = q.size();
+        median = n % 2 ? q[n / 2] : 0.5 * (q[n / 2 - 1] + q[n / 2]);
+        std::vector<double> out = q;
+        for (double& v : out) v -= median;
+        return out;
+    };
+    double median_a = 0.0, median_b = 0.0;
+    const std::vector<double> qa = centred(a.quantiles, median_a), qb = centred(b.quantiles, median_b);
+    c.median_offset = median_b - median_a;
     // D = sup |F_a − F_b|, over both samples' quantiles (the CDFs are linear between them).
-    for (const auto* q : {&a.quantiles, &b.quantiles})
+    for (const auto* q : {&qa, &qb})
         for (double x : *q)
-            c.ks_d = std::max(c.ks_d, std::abs(cdf_from_quantiles(a.quantiles, x) -
-                                               cdf_from_quantiles(b.quantiles, x)));
+            c.ks_d = std::max(c.ks_d, std::abs(cdf_from_quantiles(qa, x) - cdf_from_quantiles(qb, x)));
     const double na = double(std::max(1L, a.quantile_pixels));
     const double nb = double(std::max(1L, b.quantile_pixels));
     const double ne = na * nb / (na + nb);
@@ -399,8 +419,8 @@ void write_sky_table(std::ostream& out, const std::vector<std::string>& names,
     static const int lags[][2] = {{1, 0}, {0, 1}, {1, 1}, {2, 0}, {2, 2}, {3, 0}, {3, 3}};
     out << "| sky | rms | MAD σ | rms/MAD σ |";
     for (const auto& l : lags) out << " ξ(" << l[0] << "," << l[1] << ") |";
-    out << " max \\|Δξ\\| (≤ 3 px) | rms / ref | KS D | KS p |\n|---|---|---|---|";
-    for (std::size_t k = 0; k < std::size(lags) + 4; ++k) out << "---|";
+    out << " max \\|Δξ\\| (≤ 3 px) | rms / ref | Δ median / rms | KS D | KS p |\n|---|---|---|---|";
+    for (std::size_t k = 0; k < std::size(lags) + 5; ++k) out << "---|";
     out << "\n";
     char buf[64];
     auto put = [&](const char* format, double v) {
@@ -415,12 +435,13 @@ void write_sky_table(std::ostream& out, const std::vector<std::string>& names,
         put("%.4f", s.rms / s.mad_sigma);
         for (const auto& l : lags) put("%.3f", s.correlation.at(l[0], l[1]));
         if (k == 0) {
-            out << " – | – | – | – |\n";
+            out << " – | – | – | – | – |\n";
             continue;
         }
         const SkyComparison c = compare_sky(skies[0], s);
         put("%.3f", c.max_difference);
         put("%.4f", c.rms_ratio);
+        put("%+.3f", c.median_offset / skies[0].rms);
         put("%.4f", c.ks_d);
         put("%.3g", c.ks_p);
         out << "\n";

@@ -222,6 +222,26 @@ ImageArray paint(const std::vector<PreparedObject>& objects, const Tile& window,
     return image;
 }
 
+ImageArray noise_scale_from_weight(const ImageArray& weight) {
+    double sum = 0.0;
+    long good = 0;
+    for (Eigen::Index k = 0; k < weight.size(); ++k) {
+        const double w = weight.data()[k];
+        if (w > 0.0 && std::isfinite(w)) {
+            sum += 1.0 / w;
+            ++good;
+        }
+    }
+    require(good > 0, "the noise weight map has no pixel with a positive weight");
+    const double mean_variance = sum / double(good);
+    ImageArray scale(weight.rows(), weight.cols());
+    for (Eigen::Index k = 0; k < weight.size(); ++k) {
+        const double w = weight.data()[k];
+        scale.data()[k] = w > 0.0 && std::isfinite(w) ? 1.0 / std::sqrt(w * mean_variance) : 1.0;
+    }
+    return scale;
+}
+
 void add_noise(ImageArray& image, const Tile& window, long field_nx, const SceneOptions& options) {
     if (options.noise_free) return;
     const long nx = window.x1 - window.x0 + 1, ny = window.y1 - window.y0 + 1;
@@ -229,6 +249,9 @@ void add_noise(ImageArray& image, const Tile& window, long field_nx, const Scene
     const NoiseKernel kernel = options.noise_kernel ? *options.noise_kernel
                                                     : drizzle_noise_kernel(options.noise_correlation);
     require(kernel.radius <= max_noise_kernel_radius, "add_noise: the noise kernel is too wide");
+    const ImageArray* scale = options.noise_scale ? &*options.noise_scale : nullptr;
+    require(!scale || (scale->cols() == field_nx && scale->rows() >= window.y1 && window.x1 <= field_nx),
+            "add_noise: the noise scale map does not cover the field");
     const int K = kernel.radius, width = 2 * K + 1, terms = int(kernel.columns.size());
     const bool white = K == 0;
     const double sigma = options.noise_rms;
@@ -316,9 +339,12 @@ void add_noise(ImageArray& image, const Tile& window, long field_nx, const Scene
                 pixels[i] = value;
             }
             if (!(sigma > 0.0)) continue;
+            // The background's local σ: the scale map's, keyed by the field pixel.
+            const double* local = scale ? &(*scale)(row, window.x0 - 1) : nullptr;
             if (white) {
                 white_row(row, window.x0 - 1, nx, raw.data());
-                for (long i = 0; i < nx; ++i) pixels[i] += sigma * raw[std::size_t(i)];
+                for (long i = 0; i < nx; ++i)
+                    pixels[i] += sigma * (local ? local[i] : 1.0) * raw[std::size_t(i)];
                 continue;
             }
             load(row + K);
@@ -334,7 +360,8 @@ void add_noise(ImageArray& image, const Tile& window, long field_nx, const Scene
                     for (long i = 0; i < nx; ++i) acc[i] += c * h[i];
                 }
             }
-            for (long i = 0; i < nx; ++i) pixels[i] += sigma * sum[std::size_t(i)];
+            for (long i = 0; i < nx; ++i)
+                pixels[i] += sigma * (local ? local[i] : 1.0) * sum[std::size_t(i)];
         }
     });
 }

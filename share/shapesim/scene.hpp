@@ -58,6 +58,10 @@ struct SceneOptions {
     double noise_correlation = 1.0;  ///< F of the background (1: white; drizzle-like 3×3)
     /// The background's measured correlation (noise.hpp); when set, noise_correlation is unused.
     std::optional<NoiseKernel> noise_kernel;
+    /// The background's σ varies over the field as noise_rms × this (whole-field rows ×
+    /// columns; from a real field's weight map, noise_scale_from_weight): drizzled depth is
+    /// not uniform, and a stationary sky lacks the real one's heavier-tailed histogram.
+    std::optional<ImageArray> noise_scale;
     double gain = 0.0;          ///< electrons per image unit for photon noise (0: none)
     double sky = 0.0;           ///< sky level added, image units per pixel
     /// Photon noise is drawn where its variance s/gain is at least this fraction of the
@@ -99,6 +103,11 @@ struct PreparedObject {
 /// R about the model centre has |value| ≤ `threshold`, from |φ_n(u)| ≤ 1.0865 π^{−1/4} and the
 /// monotone tails of φ_n beyond √(2n+1). 0 when the whole model is below it.
 double stamp_radius(const CartesianModel& model, double threshold);
+
+/// The noise_scale of a weight map (inverse variance): s = 1/√(w ⟨1/w⟩) over its good pixels
+/// (w > 0 and finite), so ⟨s²⟩ = 1 and the mean variance stays noise_rms²; 1 on bad pixels.
+/// Error when no pixel is good.
+ImageArray noise_scale_from_weight(const ImageArray& weight);
 
 /// Widest noise kernel add_noise draws (its margin stream's keys).
 constexpr int max_noise_kernel_radius = 64;

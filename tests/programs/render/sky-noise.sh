@@ -1,7 +1,8 @@
 #!/usr/bin/env bash
 # The real sky's noise, measured and drawn: shapesim-detect --noise-model writes the HDF sky's
 # rms and 2-D autocorrelation; shapesim-render --noise-model draws it into a δ-function
-# simulation of the HDF cut; measured alike (its own detection, the HDF's weight map), the
+# simulation of the HDF cut, its σ varying as the HDF's weight map says (--noise-weight);
+# measured alike (its own detection, the HDF's weight map, objects of S/N ≥ 4 masked), the
 # simulated sky has the real one's autocorrelation within 0.02 at every lag up to 3 pixels,
 # its rms within 2% and a pixel histogram the KS test cannot tell apart (p > 0.05)
 # (shapesim-measure --compare-sky). Tiles with the wide kernel equal the whole image; bad
@@ -20,7 +21,7 @@ cd "$TMPDIR"
 "$BIN/shapesim-smooth" -q --delta --like "$HDF_IMAGE" <shapelets.jsonl >delta.json || fail "smooth failed"
 "$BIN/shapesim-sample" delta.json --like "$HDF_IMAGE" --seed 7 -q >objects.jsonl || fail "sample failed"
 common=(--psf psf.jsonl --galaxy-psf psf.jsonl --like "$HDF_IMAGE" --noise-model hdf.noise.jsonl
-        --gain 865200 --seed 7)
+        --noise-weight "$weight" --gain 865200 --seed 7)
 "$BIN/$prog" "${common[@]}" -q -o delta.fits <objects.jsonl || fail "render --noise-model failed"
 "$BIN/shapesim-detect" delta.fits --weight "$weight" --noise-model delta.noise.jsonl -q >/dev/null ||
   fail "detect on the simulation failed"
@@ -42,12 +43,13 @@ xi = lambda d, dx, dy: d["correlation"][(dy + r) * (2 * r + 1) + dx + r]
 assert 1.5e-5 < real["rms"] < 2.5e-5 and 0.4 < xi(real, 1, 0) < 0.6, real["rms"]
 row = [c.strip() for c in open("sky.md").read().splitlines()[3].split("|")[1:-1]]
 assert row[0] == "delta", row
-max_dxi, ratio, ks_p = float(row[11]), float(row[12]), float(row[14])
+max_dxi, ratio, offset, ks_p = float(row[11]), float(row[12]), float(row[13]), float(row[15])
 assert max_dxi <= 0.02, f"autocorrelation differs by {max_dxi}"
 assert abs(ratio - 1) <= 0.02, f"rms ratio {ratio}"
 assert ks_p > 0.05, f"KS p {ks_p}"
+assert abs(offset) < 0.1, f"sky levels differ by {offset} rms"
 cards, nx, ny, whole = read("delta.fits")
-assert cards["NOISEMOD"] == "hdf.noise.jsonl", cards["NOISEMOD"]
+assert cards["NOISEMOD"] == "hdf.noise.jsonl, scaled by the weight map", cards["NOISEMOD"]
 for y0, y1 in ((1, 200), (201, 512)):
     _, _, _, tile = read(f"tile_1_{y0}_512_{y1}.fits")
     assert tile == whole[y0 - 1:y1], f"tile rows {y0}-{y1} differ"
@@ -64,6 +66,15 @@ rc=0; "$BIN/$prog" --like "$HDF_IMAGE" --psf psf.jsonl --noise-model short.jsonl
   <objects.jsonl >out 2>err || rc=$?
 expect_error "$rc" 1 'short.jsonl:1: correlation: must hold'
 [ ! -e bad.fits ] || fail "an image was left after a bad noise model"
+# A weight map of another size than the field, or with no positive weight.
+rc=0; "$BIN/$prog" --size 0.2 --pixel-scale 0.04 --noise-model hdf.noise.jsonl --noise-weight "$weight" \
+  -o bad.fits <objects.jsonl >out 2>err || rc=$?
+expect_error "$rc" 1 'the weight map is 512 x 512 pixels, the field 300 x 300'
+: | "$BIN/$prog" --like "$HDF_IMAGE" --noise-free -q -o zero.fits || fail "could not draw an empty image"
+rc=0; "$BIN/$prog" --like "$HDF_IMAGE" --noise-model hdf.noise.jsonl --noise-weight zero.fits -o bad.fits \
+  <objects.jsonl >out 2>err || rc=$?
+expect_error "$rc" 1 'no pixel with a positive weight'
+[ ! -e bad.fits ] || fail "an image was left after a bad weight map"
 # A field with no sky left (every pixel within 100 px of an object): detect fails before any
 # output, leaving no noise model, no stamps and an empty catalogue.
 rc=0; "$BIN/shapesim-detect" "$HDF_IMAGE" -q --zero-point 22.08 --noise-grow 100 --noise-model nosky.jsonl \
