@@ -125,10 +125,11 @@ $(OUT)/xdf/psf.jsonl: $(XDF_IMAGE) $(call prog,decompose)
 	$(call prog,decompose) --psf-image '$(XDF_IMAGE)$(XDF_STAR)' --psf-pixel-scale $(XDF_SCALE) \
 	  --pixel-scale $(XDF_SCALE) > $(tmp)
 	mv $(tmp) $@
-$(OUT)/xdf/sources.jsonl $(OUT)/xdf/stamps.fits $(OUT)/xdf/stars.jsonl &: $(XDF_IMAGE) $(XDF_WEIGHT) $(OUT)/xdf/psf.jsonl $(call prog,detect)
+$(OUT)/xdf/sources.jsonl $(OUT)/xdf/stamps.fits $(OUT)/xdf/stars.jsonl $(OUT)/xdf/real.noise.jsonl &: $(XDF_IMAGE) $(XDF_WEIGHT) $(OUT)/xdf/psf.jsonl $(call prog,detect)
 	$(call prog,detect) $(XDF_IMAGE) --weight $(XDF_WEIGHT) --pixel-scale $(XDF_SCALE) \
 	  --zero-point $(XDF_ZERO_POINT) --gain $(XDF_GAIN) --psf-model $(OUT)/xdf/psf.jsonl \
-	  --stamps $(OUT)/xdf/stamps.fits --stars $(OUT)/xdf/stars.jsonl > $(OUT)/xdf/sources.jsonl.tmp
+	  --stamps $(OUT)/xdf/stamps.fits --stars $(OUT)/xdf/stars.jsonl \
+	  --noise-model $(OUT)/xdf/real.noise.jsonl > $(OUT)/xdf/sources.jsonl.tmp
 	mv $(OUT)/xdf/sources.jsonl.tmp $(OUT)/xdf/sources.jsonl
 $(OUT)/xdf/intrinsic.jsonl: $(OUT)/xdf/sources.jsonl $(OUT)/xdf/stars.jsonl $(OUT)/xdf/psf.jsonl $(call prog,decompose)
 	$(call prog,decompose) -j $(THREADS) --psf $(OUT)/xdf/psf.jsonl --stars $(OUT)/xdf/stars.jsonl \
@@ -196,6 +197,39 @@ $(OUT)/merged6.fits $(OUT)/merged6.truth.jsonl &: $(OUT)/merged6.objects.jsonl $
 	$(call prog,render) --psf $(OUT)/psf.jsonl --noise-model $(OUT)/hdf.noise.jsonl --gain $(GAIN) \
 	  --seed $(SEED) -j $(THREADS) $(LARGE_FIELD) -o $(OUT)/merged6.fits \
 	  --truth $(OUT)/merged6.truth.jsonl < $<
+
+# --- a field we did not tune on: the XDF cutout's δ-function simulation -------------------
+# Its intrinsic models re-placed at its density, drawn through its star's PSF with its own
+# sky (measured noise, weight map) and photon noise; measured and compared with the real
+# cutout as the HDF is.
+XDF_FIELD := --size 0.5 --pixel-scale $(XDF_SCALE)
+$(OUT)/xdf/delta.json: $(OUT)/xdf/intrinsic.jsonl $(call prog,smooth)
+	$(call prog,smooth) --delta --area $(XDF_AREA) < $< > $(tmp)
+	mv $(tmp) $@
+$(OUT)/xdf/delta.objects.jsonl: $(OUT)/xdf/delta.json $(OUT)/params/seed $(call prog,sample)
+	$(call prog,sample) $< $(XDF_FIELD) --seed $(SEED) > $(tmp)
+	mv $(tmp) $@
+$(OUT)/xdf/delta.fits $(OUT)/xdf/delta.truth.jsonl &: $(OUT)/xdf/delta.objects.jsonl $(OUT)/xdf/psf.jsonl $(OUT)/xdf/real.noise.jsonl $(XDF_WEIGHT) $(call prog,render)
+	$(call prog,render) --psf $(OUT)/xdf/psf.jsonl --noise-model $(OUT)/xdf/real.noise.jsonl \
+	  --noise-weight $(XDF_WEIGHT) --gain $(XDF_GAIN) --seed $(SEED) -j $(THREADS) $(XDF_FIELD) \
+	  -o $(OUT)/xdf/delta.fits --truth $(OUT)/xdf/delta.truth.jsonl < $<
+$(OUT)/xdf/delta.noise.jsonl: $(OUT)/xdf/delta.fits $(XDF_WEIGHT) $(call prog,detect)
+	$(call prog,detect) $< --weight $(XDF_WEIGHT) --pixel-scale $(XDF_SCALE) --noise-model $(tmp) > /dev/null
+	mv $(tmp) $@
+$(OUT)/xdf/sky.md: $(OUT)/xdf/real.noise.jsonl $(OUT)/xdf/delta.noise.jsonl $(call prog,measure)
+	$(call prog,measure) --compare-sky $(foreach c,real delta,$c=$(OUT)/xdf/$c.noise.jsonl) > $(tmp)
+	mv $(tmp) $@
+XDF_MEASURE = $(call prog,measure) --zero-point $(XDF_ZERO_POINT) --mag-limit $(MAG_LIMIT) -j $(THREADS)
+$(OUT)/xdf/real.morph.jsonl: $(XDF_IMAGE) $(XDF_WEIGHT) $(call prog,measure)
+	$(XDF_MEASURE) $(XDF_IMAGE) --weight $(XDF_WEIGHT) --pixel-scale $(XDF_SCALE) > $(tmp)
+	mv $(tmp) $@
+$(OUT)/xdf/delta.morph.jsonl: $(OUT)/xdf/delta.fits $(call prog,measure)
+	$(XDF_MEASURE) $< > $(tmp)
+	mv $(tmp) $@
+$(OUT)/xdf/table.md: $(OUT)/xdf/real.morph.jsonl $(OUT)/xdf/delta.morph.jsonl $(call prog,measure)
+	$(call prog,measure) --compare $(foreach c,real delta,xdf_$c=$(OUT)/xdf/$c.morph.jsonl) \
+	  --out $(OUT)/xdf/compare
+	cp $(OUT)/xdf/compare/table.md $@
 
 # --- measure all four images alike, and compare -----------------------------------------
 MEASURE = $(call prog,measure) --zero-point $(ZERO_POINT) --mag-limit $(MAG_LIMIT) -j $(THREADS)
@@ -268,6 +302,7 @@ $(OUT)/figures/brightest.png: $(OUT)/sources.jsonl $(OUT)/xdf/sources.jsonl $(ST
 FIGURES := $(OUT)/figures/hdf_delta_sim.png $(OUT)/figures/sim6.png $(OUT)/figures/perturbations.png \
            $(OUT)/figures/brightest.png
 $(OUT)/report.md: $(R)pipelines/report.sh $(OUT)/table.md $(OUT)/sky.md $(OUT)/morphology.json $(OUT)/perturbations.md \
+    $(OUT)/xdf/table.md $(OUT)/xdf/sky.md \
     $(FIGURES) $(INPUTS) $(OUT)/sim.truth.jsonl $(OUT)/delta.truth.jsonl $(OUT)/sim6.truth.jsonl \
     $(OUT)/merged.json $(OUT)/merged6.objects.jsonl $(OUT)/sim6.objects.jsonl
 	$(R)pipelines/report.sh $(OUT) $(INPUTS) > $(tmp)
