@@ -40,7 +40,8 @@ struct Settings {
     // flattened at the noise, the cap, the stamp), unless χ²_r says it misses real structure
     // ("bad_fit"). The paper's `converged|n_max_cap` is one --require away.
     std::string input = "-", require, reject = "edge,bright_star,noise,bad_fit,holes", weight_field;
-    double k = 4.0, phase = 15.0, beta = 0.0, mag = 0.0, modulus = 0.0, mag_limit = 0.0, area = 0.0;
+    double k = 4.0, phase = 15.0, beta = 0.0, mag = 0.0, modulus = 0.0, mag_limit = 0.0, area = 0.0,
+           pixel_scale = 0.0;
     bool delta = false;
     std::vector<std::string> fields;
 };
@@ -79,6 +80,9 @@ int run(int argc, const char* const argv[]) {
          "drop records fainter than this")
         ("area", po::value(&s.area)->value_name("ARCMIN2")->notifier(in_range("area", 1e-9, 1e9)),
          "area of the real field the records come from (or --like its image)")
+        ("pixel-scale", po::value(&s.pixel_scale)->value_name("ARCSEC")
+             ->notifier(in_range("pixel-scale", 1e-6, 3600.0)),
+         "arcsec per pixel of a --like image whose header has no WCS")
         ("field", po::value(&s.fields)->value_name("IMAGE=ARCMIN2[@MAG]")->composing(),
          "one of several real fields the records come from (their \"image\"), its area and "
          "the magnitude its counts are complete to (default: their turnover); repeat for "
@@ -118,7 +122,13 @@ int run(int argc, const char* const argv[]) {
     if (int(!options.common().like.empty()) + int(options.given("area")) + int(!s.fields.empty()) > 1)
         throw po::error("give one of --like, --area and --field");
     if (!options.common().like.empty())
-        fields.push_back(SourceField{"", read_field_geometry(options.common().like).area_arcmin2(), {}});
+        fields.push_back(SourceField{"",
+                                     read_field_geometry(options.common().like,
+                                                         options.given("pixel-scale")
+                                                             ? std::optional(s.pixel_scale)
+                                                             : std::nullopt)
+                                         .area_arcmin2(),
+                                     {}});
     else if (options.given("area"))
         fields.push_back(SourceField{"", s.area, {}});
     std::vector<bool> completeness_given;

@@ -104,7 +104,11 @@ Wcs tan_wcs(double ra, double dec, double pixel_scale_arcsec, double crpix1, dou
     return w;
 }
 
-bool has_wcs(FitsReader& fits) { return fits.has_key("CTYPE1"); }
+bool has_wcs(FitsReader& fits) {
+    // A blank CTYPE1 (some pipelines write one with CDELT 1) declares no celestial WCS.
+    const std::optional<std::string> ctype = fits.optional_string("CTYPE1");
+    return ctype && ctype->find_first_not_of(' ') != std::string::npos;
+}
 
 Wcs read_wcs(FitsReader& fits) {
     Wcs w;
@@ -147,13 +151,20 @@ FieldGeometry make_field(double width_arcmin, double height_arcmin, double pixel
     return g;
 }
 
-FieldGeometry read_field_geometry(const std::string& path) {
+FieldGeometry read_field_geometry(const std::string& path, std::optional<double> pixel_scale,
+                                  double ra, double dec) {
     FitsReader fits(path, FitsStart::first_image);
     FieldGeometry g;
     const auto [nx, ny] = fits.image_size();
     g.nx = nx;
     g.ny = ny;
-    g.wcs = read_wcs(fits);
+    if (has_wcs(fits)) {
+        g.wcs = read_wcs(fits);
+    } else if (pixel_scale) {
+        g.wcs = tan_wcs(ra, dec, *pixel_scale, (nx + 1) / 2.0, (ny + 1) / 2.0);
+    } else {
+        throw Error("no WCS in the header: give --pixel-scale (and --ra/--dec)", fits.place());
+    }
     g.pixel_scale = g.wcs.pixel_scale_arcsec();
     return g;
 }

@@ -13,6 +13,7 @@
 // The pixel scale of a field is √|det CD| in arcsec.
 #pragma once
 
+#include <optional>
 #include <string>
 
 namespace shapesim {
@@ -76,8 +77,12 @@ struct FieldGeometry {
 FieldGeometry make_field(double width_arcmin, double height_arcmin, double pixel_scale,
                          double ra, double dec);
 
-/// The geometry of the first image HDU of `path` (cfitsio syntax `file.fits[EXT]` allowed);
-/// the image must have a TAN WCS. Pixels are not read.
-FieldGeometry read_field_geometry(const std::string& path);
+/// The geometry of the first image HDU of `path` (cfitsio syntax `file.fits[EXT]` allowed).
+/// Its header's TAN WCS when it has one (CTYPE1 present and not blank); otherwise, with
+/// `pixel_scale`, a north-up TAN WCS centred on (`ra`, `dec`) as shapesim-detect assumes;
+/// otherwise Error naming the file. Pixels are not read.
+FieldGeometry read_field_geometry(const std::string& path,
+                                  std::optional<double> pixel_scale = std::nullopt,
+                                  double ra = 0.0, double dec = 0.0);
 
 }  // namespace shapesim

@@ -215,7 +215,9 @@ TEST(Scene, ClippedNegativeLightIsExactAndTileInvariant) {
     for (std::size_t i = 0; i < objects.size(); ++i) {
         EXPECT_EQ(first[i].flux, threaded_report[i].flux) << i;
         with_holes += first[i].flux > 0.0;
-        if (objects[i].kind == "star") EXPECT_EQ(first[i].flux, 0.0) << i;
+        if (objects[i].kind == "star") {
+            EXPECT_EQ(first[i].flux, 0.0) << i;
+        }
     }
     EXPECT_GT(with_holes, 0);
     for (int j = 0; j < 2; ++j)

@@ -13,9 +13,10 @@ void FieldOptions::declare(ProgramOptions& options, const std::string& title,
          "a field W H arcmin (one value: square)")
         ("pixel-scale", po::value(&pixel_scale)->default_value(0.0398)
              ->notifier(in_range("pixel-scale", 1e-6, 3600.0)),
-         "arcsec per pixel with --area/--size (the HDF's by default)")
+         "arcsec per pixel with --area/--size (the HDF's by default), or of a --like image "
+         "whose header has no WCS")
         ("ra", po::value(&ra)->default_value(0.0)->notifier(in_range("ra", -360.0, 360.0)),
-         "field centre RA, degrees, with --area/--size")
+         "field centre RA, degrees, with --area/--size (or a --like image without a WCS)")
         ("dec", po::value(&dec)->default_value(0.0)->notifier(in_range("dec", -90.0, 90.0)),
          "field centre Dec, degrees")
         ("tile", po::value(&tile)->value_name("X0 Y0 X1 Y1")->multitoken(), tile_help.c_str());
@@ -25,7 +26,11 @@ FieldGeometry FieldOptions::field(const ProgramOptions& options) const {
     const int kinds = int(!options.common().like.empty()) + int(options.given("area")) +
                       int(options.given("size"));
     if (kinds != 1) throw po::error("give exactly one of --like, --area, --size");
-    if (!options.common().like.empty()) return read_field_geometry(options.common().like);
+    // --like an image without a WCS takes --pixel-scale (and --ra/--dec), as detect does.
+    if (!options.common().like.empty())
+        return read_field_geometry(options.common().like,
+                                   options.given("pixel-scale") ? std::optional(pixel_scale) : std::nullopt,
+                                   ra, dec);
     if (options.given("area")) return make_field(std::sqrt(area), std::sqrt(area), pixel_scale, ra, dec);
     if (size.empty() || size.size() > 2) throw po::error("--size takes W [H] arcmin");
     const double w = size[0], h = size.size() == 2 ? size[1] : size[0];
