@@ -51,21 +51,24 @@ struct Settings {
     SceneOptions scene;
 };
 
-// Median noise_rms and noise_correlation of shapesim-detect's records.
+// The field's noise from shapesim-detect's records: its background_rms (the median of the
+// stamps' noise_rms in records without one), and the median noise_correlation.
 std::pair<double, double> noise_of(const std::string& path) {
     JsonlReader reader(path, {SourceRecord::schema});
     SourceRecord r;
-    std::vector<double> rms, factor;
+    std::vector<double> rms, field_rms, factor;
     while (reader.next_record(r)) {
         try {
+            if (auto v = optional_double(r.extra, "background_rms"); v && *v > 0.0) field_rms.push_back(*v);
             if (auto v = optional_double(r.extra, "noise_rms")) rms.push_back(*v);
             if (auto v = optional_double(r.extra, "noise_correlation")) factor.push_back(*v);
         } catch (const Error& e) {
             throw reader.locate(e);
         }
     }
-    if (rms.empty()) throw Error("no noise_rms in the records", path);
-    return {median_of_values(rms), factor.empty() ? 1.0 : std::max(1.0, median_of_values(factor))};
+    if (rms.empty() && field_rms.empty()) throw Error("no background_rms or noise_rms in the records", path);
+    return {median_of_values(field_rms.empty() ? rms : field_rms),
+            factor.empty() ? 1.0 : std::max(1.0, median_of_values(factor))};
 }
 
 int run(int argc, const char* const argv[]) {
@@ -114,8 +117,8 @@ int run(int argc, const char* const argv[]) {
          "the real field's weight map (inverse variance, the rendered field's size): the "
          "background's sigma varies over the field as 1/sqrt(weight), its mean variance kept")
         ("noise-like", po::value(&s.noise_like)->value_name("FILE"),
-         "take the rms and F from shapesim-detect's records (medians of noise_rms, "
-         "noise_correlation)")
+         "take the rms and F from shapesim-detect's records (the field's background_rms, "
+         "else the median stamp noise_rms; the median noise_correlation)")
         ("gain", po::value(&o.gain)->notifier(in_range("gain", 0.0, 1e30)),
          "electrons per image unit (x --exposure) for photon noise; 0: none")
         ("exposure", po::value(&s.exposure)->default_value(1.0)

@@ -60,6 +60,7 @@ SourceRecord source_record(const Detection& object, const CoreFraction& core,
         e["stamp_grown"] = cut->grown;
     }
     e["noise_correlation"] = context.noise_correlation;
+    e["background_rms"] = context.background_rms;
     e["pixel_scale"] = context.pixel_scale;
     e["zero_point"] = context.zero_point;
     e["image"] = context.image;

@@ -3,8 +3,8 @@
 // A record carries what downstream stages need without the big image (paper §2.1, DESIGN §2):
 // position (FITS pixels and, with a WCS, RA/Dec), Kron flux and magnitude, shape, FWHM,
 // stellarity, flags; its stamp (`stamp_file`, `stamp_hdu` = the id, origin `stamp_x0/y0`,
-// size), the local noise (`noise_rms`, `weight_scale`, and the field's correlated-noise factor
-// `noise_correlation`), `pixel_scale`, `zero_point` and the
+// size), the local noise (`noise_rms`, `weight_scale`), the field's (`background_rms`, and its
+// correlated-noise factor `noise_correlation`), `pixel_scale`, `zero_point` and the
 // source `image`. Extra measurements keep their SExtractor meaning: `flux_iso`, `iso_area`,
 // `npix`, `peak`, `x_peak`/`y_peak`, `kron_radius`, `sigma`, `threshold`, plus
 // `core_fraction` (the stellarity statistic, stellarity.hpp) and `kind` ("star"/"galaxy").
@@ -32,6 +32,7 @@ struct SourceContext {
     std::string stamps;          ///< stamps file (empty: no stamps written)
     double star_threshold = 0.97;///< stellarity above which `kind` is "star"
     double noise_correlation = 1.0;  ///< DetectionResult::noise_correlation of the field
+    double background_rms = 0.0;     ///< DetectionResult::background_rms of the field
 };
 
 /// The record of one detection; `cut` is its stamp (null when no stamps are written).

@@ -156,6 +156,7 @@ DetectionRun DetectionSettings::run(const ProgramOptions& options, const Log& lo
              ", correlated-noise factor ", field.noise_correlation, ")");
 
     context.noise_correlation = field.noise_correlation;
+    context.background_rms = field.background_rms;
     if (inverse_variance && (field.weight_scale > 100.0 || field.weight_scale < 0.01))
         log.warn("the weight map's noise differs from the measured rms by a factor ",
                  1.0 / std::sqrt(field.weight_scale), " (is --weight-type ", s.weight_type,

@@ -35,6 +35,11 @@ sys.path.insert(0, sys.argv[1])
 from fitsdata import read
 cards, nx, ny, sim = read("sim.fits")
 assert (nx, ny) == (512, 512), (nx, ny)
+# --noise-like: the field's background rms (every record carries it), not a stamp's.
+sources = [json.loads(l) for l in open("sources.jsonl")]
+field_rms = sources[0]["background_rms"]
+assert all(s["background_rms"] == field_rms for s in sources)
+assert abs(float(cards["NOISERMS"]) - field_rms) < 1e-6 * field_rms, (cards["NOISERMS"], field_rms)
 assert cards["CTYPE1"] == "RA---TAN" and abs(float(cards["CRVAL1"]) - 189.19) < 0.01, cards
 truth = [json.loads(l) for l in open("truth.jsonl")]
 objects = [json.loads(l) for l in open("objects.jsonl")]
