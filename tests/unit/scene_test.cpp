@@ -80,14 +80,20 @@ std::vector<PreparedObject> crowded(const SceneOptions& o) {
     return out;
 }
 
+// Noise-free, stamps truncated only where a pixel would change by < 1e-9 of the peak.
+SceneOptions exact_noise_free() {
+    SceneOptions o;
+    o.noise_free = true;
+    o.truncation = 1e-9;
+    return o;
+}
+
 }  // namespace
 
 // A PSF-convolved galaxy, noise-free: every pixel equals the 32×-oversampled brute-force
 // integral (32 × 32 Gauss–Legendre samples per pixel) of its convolved model to 1e-6 of the peak, and the flux is conserved to 1e-6.
 TEST(Scene, PixelsEqualBruteForceAndFluxIsConserved) {
-    SceneOptions o;
-    o.noise_free = true;
-    o.truncation = 1e-9;
+    const SceneOptions o = exact_noise_free();
     SceneKernels k;
     k.galaxy = to_cartesian(psf_model());
     const ShapeletModel g = test::random_model(8, 2.2, 0.0, 0.0, 9, true, 0.25);
@@ -176,9 +182,7 @@ TEST(Scene, TilesAndThreadsAreBitIdentical) {
 // reports the light removed (the whole stamp's, once) and the deepest pixel. Clipping works on
 // whole stamps, so threads and tiles still give identical bits and identical reports.
 TEST(Scene, ClippedNegativeLightIsExactAndTileInvariant) {
-    SceneOptions o;
-    o.noise_free = true;
-    o.truncation = 1e-9;
+    const SceneOptions o = exact_noise_free();
     SceneKernels k;
     k.galaxy = to_cartesian(psf_model());
     ShapeletModel g(0.0, 0.0, 2.5, 4);
