@@ -108,8 +108,9 @@ int run(int argc, const char* const argv[]) {
         ("noise-rms", po::value(&o.noise_rms)->notifier(in_range("noise-rms", 0.0, 1e30)),
          "Gaussian background rms, image units")
         ("noise-correlation", po::value(&o.noise_correlation)
-             ->notifier(in_range("noise-correlation", 1.0, 2.3)),
-         "correlated-noise factor F of the background (drizzle-like 3x3 kernel)")
+             ->notifier(in_range("noise-correlation", 1.0, 100.0)),
+         "correlated-noise factor F of the background (drizzle-like 3x3 kernel: F up to "
+         "2.34; beyond, give --noise-model)")
         ("noise-model", po::value(&s.noise_model)->value_name("FILE"),
          "the real sky's measured noise (shapesim-detect --noise-model): its rms and 2-D "
          "autocorrelation, drawn as white noise through the kernel that has it")
