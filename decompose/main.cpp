@@ -3,6 +3,7 @@
 // decompose.hpp (the optimiser and the record), lsq.hpp (the linear fit).
 #include "shapesim/app/atomic_file.hpp"
 #include "shapesim/app/options.hpp"
+#include "shapesim/app/progress.hpp"
 #include "shapesim/app/run_main.hpp"
 #include "shapesim/decompose.hpp"
 #include "shapesim/error.hpp"
@@ -275,9 +276,14 @@ int run(int argc, const char* const argv[]) {
              " read in ", log.elapsed(), " s");
 
     std::vector<Outcome> outcomes(jobs.size());
+    app::Progress progress(log, "fitted", "stamps", jobs.size());
     parallel_for(jobs.size(), options.common().threads, [&](std::size_t k, int) {
         const Job& job = jobs[k];
         Outcome& out = outcomes[k];
+        struct Tick {
+            app::Progress& p;
+            ~Tick() { p.done_one(); }
+        } tick{progress};
         try {
             DecomposeOptions fit = s.fit;
             fit.noise_correlation = job.noise_correlation;

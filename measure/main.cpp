@@ -4,6 +4,7 @@
 #include "shapesim/app/atomic_file.hpp"
 #include "shapesim/app/detection_run.hpp"
 #include "shapesim/app/options.hpp"
+#include "shapesim/app/progress.hpp"
 #include "shapesim/app/run_main.hpp"
 #include "shapesim/compare.hpp"
 #include "shapesim/noise.hpp"
@@ -295,6 +296,7 @@ int run(int argc, const char* const argv[]) {
         }
         jobs.push_back({&object, std::move(source), {}, {}});
     }
+    app::Progress progress(log, "measured", "objects", jobs.size());
     parallel_for(jobs.size(), options.common().threads, [&](std::size_t k, int) {
         try {
             jobs[k].record = measure_object(field, *jobs[k].object, jobs[k].source, measure);
@@ -302,6 +304,7 @@ int run(int argc, const char* const argv[]) {
         } catch (const std::exception& e) {
             jobs[k].error = e.what();
         }
+        progress.done_one();
     });
 
     JsonlWriter out(std::cout, "-");

@@ -3,16 +3,21 @@
 #include "shapesim/version.hpp"
 #include "shapesim/app/log.hpp"
 #include "shapesim/app/options.hpp"
+#include "shapesim/app/progress.hpp"
 #include "shapesim/app/run_main.hpp"
 #include "shapesim/error.hpp"
 
 #include <gtest/gtest.h>
 
+#include <chrono>
 #include <cstdio>
 #include <cstdlib>
 #include <filesystem>
 #include <fstream>
+#include <sstream>
+#include <thread>
 #include <unistd.h>
+#include <vector>
 
 using namespace shapesim;
 namespace po = boost::program_options;
@@ -229,4 +234,43 @@ TEST(Log, VerbosityLevels) {
               "shapesim-x: 163 sources in 0.5 s\nshapesim-x: object 7\n"
               "shapesim-x: warning: 3 stamps touch the edge\n");
     EXPECT_GE(n.elapsed(), 0.0);
+}
+
+// Progress: with -v a line per period (0.05 s here) from whichever thread finishes then, the
+// count right and never past the total; silent under -q, with no period, and (at the default
+// verbosity) when stderr is not a terminal, as under the test runner. Durations read as a
+// person says them.
+TEST(Progress, PeriodicLinesOnlyWhenAsked) {
+    EXPECT_EQ(app::human_duration(0.4242), "0.42 s");
+    EXPECT_EQ(app::human_duration(12.3), "12 s");
+    EXPECT_EQ(app::human_duration(185.0), "3 min 05 s");
+    EXPECT_EQ(app::human_duration(7620.0), "2 h 07 min");
+    EXPECT_EQ(app::human_duration(-1.0), "?");
+    std::ostringstream verbose, quiet, normal;
+    const app::Log v("shapesim-x", app::Verbosity::verbose, verbose);
+    const app::Log q("shapesim-x", app::Verbosity::quiet, quiet);
+    const app::Log n("shapesim-x", app::Verbosity::normal, normal);
+    app::Progress pv(v, "measured", "objects", 40, 0.05), pq(q, "measured", "objects", 40, 0.05),
+        pn(n, "measured", "objects", 40, 0.05), never(v, "measured", "objects", 40, 0.0);
+    std::vector<std::thread> threads;
+    for (int t = 0; t < 4; ++t)
+        threads.emplace_back([&] {
+            for (int i = 0; i < 10; ++i) {
+                std::this_thread::sleep_for(std::chrono::milliseconds(10));
+                for (app::Progress* p : {&pv, &pq, &pn, &never}) p->done_one();
+            }
+        });
+    for (auto& t : threads) t.join();
+    EXPECT_EQ(pv.done(), 40u);
+    EXPECT_GE(pv.lines(), 1);
+    EXPECT_LE(pv.lines(), 3);  // 0.1 s of work at 0.05 s a line
+    EXPECT_NE(verbose.str().find("shapesim-x: measured "), std::string::npos) << verbose.str();
+    EXPECT_NE(verbose.str().find(" / 40 objects ("), std::string::npos) << verbose.str();
+    EXPECT_NE(verbose.str().find(" left\n"), std::string::npos) << verbose.str();
+    EXPECT_EQ(quiet.str(), "");
+    EXPECT_FALSE(pq.enabled());
+    if (!isatty(STDERR_FILENO)) {  // as under make test and CI
+        EXPECT_EQ(normal.str(), "");
+    }
+    EXPECT_EQ(never.lines(), 0);
 }
