@@ -171,8 +171,11 @@ int run(int argc, const char* const argv[]) {
     }
     if (!s.fields.empty() && fields.empty())
         throw po::error("--field: at least one field must give its area (only shape-only fields given)");
-    std::vector<std::size_t> kept_field;  // each kept record's field (fields.size(): shape-only)
-    std::vector<std::string> kept_image;  // and image
+    // Every --field image: the counted fields', then the shape-only ones.
+    std::vector<std::string> images;
+    for (const SourceField& f : fields) images.push_back(f.image);
+    images.insert(images.end(), shape_images.begin(), shape_images.end());
+    std::vector<std::size_t> kept_field;  // each kept record's index in `images` (≥ fields.size(): shape-only)
 
     JsonlReader reader(s.input, {ShapeletRecord::schema});
     std::vector<ShapeletRecord> kept;
@@ -195,9 +198,8 @@ int run(int argc, const char* const argv[]) {
         std::size_t field = 0;
         if (!s.fields.empty()) {
             const std::string image = record.value("image", std::string());
-            while (field < fields.size() && fields[field].image != image) ++field;
-            if (field == fields.size() &&
-                std::find(shape_images.begin(), shape_images.end(), image) == shape_images.end())
+            field = std::size_t(std::find(images.begin(), images.end(), image) - images.begin());
+            if (field == images.size())
                 throw reader.locate(Error("record " + r.id + " comes from '" + image +
                                               "', none of the --field images", "", 0, "image"));
         }
@@ -229,7 +231,6 @@ int run(int argc, const char* const argv[]) {
         kept.push_back(std::move(r));
         weights.push_back(weight);
         kept_field.push_back(field);
-        kept_image.push_back(record.value("image", std::string()));
     }
     if (kept.empty())
         throw Error("no record left to smooth (" + std::to_string(read) +
@@ -242,7 +243,7 @@ int run(int argc, const char* const argv[]) {
     // arcmin², none where its own field is not counted (fainter than its completeness).
     if (fields.size() > 1)
         for (std::size_t i = 0; i < weights.size(); ++i) {
-            if (kept_field[i] == fields.size()) continue;
+            if (kept_field[i] >= fields.size()) continue;  // shape-only
             const auto counted = fields_counted(fields, *kept[i].mag);
             double area = 0.0;
             bool mine = false;
@@ -255,9 +256,6 @@ int run(int argc, const char* const argv[]) {
     // Ids are per image: with several, each point's id gets its image's short name
     // ("hdfn_f814w_v2:117", "AEGIS_F814w_images_01[1]:6"; the whole name where two clash), so
     // a simulation's `parent` names one real galaxy.
-    std::vector<std::string> images;
-    for (const SourceField& f : fields) images.push_back(f.image);
-    images.insert(images.end(), shape_images.begin(), shape_images.end());
     if (images.size() > 1) {
         std::vector<std::string> labels;
         for (const std::string& image : images) {
@@ -268,19 +266,12 @@ int run(int argc, const char* const argv[]) {
         }
         for (std::size_t k = 0; k < labels.size(); ++k)
             if (std::count(labels.begin(), labels.end(), labels[k]) > 1) labels[k] = images[k];
-        for (std::size_t i = 0; i < kept.size(); ++i) {
-            const std::size_t k = kept_field[i] < fields.size()
-                                      ? kept_field[i]
-                                      : fields.size() + std::size_t(std::find(shape_images.begin(),
-                                                                              shape_images.end(),
-                                                                              kept_image[i]) -
-                                                                    shape_images.begin());
-            morphology.points[i].id = labels[k] + ":" + morphology.points[i].id;
-        }
+        for (std::size_t i = 0; i < kept.size(); ++i)
+            morphology.points[i].id = labels[kept_field[i]] + ":" + morphology.points[i].id;
     }
     long shape_only = 0;
     for (std::size_t i = 0; i < weights.size(); ++i) {
-        morphology.points[i].shape_only = kept_field[i] == fields.size() && !fields.empty();
+        morphology.points[i].shape_only = !s.fields.empty() && kept_field[i] >= fields.size();
         morphology.points[i].weight = morphology.points[i].shape_only ? 0.0 : weights[i];
         shape_only += morphology.points[i].shape_only;
     }
