@@ -280,10 +280,6 @@ int run(int argc, const char* const argv[]) {
     parallel_for(jobs.size(), options.common().threads, [&](std::size_t k, int) {
         const Job& job = jobs[k];
         Outcome& out = outcomes[k];
-        struct Tick {
-            app::Progress& p;
-            ~Tick() { p.done_one(); }
-        } tick{progress};
         try {
             DecomposeOptions fit = s.fit;
             fit.noise_correlation = job.noise_correlation;
@@ -308,6 +304,7 @@ int run(int argc, const char* const argv[]) {
             // Never let a worker's exception terminate the program.
             out.error = std::string("internal error: ") + e.what();
         }
+        progress.done_one();
     });
 
     std::unique_ptr<FitsWriter> models;

@@ -48,6 +48,29 @@ double ks_epanechnikov(std::vector<double> sample) {
     return d;
 }
 
+// A drawn galaxy turned back to its parent's aligned frame, as the hole rule sees it (rotation
+// moves the pixel grid).
+ShapeletModel aligned_frame(const DrawnGalaxy& d) {
+    ShapeletModel s = rotate(d.model, -d.rotation);
+    return d.reflected ? reflect_x(s) : s;
+}
+
+// `n` paper's draws of `morph` (keys seed, 0…n−1), each with the positivity rule and without
+// it (hole_allowance 1e9), from the same stream.
+std::vector<std::pair<DrawnGalaxy, DrawnGalaxy>> draws_with_and_without_the_hole_rule(
+    const Morphology& morph, std::uint64_t seed, int n) {
+    const std::vector<double> parents = parent_table(morph, 99.0);
+    DrawOptions loose;
+    loose.hole_allowance = 1e9;
+    std::vector<std::pair<DrawnGalaxy, DrawnGalaxy>> out;
+    for (int i = 0; i < n; ++i) {
+        RandomStream a(seed, std::uint64_t(i), "galaxy"), b(seed, std::uint64_t(i), "galaxy");
+        out.emplace_back(draw_galaxy(morph, parents, a, 0.04, 25.0, 99.0),
+                         draw_galaxy(morph, parents, b, 0.04, 25.0, 99.0, loose));
+    }
+    return out;
+}
+
 }  // namespace
 
 // An elliptical model at any angle comes out with its major axis along x (χ real, > 0).
@@ -425,21 +448,10 @@ TEST(MorphologyConditional, DrawsDoNotRingBelowZero) {
     Morphology morph = build_morphology({record_of(m, "a", 24.0)}, SmoothOptions{});
     for (std::size_t k = 1; k < morph.lambda.coefficient.size(); ++k) morph.lambda.coefficient[k] = 0.08;
     const double parent_hole = morph.points[0].hole;
-    const std::vector<double> parents = parent_table(morph, 99.0);
-    DrawOptions loose;
-    loose.hole_allowance = 1e9;
     int holed = 0, holed_loose = 0;
-    for (int i = 0; i < 300; ++i) {
-        RandomStream a(8, std::uint64_t(i), "galaxy"), b(8, std::uint64_t(i), "galaxy");
-        const DrawnGalaxy g = draw_galaxy(morph, parents, a, 0.04, 25.0, 99.0);
-        const DrawnGalaxy h = draw_galaxy(morph, parents, b, 0.04, 25.0, 99.0, loose);
-        // In the aligned frame, as the rule sees it (rotation moves the pixel grid).
-        const auto aligned = [](const DrawnGalaxy& d) {
-            ShapeletModel s = rotate(d.model, -d.rotation);
-            return d.reflected ? reflect_x(s) : s;
-        };
-        holed += hole_depth(aligned(g)) > parent_hole + 0.01 + 1e-9;
-        holed_loose += hole_depth(aligned(h)) > parent_hole + 0.01;
+    for (const auto& [g, h] : draws_with_and_without_the_hole_rule(morph, 8, 300)) {
+        holed += hole_depth(aligned_frame(g)) > parent_hole + 0.01 + 1e-9;
+        holed_loose += hole_depth(aligned_frame(h)) > parent_hole + 0.01;
     }
     std::cout << "  [measured] parent hole " << parent_hole << "; draws deeper by > 1% of the peak: "
               << holed << " (without the rule " << holed_loose << " of 300)\n";
@@ -461,18 +473,11 @@ TEST(MorphologyConditional, BrighterDrawsKeepHolesOnlyAtTheirFluxDepth) {
     morph.lambda.phase_deg = 0.0;  // the shape itself fixed: only the magnitude moves
     const MorphologyPoint& p = morph.points[0];
     ASSERT_GT(p.hole, 0.1);  // a deeply holed shape: the rule has something to do
-    const std::vector<double> parents = parent_table(morph, 99.0);
-    DrawOptions loose;
-    loose.hole_allowance = 1e9;
-    int brighter = 0, brighter_loose = 0;
-    for (int i = 0; i < 400; ++i) {
-        RandomStream a(10, std::uint64_t(i), "galaxy"), b(10, std::uint64_t(i), "galaxy");
-        const DrawnGalaxy g = draw_galaxy(morph, parents, a, 0.04, 25.0, 99.0);
-        const DrawnGalaxy h = draw_galaxy(morph, parents, b, 0.04, 25.0, 99.0, loose);
+    int brighter = 0, brighter_loose = 0, i = 0;
+    for (const auto& [g, h] : draws_with_and_without_the_hole_rule(morph, 10, 400)) {
+        ++i;
         const double ratio = std::pow(10.0, -0.4 * (g.mag - p.mag));  // β unchanged
-        ShapeletModel s = rotate(g.model, -g.rotation);
-        if (g.reflected) s = reflect_x(s);
-        EXPECT_LE(hole_depth(s), p.hole / std::max(ratio, 1.0) + 0.01 + 1e-9) << i;
+        EXPECT_LE(hole_depth(aligned_frame(g)), p.hole / std::max(ratio, 1.0) + 0.01 + 1e-9) << i;
         brighter += g.mag < p.mag - 0.1;
         brighter_loose += h.mag < p.mag - 0.1;
     }
