@@ -107,6 +107,6 @@ install: all
 	if [ -d share/data ]; then cp -R share/data/. $(DESTDIR)$(PREFIX)/share/shapesim/; fi
 
 clean:
-	rm -rf build build-san bin
+	rm -rf build build-san build-fuzz bin
 
 -include $(shell find $(BUILD) -name '*.d' 2>/dev/null)

@@ -109,7 +109,7 @@ void declare(app::ProgramOptions& options, Settings& s) {
          "model this PSF image instead of reading sources")
         ("psf-pixel-scale", po::value(&s.psf_pixel_scale)->value_name("ARCSEC")
              ->notifier(in_range("psf-pixel-scale", 1e-6, 3600.0)),
-         "pixel scale of --psf-image (default: its PIXSCALE keyword)")
+         "pixel scale of --psf-image (default: its PIXSCALE keyword, else its WCS)")
         ("pixel-scale", po::value(&s.pixel_scale)->value_name("ARCSEC")
              ->notifier(in_range("pixel-scale", 1e-6, 3600.0)),
          "target pixel scale (default: that of --like)")

@@ -202,8 +202,13 @@ int run_compare(const CompareSettings& c, const app::Log& log) {
         script.commit();
     }
     if (std::system("command -v gnuplot >/dev/null 2>&1") == 0) {
-        const std::string command = "gnuplot '" + c.out + "/figures.gp'";
-        if (std::system(command.c_str()) != 0) throw Error("gnuplot failed on the figures", c.out + "/figures.gp");
+        // gnuplot's own chatter (e.g. "empty y range" for a constant statistic) goes to a log
+        // beside the figures: stderr keeps to our one-line messages.
+        const std::string command =
+            "gnuplot '" + c.out + "/figures.gp' 2>'" + c.out + "/gnuplot.log'";
+        if (std::system(command.c_str()) != 0)
+            throw Error("gnuplot failed on the figures (see gnuplot.log there)",
+                        c.out + "/figures.gp");
         log.info("table, distances and 7 figures in ", c.out, "/");
     } else {
         log.warn("gnuplot not found: figures not drawn (run gnuplot ", c.out, "/figures.gp)");

@@ -58,3 +58,32 @@ program-test: all examples
 
 bench: $(BENCH_BIN)
 	$(BENCH_BIN) $(BENCH_ARGS)
+
+# The bad- and odd-input corpus (issue 15). `make corpus` rewrites tests/corpus/cases/ with
+# the generator (cfitsio only; the files are committed); `make corpus-matrix` reruns every
+# program on every case and rewrites tests/corpus/matrix.md and the README's copy of its
+# table; the program test tests/programs/corpus/matrix.sh checks both are current, and CI runs
+# the matrix once more on the programs built with SAN=1.
+CORPUS_GEN := $(BUILD)/tests/make-corpus
+$(CORPUS_GEN): tests/corpus/make-corpus.cpp | deps
+	@mkdir -p $(@D)
+	$(if $(Q),@echo "  LD   $@")
+	$(Q)$(CXX) -std=c++17 $(OPT) $(WARN) $< -lcfitsio -o $@.tmp && mv $@.tmp $@
+
+.PHONY: corpus corpus-matrix corpus-check
+corpus: $(CORPUS_GEN)
+	rm -rf tests/corpus/cases.tmp && mkdir tests/corpus/cases.tmp
+	$(CORPUS_GEN) tests/corpus/cases.tmp
+	rm -rf tests/corpus/cases && mv tests/corpus/cases.tmp tests/corpus/cases
+
+corpus-matrix: all
+	tests/corpus/matrix.sh $(BIN) >tests/corpus/matrix.md.tmp
+	mv tests/corpus/matrix.md.tmp tests/corpus/matrix.md
+	tests/corpus/readme-table.sh tests/corpus/matrix.md README.md
+
+# The matrix of the programs in $(BIN) (SAN=1: build-san/bin) equals the committed one.
+corpus-check: all
+	LSAN_OPTIONS=suppressions=$(CURDIR)/tests/lsan.supp:print_suppressions=0 ASAN_OPTIONS=detect_leaks=1 \
+	  tests/corpus/matrix.sh $(BIN) >$(BUILD)/matrix.md
+	diff -u tests/corpus/matrix.md $(BUILD)/matrix.md
+

@@ -17,6 +17,7 @@ packages=(
   source-extractor          # SExtractor, the cross-check of shapesim-detect (tests, bench)
   gnuplot-nox               # shapesim-measure --compare figures
   netpbm                    # make reproduce: the figures as PNG (pnmtopng, pnmscale)
+  clang libclang-rt-14-dev  # make fuzz: libFuzzer harnesses
 )
 
 missing=()

@@ -392,7 +392,9 @@ DetectionResult detect_sources(const ImageArray& image, const ImageArray* invers
     result.image = image;
     for (Eigen::Index j = 0; j < ny; ++j)
         for (Eigen::Index i = 0; i < nx; ++i) {
-            const bool bad = !std::isfinite(image(j, i)) ||
+            // |value| ≥ 1e30 is a bad-pixel sentinel (SExtractor's −BIG; 1e38 fills), never
+            // light: libsep's float moments overflow on it.
+            const bool bad = !(std::abs(image(j, i)) < kBadPixelValue) ||
                              (inverse_variance && !((*inverse_variance)(j, i) > 0.0));
             if (bad) {
                 result.bad[std::size_t(j * nx + i)] = 1;
@@ -401,7 +403,8 @@ DetectionResult detect_sources(const ImageArray& image, const ImageArray* invers
             }
         }
     if (result.bad_pixels == (long long)n)
-        throw Error("no usable pixel: every pixel is NaN/infinite or has zero weight");
+        throw Error("no usable pixel: every pixel is NaN/infinite, ±1e30 or beyond, or has zero "
+                    "weight");
 
     // Background: mesh, filter, spline; subtract.
     std::unique_ptr<sep_bkg, BackgroundDeleter> background;
@@ -496,6 +499,16 @@ DetectionResult detect_sources(const ImageArray& image, const ImageArray* invers
     result.objects.reserve(std::size_t(cat.nobj));
     std::vector<std::array<double, 3>> pixels;
     for (int k = 0; k < cat.nobj; ++k) {
+        // Defence: libsep keeps fluxes and shapes as floats, which overflow past 3.4e38 (since
+        // kBadPixelValue, only for objects of ~1e8 pixels). Such an object has no position
+        // or shape: it is counted and left out (its pixels stay in the segmentation, so it
+        // still masks its neighbours), and the catalogue goes on.
+        if (!std::isfinite(cat.x[k]) || !std::isfinite(cat.y[k]) || !std::isfinite(cat.a[k]) ||
+            !std::isfinite(cat.b[k]) || !std::isfinite(cat.theta[k]) ||
+            !std::isfinite(cat.flux[k]) || !std::isfinite(cat.peak[k])) {
+            ++result.non_finite_objects;
+            continue;
+        }
         Detection d;
         d.label = k + 1;
         d.x = cat.x[k] + 1.0;

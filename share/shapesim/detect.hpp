@@ -119,7 +119,7 @@ struct Detection {
 
 /// Everything detection produced; later stages (stamps, stellarity) read from it.
 struct DetectionResult {
-    std::vector<Detection> objects;  ///< in libsep's order; label = index + 1
+    std::vector<Detection> objects;  ///< in libsep's order (label: its segmentation value)
     ImageArray image;                ///< background-subtracted image, bad pixels 0
     ImageArray sigma;                ///< pixel noise used for the threshold (∞ where bad)
     LabelArray segmentation;         ///< 0 sky, label of the object owning the pixel
@@ -132,6 +132,9 @@ struct DetectionResult {
     /// drizzled HDF. Aperture flux errors (FLUXERR_AUTO, circular_aperture_flux) include it.
     double noise_correlation = 1.0;
     long long bad_pixels = 0;
+    /// Objects left out because libsep's moments of them are not finite (pixel values near
+    /// the float range); their labels stay in `segmentation`.
+    int non_finite_objects = 0;
 
     bool is_bad(int row, int column) const {
         return bad[std::size_t(row) * std::size_t(image.cols()) + std::size_t(column)] != 0;
@@ -144,7 +147,12 @@ struct DetectionResult {
 /// and cosmic rays do not set them.
 double clipped_sigma(const std::vector<double>& values);
 
-/// Detect and measure the objects of `image` (any values; NaN = bad). `inverse_variance`
+/// Pixel values of this magnitude or more are bad pixels, as NaN and ±Inf are: sentinels
+/// (SExtractor's −BIG = −1e30, fills near the float maximum), never light.
+constexpr double kBadPixelValue = 1e30;
+
+/// Detect and measure the objects of `image` (any values; NaN, ±Inf and |value| ≥
+/// kBadPixelValue = bad). `inverse_variance`
 /// (same size, ≥ 0, 0 = bad) may be null. Errors: sizes differ, no good pixel, libsep
 /// failures (with libsep's message). An image with nothing above threshold gives an empty
 /// `objects`, not an error.

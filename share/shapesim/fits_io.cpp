@@ -429,6 +429,16 @@ FitsWriter& FitsWriter::operator=(FitsWriter&&) noexcept = default;
 
 const std::string& FitsWriter::path() const { return impl_->file.target(); }
 
+bool fits_in_float(const ImageArray& image) {
+    constexpr double lowest = std::numeric_limits<float>::min();  // smallest normal float
+    constexpr double highest = std::numeric_limits<float>::max();
+    for (Eigen::Index k = 0; k < image.size(); ++k) {
+        const double v = std::abs(image.data()[k]);
+        if (std::isfinite(v) && v != 0.0 && (v < lowest || v > highest)) return false;
+    }
+    return true;
+}
+
 void FitsWriter::write_image(const ImageArray& image, const FitsImageSpec& spec) {
     require(impl_ && impl_->f, "FitsWriter: write_image after commit");
     const std::string place =
@@ -440,9 +450,13 @@ void FitsWriter::write_image(const ImageArray& image, const FitsImageSpec& spec)
     if (image.size() == 0) throw Error("cannot write an empty image", place, 0, "NAXIS");
     if (spec.bitpix > 0 && !image.isFinite().all())
         throw Error("integer BITPIX cannot hold NaN or infinite pixels", place, 0, "BITPIX");
+    // BITPIX −32 keeps files small, but a float cannot hold every double: the inverse variance
+    // of an image in physical units (σ ~ 1e−21 erg/s/cm²/Å: weights ~ 1e42) overflows it,
+    // and a tiny σ underflows. Such an HDU is written as −64 instead, so no pixel is lost.
+    const int bitpix = spec.bitpix == -32 && !fits_in_float(image) ? -64 : spec.bitpix;
     int status = 0;
     long naxes[2] = {long(image.cols()), long(image.rows())};
-    fits_create_img(impl_->f, spec.bitpix, 2, naxes, &status);
+    fits_create_img(impl_->f, bitpix, 2, naxes, &status);
     check(status, place);
     ++impl_->images;
     if (!spec.extname.empty()) write_keyword(impl_->f, {"EXTNAME", spec.extname}, place);

@@ -137,10 +137,15 @@ struct FitsKeyword {
     }
 };
 
+/// True when every finite non-zero pixel of `image` is a normal float (1.2e−38 … 3.4e38 in
+/// magnitude), so BITPIX −32 loses only precision, never a value.
+bool fits_in_float(const ImageArray& image);
+
 /// How to write one image HDU.
 struct FitsImageSpec {
     std::string extname;     ///< EXTNAME (empty: none)
-    int bitpix = -32;        ///< −32 or −64; 8, 16 or 32 for masks and labels
+    int bitpix = -32;        ///< −32 or −64 (−32 becomes −64 unless fits_in_float); 8, 16 or
+                             ///< 32 for masks and labels
     std::string bunit;       ///< BUNIT (empty: none)
     std::optional<Wcs> wcs;  ///< TAN WCS: CTYPE, CRPIX, CRVAL, CD, CUNIT
     std::vector<FitsKeyword> keywords;
@@ -189,7 +194,8 @@ std::string stamp_mask_extname(const std::string& id);
 
 /// Read object `id`'s stamp (three HDUs); Error when a plane is missing or sizes differ.
 Stamp read_stamp(FitsReader& fits, const std::string& id);
-/// Append a stamp as three HDUs: image and weight BITPIX −32, mask BITPIX 8.
+/// Append a stamp as three HDUs: image and weight BITPIX −32 (−64 beyond a float's range),
+/// mask BITPIX 8.
 void write_stamp(FitsWriter& out, const Stamp& stamp);
 
 }  // namespace shapesim

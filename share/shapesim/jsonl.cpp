@@ -14,10 +14,11 @@ namespace {
 // nlohmann's what() is "[json.exception.parse_error.101] parse error at line 1, column 7:
 // syntax error while parsing value - invalid literal; last read: '...'". Keep "column 7: …":
 // the line number is ours, the tag is noise.
-std::string parse_message(const nlohmann::json::exception& e) {
+// A whole document keeps nlohmann's "line 3, column 7" (`from` = "line ").
+std::string parse_message(const nlohmann::json::exception& e, const char* from = "column ") {
     std::string text = e.what();
-    if (const auto column = text.find("column "); column != std::string::npos)
-        return "invalid JSON at " + text.substr(column);
+    if (const auto at = text.find(from); at != std::string::npos)
+        return "invalid JSON at " + text.substr(at);
     if (const auto tag_end = text.find("] "); tag_end != std::string::npos)
         text = text.substr(tag_end + 2);
     return "invalid JSON: " + text;
@@ -26,10 +27,13 @@ std::string parse_message(const nlohmann::json::exception& e) {
 bool is_blank(const std::string& s) { return s.find_first_not_of(" \t\r\n") == std::string::npos; }
 
 // A short rendering of a value for messages: `string "abc"`, `null`, `array`.
+// (A structured value is never dumped: the dump recurses, and a line of 10⁵ nested brackets
+// would overflow the stack.)
 std::string describe(const Json& value) {
+    if (value.is_structured()) return value.type_name();
     std::string text = value.dump();
     if (text.size() > 40) text = text.substr(0, 37) + "...";
-    return std::string(value.type_name()) + (value.is_structured() ? "" : " " + text);
+    return std::string(value.type_name()) + " " + text;
 }
 
 std::string join(const std::vector<std::string>& items) {
@@ -58,6 +62,14 @@ std::string non_finite_path(const Json& value, const std::string& path) {
 }  // namespace
 
 // ---------------------------------------------------------------------------------- reader
+
+Json parse_json_document(const std::string& text, const std::string& name) {
+    try {
+        return Json::parse(text);
+    } catch (const nlohmann::json::exception& e) {
+        throw Error(parse_message(e, "line "), name);
+    }
+}
 
 JsonlReader::JsonlReader(const std::string& name, std::vector<std::string> schemas)
     : in_(&std::cin), name_(name), schemas_(std::move(schemas)) {

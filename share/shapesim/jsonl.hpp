@@ -33,6 +33,10 @@ namespace shapesim {
 /// A JSON value with insertion-ordered objects.
 using Json = nlohmann::ordered_json;
 
+/// Parse `text` as one JSON document (a morphology model); Error naming `name` with the line
+/// and column of a syntax error, e.g. `model.json: invalid JSON at line 3, column 7: …`.
+Json parse_json_document(const std::string& text, const std::string& name);
+
 /// Reads a JSON-lines stream, one object per line, checking each record's schema.
 class JsonlReader {
 public:

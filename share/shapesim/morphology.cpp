@@ -455,12 +455,7 @@ Morphology Morphology::read(const std::string& path) {
     }
     std::stringstream text;
     text << in->rdbuf();
-    Json doc;
-    try {
-        doc = Json::parse(text.str());
-    } catch (const Json::exception& e) {
-        throw Error(std::string("invalid JSON: ") + e.what(), path);
-    }
+    const Json doc = parse_json_document(text.str(), path);
     try {
         return from_json(doc);
     } catch (const Error& e) {

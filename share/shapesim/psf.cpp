@@ -279,9 +279,14 @@ PsfImage read_psf_image(const std::string& path, std::optional<double> pixel_sca
     if (pixel_scale) {
         out.pixel_scale = *pixel_scale;
     } else {
+        // PIXSCALE (TinyTim, WebbPSF), else the WCS of a PSF cut from a field image.
         const auto header = fits.optional_double("PIXSCALE");
-        if (!header) throw Error("no PIXSCALE keyword: give the PSF's pixel scale", fits.place());
-        out.pixel_scale = *header;
+        if (header)
+            out.pixel_scale = *header;
+        else if (has_wcs(fits))
+            out.pixel_scale = read_wcs(fits).pixel_scale_arcsec();
+        else
+            throw Error("no PIXSCALE keyword or WCS: give the PSF's pixel scale", fits.place());
     }
     if (!(out.pixel_scale > 0.0)) throw Error("PSF pixel scale must be > 0", fits.place());
     out.pixels = fits.read_image();

@@ -108,7 +108,8 @@ struct PsfImage {
     double pixel_scale = 0.0;  ///< arcsec per pixel
 };
 /// The first image of `path` (cfitsio syntax allowed) at `pixel_scale` when given, else at
-/// its header's PIXSCALE (TinyTim's keyword). Error naming the file when neither is there.
+/// its header's PIXSCALE (TinyTim's keyword), else its WCS (a star cut from a field). Error
+/// naming the file when none is there.
 PsfImage read_psf_image(const std::string& path, std::optional<double> pixel_scale);
 
 /// The PSF shapelet record of `path` (its first line, e.g. shapesim-decompose's PSF mode) as

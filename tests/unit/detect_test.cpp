@@ -1314,3 +1314,26 @@ TEST(DetectOdd, HotPixelIsFlaggedNotFatal) {
     const SourceRecord back = SourceRecord::from_json(record.to_json());
     EXPECT_FALSE(back.fwhm.has_value());
 }
+
+// Sentinel pixels (±1e38 fills, SExtractor's −1e30) are bad pixels, not light: the field's
+// catalogue is the one it has without them, and no object holds a sentinel's flux.
+TEST(DetectOdd, HugeSentinelPixelsAreBad) {
+    const std::vector<Blob> blobs{{30.2, 30.4, 3000.0, 2.5}, {15.0, 48.0, 2000.0, 2.0}};
+    const ImageArray clean = blobs_image(64, 64, blobs) + white_noise(64, 64, 1.0, 53);
+    ImageArray image = clean;
+    image(10, 50) = 1e38;
+    image(31, 33) = -1e38;  // inside the first galaxy
+    image(50, 20) = -1e30;
+    const DetectionResult r = detect_sources(image, nullptr, DetectionOptions{});
+    EXPECT_EQ(r.bad_pixels, 3);
+    EXPECT_EQ(r.non_finite_objects, 0);
+    ASSERT_EQ(r.objects.size(), 2u);
+    for (const Detection& d : r.objects) {
+        EXPECT_TRUE(std::isfinite(d.flux_auto));
+        EXPECT_LT(std::abs(d.flux_auto), 1e4);
+    }
+    ImageArray below = clean;
+    below(10, 50) = 0.99e30;  // below the sentinel level: light, however absurd
+    EXPECT_EQ(detect_sources(below, nullptr, DetectionOptions{}).bad_pixels, 0);
+}
+

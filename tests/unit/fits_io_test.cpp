@@ -238,6 +238,36 @@ TEST_F(FitsTest, NanPixelsReadAsNanAndBlankIntegersToo) {
     EXPECT_EQ(back(1, 2), counts(1, 2));
 }
 
+// A float cannot hold the inverse variance of an image in physical units (σ ~ 1e−30: weights
+// 1e60) nor values below its normal range: such an HDU asked for as −32 is written as −64 and
+// reads back exactly; an ordinary image (and NaN, ±Inf, 0) stays −32.
+TEST_F(FitsTest, ValuesBeyondAFloatPromoteTheHduToDouble) {
+    ImageArray ordinary = index_image(4, 3);
+    ordinary(0, 0) = 0.0;
+    ordinary(0, 1) = std::numeric_limits<double>::quiet_NaN();
+    ordinary(0, 2) = -std::numeric_limits<double>::infinity();
+    ImageArray weights = index_image(4, 3) * 1e60, tiny = index_image(4, 3) * 1e-40;
+    EXPECT_TRUE(fits_in_float(ordinary));
+    EXPECT_FALSE(fits_in_float(weights));
+    EXPECT_FALSE(fits_in_float(tiny));
+    {
+        FitsWriter out(path("range.fits"), "test");
+        out.write_image(ordinary, {"ORDINARY", -32, "", {}, {}, {}});
+        out.write_image(weights, {"WEIGHTS", -32, "", {}, {}, {}});
+        out.write_image(tiny, {"TINY", -32, "", {}, {}, {}});
+        out.commit();
+    }
+    const std::vector<std::pair<const char*, long long>> expected = {
+        {"ORDINARY", -32}, {"WEIGHTS", -64}, {"TINY", -64}};
+    for (const auto& [hdu, bitpix] : expected) {
+        FitsReader in(path("range.fits") + "[" + hdu + "]");
+        EXPECT_EQ(in.required_int("BITPIX"), bitpix) << hdu;
+    }
+    const ImageArray back = read_fits_image(path("range.fits[WEIGHTS]"));
+    EXPECT_EQ((back - weights).abs().maxCoeff(), 0.0);
+    EXPECT_EQ((read_fits_image(path("range.fits[TINY]")) - tiny).abs().maxCoeff(), 0.0);
+}
+
 TEST_F(FitsTest, WriterLeavesNoFileWhenAnExceptionHappensMidWrite) {
     std::ofstream(path("keep.fits")) << "previous run";
     ImageArray big = index_image(4, 4);

@@ -104,6 +104,29 @@ TEST(JsonlReader, NonObjectLine) {
     EXPECT_EQ(std::string(e.what()), "cat.jsonl:1: expected a JSON object, got array");
 }
 
+// 10⁵ nested brackets (a fuzzer's favourite) are refused in one line, not by a stack
+// overflow in the message's rendering of the value.
+TEST(JsonlReader, DeeplyNestedLineIsRefusedCleanly) {
+    const std::string deep = std::string(100000, '[') + std::string(100000, ']') + "\n";
+    EXPECT_EQ(std::string(read_error(deep).what()), "cat.jsonl:1: expected a JSON object, got array");
+    const std::string in_schema =
+        "{\"schema\": " + std::string(100000, '[') + std::string(100000, ']') + "}\n";
+    EXPECT_EQ(std::string(read_error(in_schema).what()),
+              "cat.jsonl:1: schema: expected a string, got array");
+}
+
+TEST(JsonDocument, SyntaxErrorNamesLineAndColumn) {
+    try {
+        parse_json_document("{\n  \"a\": 1,\n  \"b\": NaN\n}\n", "model.json");
+        ADD_FAILURE() << "no Error";
+    } catch (const Error& e) {
+        EXPECT_EQ(std::string(e.what()).rfind("model.json: invalid JSON at line 3, column 8: ", 0),
+                  0u)
+            << e.what();
+    }
+    EXPECT_EQ(parse_json_document("[1, 2]", "x").size(), 2u);
+}
+
 TEST(JsonlReader, WrongMissingOrMistypedSchema) {
     Error e = read_error("{\"schema\": \"shapesim.shapelet/1\", \"id\": \"1\"}\n");
     EXPECT_EQ(std::string(e.what()),

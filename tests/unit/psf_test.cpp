@@ -389,3 +389,28 @@ TEST(Psf, TinyTimRawOpticsAtTheHdfScale) {
     EXPECT_TRUE(fine_basis.reached_target);
     EXPECT_LT(fine_basis.max_residual_fraction, 0.005);
 }
+
+// The pixel scale of a PSF image: the option, else PIXSCALE (TinyTim), else the WCS of a star
+// cut from a field (cfitsio's [x0:x1,y0:y1] keeps it); else an error that names the file.
+TEST(Psf, ImagePixelScaleFromOptionHeaderOrWcs) {
+    const std::string file = ::testing::TempDir() + "psf_scale.fits";
+    const ImageArray star = ImageArray::Constant(9, 9, 1.0);
+    {
+        FitsWriter out(file, "test");
+        out.write_image(star, {"TINYTIM", -32, "", {}, {{"PIXSCALE", 0.01}}, {}});
+        out.write_image(star, {"FIELD", -32, "", tan_wcs(10.0, 20.0, 0.04, 5.0, 5.0, 30.0), {}, {}});
+        out.write_image(star, {"BARE", -32, "", {}, {}, {}});
+        out.commit();
+    }
+    EXPECT_DOUBLE_EQ(read_psf_image(file + "[TINYTIM]", std::nullopt).pixel_scale, 0.01);
+    EXPECT_DOUBLE_EQ(read_psf_image(file + "[TINYTIM]", 0.05).pixel_scale, 0.05);
+    EXPECT_NEAR(read_psf_image(file + "[FIELD][2:6,2:6]", std::nullopt).pixel_scale, 0.04, 1e-12);
+    try {
+        read_psf_image(file + "[BARE]", std::nullopt);
+        ADD_FAILURE() << "no Error";
+    } catch (const Error& e) {
+        EXPECT_NE(std::string(e.what()).find("psf_scale.fits[BARE]: no PIXSCALE keyword or WCS"),
+                  std::string::npos)
+            << e.what();
+    }
+}

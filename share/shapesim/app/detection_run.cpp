@@ -68,7 +68,7 @@ void DetectionSettings::declare(ProgramOptions& options, bool image_required) {
          "PSF image (finer or equal sampling) for the stellarity")
         ("psf-pixel-scale", po::value(&s.psf_pixel_scale)->value_name("ARCSEC")
              ->notifier(in_range("psf-pixel-scale", 1e-6, 3600.0)),
-         "pixel scale of --psf-image (default: its PIXSCALE keyword)")
+         "pixel scale of --psf-image (default: its PIXSCALE keyword, else its WCS)")
         ("psf-box", po::value(&s.psf_box)->value_name("ARCSEC")->multitoken(),
          "convolve --psf-image with square boxes of these widths first (the detector "
          "pixel, a drizzle drop: a subsampled TinyTim PSF lacks both)")
@@ -155,6 +155,9 @@ DetectionRun DetectionSettings::run(const ProgramOptions& options, const Log& lo
              "σ (background rms ", field.background_rms, ", weight scale ", field.weight_scale,
              ", correlated-noise factor ", field.noise_correlation, ")");
 
+    if (field.non_finite_objects > 0)
+        log.warn(field.non_finite_objects, " objects left out: their moments are not finite "
+                 "(pixel values near the float range?)");
     context.noise_correlation = field.noise_correlation;
     context.background_rms = field.background_rms;
     if (inverse_variance && (field.weight_scale > 100.0 || field.weight_scale < 0.01))
