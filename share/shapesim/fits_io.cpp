@@ -240,11 +240,28 @@ ImageSize FitsReader::image_size() {
 
 ImageArray FitsReader::read_image() {
     const ImageSize size = image_size();
+    // A header may declare far more data than the file holds (a truncated download, a
+    // mangled NAXIS): refuse it before allocating the declared image. (A tile-compressed
+    // image's data is a table of another size; cfitsio checks its tiles as it reads them.)
+    // (The last block's padding is not required: some writers omit it.)
+    int status = 0, bitpix = 0, compressed = fits_is_compressed_image(impl_->f, &status);
+    LONGLONG header_start = 0, data_start = 0, data_end = 0;
+    fits_get_hduaddrll(impl_->f, &header_start, &data_start, &data_end, &status);
+    fits_get_img_type(impl_->f, &bitpix, &status);
+    check(status, impl_->place);
+    const LONGLONG pixel_bytes = LONGLONG(size.nx) * size.ny * (std::abs(bitpix) / 8);
+    struct stat file_status {};
+    if (!compressed && ::stat(impl_->file.c_str(), &file_status) == 0 &&
+        S_ISREG(file_status.st_mode) && data_start + pixel_bytes > LONGLONG(file_status.st_size))
+        throw Error("truncated: the header declares " + std::to_string(pixel_bytes) +
+                        " bytes of pixels, the file holds " +
+                        std::to_string(std::max<LONGLONG>(0, file_status.st_size - data_start)),
+                    impl_->place);
     ImageArray image(size.ny, size.nx);
     // FITS stores x fastest, rows of constant y one after another: the ImageArray layout.
     // A NaN null value makes cfitsio turn BLANK integers and NaN floats into NaN.
     double null_value = std::numeric_limits<double>::quiet_NaN();
-    int any_null = 0, status = 0;
+    int any_null = 0;
     fits_read_img(impl_->f, TDOUBLE, 1, LONGLONG(size.nx) * size.ny, &null_value, image.data(),
                   &any_null, &status);
     check(status, impl_->place);

@@ -82,6 +82,8 @@ struct PsfModel {
     /// psf_from_oversampled only: 1 − (flux in the stamp)/(flux of the box-convolved fine
     /// image); NaN otherwise.
     double flux_outside_stamp = std::numeric_limits<double>::quiet_NaN();
+    /// psf_from_oversampled only: the sky level removed (border_median of the fine image).
+    double sky = 0.0;
     std::vector<PsfFitStep> steps;        ///< every n_max tried, in order
 };
 
@@ -91,8 +93,12 @@ struct PsfModel {
 PsfModel fit_psf_image(const ImageArray& psf_pixels_at_target_scale,
                        const PsfFitOptions& options = {});
 
+/// Median of the outermost ring of pixels of `image` (0 when it is empty): the sky level of a
+/// star's cutout.
+double border_median(const ImageArray& image);
+
 /// An oversampled PSF image (pixels `fine_scale` wide, arcsec) to a PSF model at
-/// `target_scale` (arcsec per pixel): convolve with each box of `boxes_arcsec` in turn (e.g.
+/// `target_scale` (arcsec per pixel): subtract its sky (border_median), convolve with each box of `boxes_arcsec` in turn (e.g.
 /// the detector pixel and the drizzle drop, which TinyTim's subsampled PSFs lack; resample.hpp
 /// box_convolve), integrate over the target pixels into a stamp_pixels² stamp (odd) whose
 /// centre pixel holds the flux centroid (resample_pixel_integrated), and fit_psf_image it.

@@ -1,0 +1,148 @@
+// ground: a space image as a ground-based telescope would record it, the "ground-based case"
+// of the program tests. Real galaxies, blurred by seeing and binned into big pixels, on a
+// bright sky, in ADU with BITPIX 16 BSCALE/BZERO, as a CCD frame comes.
+//
+//   ground IN.fits OUT.fits PIXEL_SCALE ZERO_POINT SEEING BIN SKY EXPOSURE GAIN [SEED]
+//
+// PIXEL_SCALE: IN's arcsec per pixel (IN may lack a WCS). ZERO_POINT: AB mag of one IN unit.
+// SEEING: FWHM of the Gaussian seeing,
+// arcsec. BIN: OUT pixel = BIN × BIN IN pixels, summed (flux is kept). SKY: sky level of OUT,
+// in IN's units per OUT pixel. EXPOSURE: seconds, when IN is a rate (e⁻/s): OUT's photon
+// noise is that of value · EXPOSURE electrons. GAIN: e⁻ per ADU of OUT. OUT holds
+// (value · EXPOSURE + noise) / GAIN ADU, sky not subtracted. Its header: a north-up TAN WCS,
+// GAIN, EXPTIME, SATURATE and MAGZPT, the AB zero point of one ADU. IN's own noise is binned
+// too, but is far below the sky's.
+#include "shapesim/app/run_main.hpp"
+#include "shapesim/error.hpp"
+#include "shapesim/fits_io.hpp"
+
+#include <fitsio.h>
+
+#include <cmath>
+#include <cstdint>
+#include <cstdio>
+#include <cstdlib>
+#include <iostream>
+#include <string>
+#include <vector>
+
+using namespace shapesim;
+
+namespace {
+
+// Separable Gaussian blur of σ pixels (kernel to ±4σ, normalised; edges mirror).
+ImageArray gaussian_blur(const ImageArray& in, double sigma) {
+    const int half = int(std::ceil(4 * sigma));
+    std::vector<double> kernel(std::size_t(2 * half + 1));
+    double sum = 0;
+    for (int k = -half; k <= half; ++k) sum += kernel[std::size_t(k + half)] = std::exp(-0.5 * k * k / (sigma * sigma));
+    for (double& v : kernel) v /= sum;
+    const int ny = int(in.rows()), nx = int(in.cols());
+    const auto mirror = [](int i, int n) { return i < 0 ? -i - 1 : i >= n ? 2 * n - i - 1 : i; };
+    ImageArray rows(ny, nx), out(ny, nx);
+    for (int j = 0; j < ny; ++j)
+        for (int i = 0; i < nx; ++i) {
+            double v = 0;
+            for (int k = -half; k <= half; ++k) v += kernel[std::size_t(k + half)] * in(j, mirror(i + k, nx));
+            rows(j, i) = v;
+        }
+    for (int j = 0; j < ny; ++j)
+        for (int i = 0; i < nx; ++i) {
+            double v = 0;
+            for (int k = -half; k <= half; ++k) v += kernel[std::size_t(k + half)] * rows(mirror(j + k, ny), i);
+            out(j, i) = v;
+        }
+    return out;
+}
+
+// splitmix64 + Box–Muller: the same frame on every platform.
+struct Normal {
+    std::uint64_t state;
+    double uniform() {
+        std::uint64_t z = (state += 0x9e3779b97f4a7c15ULL);
+        z = (z ^ (z >> 30)) * 0xbf58476d1ce4e5b9ULL;
+        z = (z ^ (z >> 27)) * 0x94d049bb133111ebULL;
+        return (double((z ^ (z >> 31)) >> 11) + 0.5) * 0x1.0p-53;
+    }
+    double operator()() { return std::sqrt(-2 * std::log(uniform())) * std::cos(2 * M_PI * uniform()); }
+};
+
+void check(int status, const std::string& path) {
+    if (status == 0) return;
+    char text[FLEN_STATUS];
+    fits_get_errstatus(status, text);
+    throw Error(text, path);
+}
+
+int run(int argc, const char* const argv[]) {
+    if (argc < 10 || argc > 11) {
+        std::cerr << "usage: ground IN.fits OUT.fits PIXEL_SCALE ZERO_POINT SEEING BIN SKY "
+                     "EXPOSURE GAIN [SEED]\n";
+        return 2;
+    }
+    const std::string in_path = argv[1], out_path = argv[2];
+    const double scale = std::atof(argv[3]), zero_point = std::atof(argv[4]);
+    const double seeing = std::atof(argv[5]);
+    const int bin = std::atoi(argv[6]);
+    const double sky = std::atof(argv[7]), exposure = std::atof(argv[8]), gain = std::atof(argv[9]);
+    Normal normal{argc == 11 ? std::strtoull(argv[10], nullptr, 10) : 1};
+    if (!(scale > 0 && seeing > 0 && bin >= 1 && sky >= 0 && exposure > 0 && gain > 0))
+        throw Error("PIXEL_SCALE, SEEING, EXPOSURE and GAIN must be > 0, BIN >= 1, SKY >= 0");
+
+    FitsReader in(in_path, FitsStart::first_image);
+    ImageArray image = in.read_image();
+    for (Eigen::Index k = 0; k < image.size(); ++k)
+        if (!std::isfinite(image.data()[k])) image.data()[k] = 0.0;
+    const ImageArray blurred = gaussian_blur(image, seeing / scale / 2.354820045);
+    const int nx = int(image.cols()) / bin, ny = int(image.rows()) / bin;
+    std::vector<double> adu(std::size_t(nx) * std::size_t(ny));
+    double lowest = 1e300, highest = -1e300;
+    for (int j = 0; j < ny; ++j)
+        for (int i = 0; i < nx; ++i) {
+            const double value = blurred.block(j * bin, i * bin, bin, bin).sum() + sky;
+            const double electrons = std::max(value, 0.0) * exposure;
+            const double a = (value * exposure + std::sqrt(electrons) * normal()) / gain;
+            adu[std::size_t(j) * std::size_t(nx) + std::size_t(i)] = a;
+            lowest = std::min(lowest, a);
+            highest = std::max(highest, a);
+        }
+
+    // BITPIX 16 spanning the frame's range, as a 16-bit CCD read-out scaled to the data.
+    double bscale = (highest - lowest) / 65000.0, bzero = 0.5 * (highest + lowest);
+    std::remove(out_path.c_str());
+    fitsfile* f = nullptr;
+    int status = 0;
+    fits_create_file(&f, out_path.c_str(), &status);
+    check(status, out_path);
+    long naxes[2] = {nx, ny};
+    fits_create_img(f, SHORT_IMG, 2, naxes, &status);
+    fits_write_key(f, TDOUBLE, "BSCALE", &bscale, nullptr, &status);
+    fits_write_key(f, TDOUBLE, "BZERO", &bzero, nullptr, &status);
+    fits_set_bscale(f, bscale, bzero, &status);
+    double exptime = exposure, gain_key = gain, saturate = bzero + 32000 * bscale;
+    fits_write_key(f, TDOUBLE, "EXPTIME", &exptime, "s", &status);
+    fits_write_key(f, TDOUBLE, "GAIN", &gain_key, "e-/ADU", &status);
+    fits_write_key(f, TDOUBLE, "SATURATE", &saturate, "ADU", &status);
+    double magzpt = zero_point - 2.5 * std::log10(gain / exposure);  // 1 ADU = gain/exposure units
+    fits_write_key(f, TDOUBLE, "MAGZPT", &magzpt, "AB mag of 1 ADU", &status);
+    double crpix1 = (nx + 1) / 2.0, crpix2 = (ny + 1) / 2.0, crval1 = 53.16, crval2 = -27.78;
+    double cd = scale * bin / 3600.0, mcd = -cd, zero = 0;
+    fits_write_key(f, TSTRING, "CTYPE1", (void*)"RA---TAN", nullptr, &status);
+    fits_write_key(f, TSTRING, "CTYPE2", (void*)"DEC--TAN", nullptr, &status);
+    fits_write_key(f, TDOUBLE, "CRPIX1", &crpix1, nullptr, &status);
+    fits_write_key(f, TDOUBLE, "CRPIX2", &crpix2, nullptr, &status);
+    fits_write_key(f, TDOUBLE, "CRVAL1", &crval1, nullptr, &status);
+    fits_write_key(f, TDOUBLE, "CRVAL2", &crval2, nullptr, &status);
+    fits_write_key(f, TDOUBLE, "CD1_1", &mcd, nullptr, &status);
+    fits_write_key(f, TDOUBLE, "CD1_2", &zero, nullptr, &status);
+    fits_write_key(f, TDOUBLE, "CD2_1", &zero, nullptr, &status);
+    fits_write_key(f, TDOUBLE, "CD2_2", &cd, nullptr, &status);
+    fits_write_img(f, TDOUBLE, 1, LONGLONG(adu.size()), adu.data(), &status);
+    fits_close_file(f, &status);
+    check(status, out_path);
+    return 0;
+}
+
+}  // namespace
+
+int main(int argc, char** argv) { return app::run_main(argc, argv, "ground", run); }
