@@ -8,6 +8,8 @@
 #   make test            unit tests (GoogleTest) and program tests
 #   make bench           Google Benchmark: run time and the error it buys
 #   make stress          orders past 100, extreme beta, NaN-riddled and 8192² inputs
+#   make fuzz            libFuzzer on the record readers and the FITS path (clang, build-fuzz/)
+#   make corpus-matrix   every program on the bad-input corpus into tests/corpus/matrix.md
 #   make slurm-test      a 4-tile survey through a one-node Slurm cluster = make -j (root; CI)
 #   make install PREFIX=/usr/local
 #   make WERROR=1        warnings are errors (CI)
