@@ -3,6 +3,7 @@
 // decompose.hpp (the optimiser and the record), lsq.hpp (the linear fit).
 #include "shapesim/app/atomic_file.hpp"
 #include "shapesim/app/options.hpp"
+#include "shapesim/app/provenance.hpp"
 #include "shapesim/app/progress.hpp"
 #include "shapesim/app/run_main.hpp"
 #include "shapesim/decompose.hpp"
@@ -175,7 +176,8 @@ int run_psf(const Settings& s, const app::ProgramOptions& options, const app::Lo
                  " at n_max ", psf.n_max, " (--psf-n-max-cap ", s.psf_n_max_cap,
                  "); the record is flagged residual_above_target");
     if (!s.models.empty()) {
-        FitsWriter models(s.models, "shapesim-decompose");
+        FitsWriter models(s.models, "shapesim-decompose",
+                          app::provenance_keywords(options, {"models"}));
         models.write_image(psf.image, {"psf.data", -64, {}, {}, {}, {}});
         models.write_image(psf.image - psf.residual, {"psf.model", -64, {}, {}, {}, {}});
         models.write_image(psf.residual, {"psf.residual", -64, {}, {}, {}, {}});

@@ -5,6 +5,7 @@
 #include "shapesim/app/atomic_file.hpp"
 #include "shapesim/app/detection_run.hpp"
 #include "shapesim/app/options.hpp"
+#include "shapesim/app/provenance.hpp"
 #include "shapesim/app/run_main.hpp"
 #include "shapesim/detect.hpp"
 #include "shapesim/error.hpp"
@@ -84,12 +85,6 @@ void declare(app::ProgramOptions& options, Settings& s) {
          "peaks; 0: mask all)");
 }
 
-std::vector<FitsKeyword> provenance(const app::ProgramOptions& options) {
-    std::vector<FitsKeyword> keywords;
-    for (const auto& [name, value] : options.settings()) keywords.emplace_back(name, value);
-    return keywords;
-}
-
 int run(int argc, const char* const argv[]) {
     app::ProgramOptions options("shapesim-detect", "[OPTION]... IMAGE", description,
                                 app::Common::quiet | app::Common::verbose |
@@ -116,9 +111,11 @@ int run(int argc, const char* const argv[]) {
         noise->extra["image"] = s.detection.image;
     }
     const double star_threshold = s.detection.star_threshold;
+    const std::vector<std::string> outputs = {"stamps", "stars", "segmentation", "noise-model"};
     std::unique_ptr<FitsWriter> stamps;
     if (!s.stamps.empty())
-        stamps = std::make_unique<FitsWriter>(s.stamps, "shapesim-detect", provenance(options));
+        stamps = std::make_unique<FitsWriter>(s.stamps, "shapesim-detect",
+                                              app::provenance_keywords(options, outputs));
     std::unique_ptr<app::AtomicTextFile> stars_file;
     std::unique_ptr<JsonlWriter> stars_out;
     if (!s.stars.empty()) {
@@ -148,7 +145,8 @@ int run(int argc, const char* const argv[]) {
                     ") stellarity ", star);
     }
     if (!s.segmentation.empty()) {
-        FitsWriter seg(s.segmentation, "shapesim-detect", provenance(options));
+        FitsWriter seg(s.segmentation, "shapesim-detect",
+                       app::provenance_keywords(options, outputs));
         FitsImageSpec spec{"SEGMENTATION", 32, {}, context.wcs, {}, {}};
         seg.write_image(field.segmentation.cast<double>(), spec);
         seg.commit();

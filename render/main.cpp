@@ -4,6 +4,7 @@
 #include "shapesim/app/atomic_file.hpp"
 #include "shapesim/app/field_options.hpp"
 #include "shapesim/app/options.hpp"
+#include "shapesim/app/provenance.hpp"
 #include "shapesim/app/run_main.hpp"
 #include "shapesim/compare.hpp"
 #include "shapesim/convolve.hpp"
@@ -273,6 +274,7 @@ int run(int argc, const char* const argv[]) {
 
     // The image: the field's WCS moved to the window.
     FitsImageSpec spec;
+    spec.extname = "SCI";
     spec.bitpix = s.bitpix;
     Wcs wcs = field.wcs;
     wcs.crpix1 -= double(window.x0 - 1);
@@ -312,7 +314,8 @@ int run(int argc, const char* const argv[]) {
     if (zero_point && agree)
         spec.keywords.emplace_back("MAGZERO", std::round(*zero_point * 1e6) / 1e6,
                                    "AB zero point: mag = MAGZERO - 2.5 log10(value)");
-    FitsWriter fits(output, "shapesim-render");
+    FitsWriter fits(output, "shapesim-render",
+                    app::provenance_keywords(options, {"output", "truth"}));
     fits.write_image(image, spec);
 
     // The truth catalogue: the objects centred in the window, so the truths of a grid of tiles

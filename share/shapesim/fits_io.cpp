@@ -388,8 +388,11 @@ void write_wcs(fitsfile* f, const Wcs& wcs, const std::string& place) {
         {"CD1_1", wcs.cd1_1, "degrees per pixel"},
         {"CD1_2", wcs.cd1_2},
         {"CD2_1", wcs.cd2_1},
-        {"CD2_2", wcs.cd2_2}};
+        {"CD2_2", wcs.cd2_2},
+        {"RADESYS", wcs.radesys, "frame of RA/Dec"}};
     for (const auto& key : keys) write_keyword(f, key, place);
+    if (wcs.radesys == "FK5" || wcs.radesys == "FK4")
+        write_keyword(f, {"EQUINOX", wcs.radesys == "FK5" ? 2000.0 : 1950.0}, place);
 }
 
 bool valid_bitpix(int bitpix) {

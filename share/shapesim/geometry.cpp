@@ -119,6 +119,8 @@ Wcs read_wcs(FitsReader& fits) {
     w.crval1 = fits.required_double("CRVAL1");
     w.crval2 = fits.required_double("CRVAL2");
     read_cd(fits, w);
+    if (auto radesys = fits.optional_string("RADESYS"); radesys && !trimmed(*radesys).empty())
+        w.radesys = trimmed(*radesys);
     // A non-default LONPOLE would change the formulas: refuse it rather than ignore it.
     // (Distortions come with other CTYPEs, e.g. RA---TAN-SIP, which validate() refuses.)
     if (auto lonpole = fits.optional_double("LONPOLE"); lonpole && *lonpole != 180.0)

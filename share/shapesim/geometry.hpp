@@ -37,6 +37,9 @@ struct Wcs {
     double cd1_1 = 1.0, cd1_2 = 0.0;    ///< CD matrix, degrees per pixel: CDi_j
     double cd2_1 = 0.0, cd2_2 = 1.0;
     std::string ctype1 = "RA---TAN", ctype2 = "DEC--TAN";
+    /// RADESYS: the frame RA/Dec are in, as read (ICRS when the header names none; the
+    /// formulas do not depend on it). Written back with every WCS.
+    std::string radesys = "ICRS";
 
     /// Sky position of a pixel position (exact TAN formulas above).
     SkyPosition pixel_to_sky(double x, double y) const;

@@ -241,6 +241,28 @@ TEST_F(FitsTest, NanPixelsReadAsNanAndBlankIntegersToo) {
 // A float cannot hold the inverse variance of an image in physical units (σ ~ 1e−30: weights
 // 1e60) nor values below its normal range: such an HDU asked for as −32 is written as −64 and
 // reads back exactly; an ordinary image (and NaN, ±Inf, 0) stays −32.
+// RADESYS passes through a WCS: read as the header gives it (ICRS when absent), written back,
+// with EQUINOX 2000 for FK5.
+TEST_F(FitsTest, RadesysRoundTrips) {
+    Wcs fk5 = tan_wcs(189.2, 62.2, 0.04, 10.0, 10.0);
+    fk5.radesys = "FK5";
+    {
+        FitsWriter out(path("frames.fits"), "test");
+        out.write_image(index_image(4, 4), {"FK5", -32, "", fk5, {}, {}});
+        out.write_image(index_image(4, 4), {"ICRS", -32, "", tan_wcs(1.0, 2.0, 0.04, 1.0, 1.0), {}, {}});
+        out.commit();
+    }
+    FitsReader in(path("frames.fits[FK5]"));
+    EXPECT_EQ(read_wcs(in).radesys, "FK5");
+    EXPECT_EQ(in.required_double("EQUINOX"), 2000.0);
+    FitsReader icrs(path("frames.fits[ICRS]"));
+    EXPECT_EQ(read_wcs(icrs).radesys, "ICRS");
+    EXPECT_FALSE(icrs.has_key("EQUINOX"));
+    FitsReader bare(SHAPESIM_SOURCE_DIR "/tests/corpus/cases/good.fits");  // no RADESYS card
+    EXPECT_FALSE(bare.has_key("RADESYS"));
+    EXPECT_EQ(read_wcs(bare).radesys, "ICRS");
+}
+
 TEST_F(FitsTest, ValuesBeyondAFloatPromoteTheHduToDouble) {
     ImageArray ordinary = index_image(4, 3);
     ordinary(0, 0) = 0.0;
