@@ -50,6 +50,7 @@ const char* const description =
 struct CompareSettings {
     std::vector<std::string> inputs, skies;
     std::string out = "compare", paper;
+    std::string band = "I";  // the magnitudes' band, as the Table and figures label the cuts
     TableCuts cuts;
 };
 
@@ -99,7 +100,7 @@ int run_compare(const CompareSettings& c, const app::Log& log) {
     {
         app::AtomicTextFile table(c.out + "/table.md");
         auto& o = table.stream();
-        o << "| catalogue | N (I ≤ " << c.cuts.mag_counts << ") | ⟨C⟩ | rms C | ⟨A⟩ | rms A | ⟨S⟩ | rms S"
+        o << "| catalogue | N (" << c.band << " ≤ " << c.cuts.mag_counts << ") | ⟨C⟩ | rms C | ⟨A⟩ | rms A | ⟨S⟩ | rms S"
           << " | rms e | FWHM median (″) | FWHM sd (″) |\n|---|---|---|---|---|---|---|---|---|---|---|\n";
         for (const TableRow& t : rows) {
             o << "| " << t.name << " | " << (t.galaxies >= 0 ? std::to_string(t.galaxies) : "–")
@@ -110,8 +111,9 @@ int run_compare(const CompareSettings& c, const app::Log& log) {
               << " | " << format(t.fwhm_median, t.fwhm_median_err) << " | "
               << format(t.fwhm_sd, t.fwhm_sd_err) << " |\n";
         }
-        o << "\nC and A for I ≤ " << c.cuts.mag_ca << ", S (×10, Conselice 2003) for I ≤ "
-          << c.cuts.mag_s << ", e and FWHM for I ≤ " << c.cuts.mag_counts << "; errors: "
+        o << "\nC and A for " << c.band << " ≤ " << c.cuts.mag_ca << ", S (×10, Conselice 2003) for "
+          << c.band << " ≤ " << c.cuts.mag_s << ", e and FWHM for " << c.band
+          << " ≤ " << c.cuts.mag_counts << "; errors: "
           << c.cuts.resamples << " bootstrap resamples.\n";
         table.commit();
     }
@@ -187,17 +189,17 @@ int run_compare(const CompareSettings& c, const app::Log& log) {
                           scut = std::to_string(c.cuts.mag_s);
         plot("counts", "set title 'Number counts (Fig. 5)'\nset xlabel 'I'\nset ylabel 'N per 0.5 mag'\nset logscale y",
              "FILE using (bin($1,0.5)):(1.0) smooth frequency with histeps title 'NAME'");
-        plot("size", "set title 'Size distribution, I <= " + mcut + " (Fig. 6)'\nset xlabel 'FWHM (arcsec)'\nset ylabel 'N'",
+        plot("size", "set title 'Size distribution, " + c.band + " <= " + mcut + " (Fig. 6)'\nset xlabel 'FWHM (arcsec)'\nset ylabel 'N'",
              "FILE using ($1 <= " + mcut + " ? bin($2,0.05) : NaN):(1.0) smooth frequency with histeps title 'NAME'");
         plot("size_mag", "set title 'Size against magnitude (Fig. 7)'\nset xlabel 'I'\nset ylabel 'FWHM (arcsec)'\nset logscale y",
              "FILE using 1:2 with points pt 7 ps 0.4 title 'NAME'");
-        plot("ellipticity", "set title 'Ellipticity, I <= " + mcut + " (Fig. 8)'\nset xlabel '|e|'\nset ylabel 'N'",
+        plot("ellipticity", "set title 'Ellipticity, " + c.band + " <= " + mcut + " (Fig. 8)'\nset xlabel '|e|'\nset ylabel 'N'",
              "FILE using ($1 <= " + mcut + " ? bin($3,0.05) : NaN):(1.0) smooth frequency with histeps title 'NAME'");
-        plot("c_a", "set title 'Concentration against asymmetry, I <= " + ca + " (Fig. 9)'\nset xlabel 'A'\nset ylabel 'C'",
+        plot("c_a", "set title 'Concentration against asymmetry, " + c.band + " <= " + ca + " (Fig. 9)'\nset xlabel 'A'\nset ylabel 'C'",
              "FILE using ($1 <= " + ca + " ? $5 : NaN):4 with points pt 7 ps 0.6 title 'NAME'");
-        plot("c_rp", "set title 'Concentration against Petrosian radius, I <= " + ca + " (Fig. 10)'\nset xlabel 'r_p (arcsec)'\nset ylabel 'C'",
+        plot("c_rp", "set title 'Concentration against Petrosian radius, " + c.band + " <= " + ca + " (Fig. 10)'\nset xlabel 'r_p (arcsec)'\nset ylabel 'C'",
              "FILE using ($1 <= " + ca + " ? $7 : NaN):4 with points pt 7 ps 0.6 title 'NAME'");
-        plot("a_s", "set title 'Asymmetry against clumpiness, I <= " + scut + " (Fig. 11)'\nset xlabel 'S'\nset ylabel 'A'",
+        plot("a_s", "set title 'Asymmetry against clumpiness, " + c.band + " <= " + scut + " (Fig. 11)'\nset xlabel 'S'\nset ylabel 'A'",
              "FILE using ($1 <= " + scut + " ? $6 : NaN):5 with points pt 7 ps 0.6 title 'NAME'");
         script.commit();
     }
@@ -252,6 +254,17 @@ int run(int argc, const char* const argv[]) {
         ("paper", po::value(&compare.paper)->value_name("FILE"),
          "published rows to add to the Table (JSON lines: name, c_mean, c_rms, ...; e.g.\n"
          "share/data/paper/massey2004_table.jsonl)")
+        ("band", po::value(&compare.band)->value_name("NAME")->default_value("I")
+             ->notifier([](const std::string& band) {
+                 // It is written into gnuplot's quoted titles: a plain name only.
+                 if (band.empty() || band.size() > 16 ||
+                     band.find_first_not_of("ABCDEFGHIJKLMNOPQRSTUVWXYZabcdefghijklmnopqrstuvwxyz"
+                                            "0123456789_-+") != std::string::npos)
+                     throw po::error("--band takes a plain name (letters, digits, _-+), got '" +
+                                     band + "'");
+             }),
+         "the magnitudes' band, as the Table and the figures name their cuts (the paper's: "
+         "HST F814W, I)")
         ("mag-counts", po::value(&compare.cuts.mag_counts)->default_value(29.0),
          "magnitude limit for counts, sizes and ellipticities")
         ("mag-ca", po::value(&compare.cuts.mag_ca)->default_value(26.0),

@@ -19,6 +19,17 @@ for r in rows:
 table = [l.split("|")[2:] for l in open("same/table.md") if l.startswith("| a ") or l.startswith("| b ")]
 assert len(table) == 2 and table[0] == table[1], table
 PY
+grep -q "^| catalogue | N (I ≤ 29) |" same/table.md || fail "the Table does not name the paper's band and cut"
+# Another band and cuts (e.g. a K-band survey): the Table and figures say so; a name that would
+# break gnuplot's quotes is refused.
+"$BIN/$prog" --compare a=hdf.jsonl b=hdf.jsonl --out k --band Ks --mag-counts 24 --mag-ca 22 -q ||
+  fail "--band Ks failed"
+grep -q "^| catalogue | N (Ks ≤ 24) |" k/table.md || fail "--band Ks: $(head -n 1 k/table.md)"
+grep -q "C and A for Ks ≤ 22" k/table.md || fail "--band Ks: the cuts' note"
+grep -q "Ks <= 24" k/figures.gp || fail "--band Ks: the figures' titles"
+rc=0
+"$BIN/$prog" --compare a=hdf.jsonl b=hdf.jsonl --out q --band "I'x" >/dev/null 2>"$TMPDIR/err" || rc=$?
+expect_error "$rc" 2 "^$prog: --band takes a plain name"
 if command -v gnuplot >/dev/null; then
   for f in counts size size_mag ellipticity c_a c_rp a_s; do
     [ "$(head -c 4 "same/$f.png" | tail -c 3)" = "PNG" ] || fail "same/$f.png is not a PNG"
