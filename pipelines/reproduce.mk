@@ -219,11 +219,14 @@ $(OUT)/xdf/delta.noise.jsonl: $(OUT)/xdf/delta.fits $(XDF_WEIGHT) $(call prog,de
 $(OUT)/xdf/sky.md: $(OUT)/xdf/real.noise.jsonl $(OUT)/xdf/delta.noise.jsonl $(call prog,measure)
 	$(call prog,measure) --compare-sky $(foreach c,real delta,$c=$(OUT)/xdf/$c.noise.jsonl) > $(tmp)
 	mv $(tmp) $@
-XDF_MEASURE = $(call prog,measure) --zero-point $(XDF_ZERO_POINT) --mag-limit $(MAG_LIMIT) -j $(THREADS)
-$(OUT)/xdf/real.morph.jsonl: $(XDF_IMAGE) $(XDF_WEIGHT) $(call prog,measure)
+# The stellarity through the star's PSF model: the default 0.15″ Gaussian is too narrow at
+# 0.06″ pixels and called the cutout's star a galaxy (stellarity 0), one more in the real row.
+XDF_MEASURE = $(call prog,measure) --zero-point $(XDF_ZERO_POINT) --mag-limit $(MAG_LIMIT) -j $(THREADS) \
+  --psf-model $(OUT)/xdf/psf.jsonl
+$(OUT)/xdf/real.morph.jsonl: $(XDF_IMAGE) $(XDF_WEIGHT) $(OUT)/xdf/psf.jsonl $(call prog,measure)
 	$(XDF_MEASURE) $(XDF_IMAGE) --weight $(XDF_WEIGHT) --pixel-scale $(XDF_SCALE) > $(tmp)
 	mv $(tmp) $@
-$(OUT)/xdf/delta.morph.jsonl: $(OUT)/xdf/delta.fits $(call prog,measure)
+$(OUT)/xdf/delta.morph.jsonl: $(OUT)/xdf/delta.fits $(OUT)/xdf/psf.jsonl $(call prog,measure)
 	$(XDF_MEASURE) $< > $(tmp)
 	mv $(tmp) $@
 $(OUT)/xdf/table.md: $(OUT)/xdf/real.morph.jsonl $(OUT)/xdf/delta.morph.jsonl $(call prog,measure)
