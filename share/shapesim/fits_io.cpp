@@ -391,6 +391,18 @@ void write_wcs(fitsfile* f, const Wcs& wcs, const std::string& place) {
         {"CD2_2", wcs.cd2_2},
         {"RADESYS", wcs.radesys, "frame of RA/Dec"}};
     for (const auto& key : keys) write_keyword(f, key, place);
+    if (wcs.has_sip()) {  // the distortion travels with the WCS (a render --like keeps it)
+        for (const char* order : {"A_ORDER", "B_ORDER"})
+            write_keyword(f, {order, (long long)wcs.sip_order, "SIP polynomial order"}, place);
+        for (const auto& [prefix, terms] : {std::pair{"A", &wcs.sip_a}, std::pair{"B", &wcs.sip_b}})
+            for (std::size_t p = 0; p < terms->size(); ++p)
+                for (std::size_t q = 0; q < (*terms)[p].size(); ++q)
+                    if ((*terms)[p][q] != 0.0)
+                        write_keyword(f, {std::string(prefix) + "_" + std::to_string(p) + "_" +
+                                              std::to_string(q),
+                                          (*terms)[p][q]},
+                                      place);
+    }
     if (wcs.radesys == "FK5" || wcs.radesys == "FK4")
         write_keyword(f, {"EQUINOX", wcs.radesys == "FK5" ? 2000.0 : 1950.0}, place);
 }

@@ -3,6 +3,7 @@
 #include "shapesim/error.hpp"
 #include "shapesim/fits_io.hpp"
 
+#include <algorithm>
 #include <cmath>
 #include <optional>
 
@@ -43,10 +44,51 @@ void read_cd(FitsReader& fits, Wcs& w) {
     w.cd2_1 = cdelt1 * std::sin(rho);
     w.cd2_2 = cdelt2 * std::cos(rho);
 }
+// The SIP keywords of the current HDU: A_ORDER/B_ORDER and every A_p_q/B_p_q with
+// 2 ≤ p + q ≤ order (absent terms are 0).
+void read_sip(FitsReader& fits, Wcs& w) {
+    const auto order_of = [&](const char* key) {
+        const long long order = fits.required_int(key);
+        if (order < 2 || order > 9)
+            throw Error("SIP order must be 2 to 9, got " + std::to_string(order), fits.place(), 0,
+                        key);
+        return int(order);
+    };
+    const int a_order = order_of("A_ORDER"), b_order = order_of("B_ORDER");
+    w.sip_order = std::max(a_order, b_order);
+    const auto terms = [&](const char* prefix, int order) {
+        std::vector<std::vector<double>> c(std::size_t(w.sip_order + 1),
+                                           std::vector<double>(std::size_t(w.sip_order + 1), 0.0));
+        for (int p = 0; p <= order; ++p)
+            for (int q = 0; p + q <= order; ++q)
+                if (p + q >= 1)
+                    c[std::size_t(p)][std::size_t(q)] =
+                        fits.optional_double(std::string(prefix) + "_" + std::to_string(p) + "_" +
+                                             std::to_string(q))
+                            .value_or(0.0);
+        return c;
+    };
+    w.sip_a = terms("A", a_order);
+    w.sip_b = terms("B", b_order);
+}
+
+double sip_sum(const std::vector<std::vector<double>>& c, double u, double v) {
+    double sum = 0.0, up = 1.0;
+    for (std::size_t p = 0; p < c.size(); ++p, up *= u) {
+        double vq = 1.0;
+        for (std::size_t q = 0; p + q < c.size(); ++q, vq *= v) sum += c[p][q] * up * vq;
+    }
+    return sum;
+}
 }  // namespace
 
+std::pair<double, double> Wcs::distort(double u, double v) const {
+    if (!has_sip()) return {u, v};
+    return {u + sip_sum(sip_a, u, v), v + sip_sum(sip_b, u, v)};
+}
+
 SkyPosition Wcs::pixel_to_sky(double x, double y) const {
-    const double dx = x - crpix1, dy = y - crpix2;
+    const auto [dx, dy] = distort(x - crpix1, y - crpix2);
     const double xi = (cd1_1 * dx + cd1_2 * dy) * deg;
     const double eta = (cd2_1 * dx + cd2_2 * dy) * deg;
     const double dec0 = crval2 * deg;
@@ -67,18 +109,45 @@ PixelPosition Wcs::sky_to_pixel(double ra, double dec) const {
     const double xi = std::cos(d) * std::sin(dra) / cos_c / deg;
     const double eta =
         (std::cos(d0) * std::sin(d) - std::sin(d0) * std::cos(d) * std::cos(dra)) / cos_c / deg;
-    // Invert the 2×2 CD matrix (validated non-singular).
+    // Invert the 2×2 CD matrix (validated non-singular), then the distortion: Newton on
+    // distort(u, v) = (u′, v′), from (u′, v′); SIP terms are small, so it converges in a few
+    // steps (the Jacobian by central differences of 1e−3 pixel, exact for the quadratic part).
     const double det = det_cd(*this);
-    return {crpix1 + (cd2_2 * xi - cd1_2 * eta) / det, crpix2 + (-cd2_1 * xi + cd1_1 * eta) / det};
+    const double ud = (cd2_2 * xi - cd1_2 * eta) / det, vd = (-cd2_1 * xi + cd1_1 * eta) / det;
+    double u = ud, v = vd;
+    for (int step = 0; has_sip() && step < 50; ++step) {
+        const auto [fu, fv] = distort(u, v);
+        const double ru = fu - ud, rv = fv - vd;
+        if (std::hypot(ru, rv) < 1e-10) break;
+        constexpr double h = 1e-3;
+        const auto [au, av] = distort(u + h, v);
+        const auto [bu, bv] = distort(u - h, v);
+        const auto [cu, cv] = distort(u, v + h);
+        const auto [du, dv] = distort(u, v - h);
+        const double j11 = (au - bu) / (2 * h), j21 = (av - bv) / (2 * h);
+        const double j12 = (cu - du) / (2 * h), j22 = (cv - dv) / (2 * h);
+        const double jdet = j11 * j22 - j12 * j21;
+        if (!(std::abs(jdet) > 1e-12)) break;
+        u -= (j22 * ru - j12 * rv) / jdet;
+        v -= (-j21 * ru + j11 * rv) / jdet;
+    }
+    return {crpix1 + u, crpix2 + v};
 }
 
 double Wcs::pixel_scale_arcsec() const { return std::sqrt(std::abs(det_cd(*this))) * 3600.0; }
 
 void Wcs::validate() const {
-    if (trimmed(ctype1) != "RA---TAN")
-        throw Error("expected 'RA---TAN', got '" + ctype1 + "'", {}, 0, "CTYPE1");
-    if (trimmed(ctype2) != "DEC--TAN")
-        throw Error("expected 'DEC--TAN', got '" + ctype2 + "'", {}, 0, "CTYPE2");
+    const std::string suffix = has_sip() ? "-SIP" : "";
+    if (trimmed(ctype1) != "RA---TAN" + suffix)
+        throw Error("expected 'RA---TAN" + suffix + "' (TAN, with SIP or without), got '" +
+                        ctype1 + "'",
+                    {}, 0, "CTYPE1");
+    if (trimmed(ctype2) != "DEC--TAN" + suffix)
+        throw Error("expected 'DEC--TAN" + suffix + "', got '" + ctype2 + "'", {}, 0, "CTYPE2");
+    for (const auto* c : {&sip_a, &sip_b})
+        for (const auto& row : *c)
+            for (double v : row)
+                if (!std::isfinite(v)) throw Error("SIP term is not finite", {}, 0, "A_ORDER");
     for (double v : {crpix1, crpix2, crval1, crval2, cd1_1, cd1_2, cd2_1, cd2_2})
         if (!std::isfinite(v)) throw Error("WCS value is not finite", {}, 0, "CD1_1");
     if (!(std::abs(crval2) <= 90.0))
@@ -119,10 +188,11 @@ Wcs read_wcs(FitsReader& fits) {
     w.crval1 = fits.required_double("CRVAL1");
     w.crval2 = fits.required_double("CRVAL2");
     read_cd(fits, w);
+    if (trimmed(w.ctype1).size() > 8 && trimmed(w.ctype1).substr(8) == "-SIP") read_sip(fits, w);
     if (auto radesys = fits.optional_string("RADESYS"); radesys && !trimmed(*radesys).empty())
         w.radesys = trimmed(*radesys);
     // A non-default LONPOLE would change the formulas: refuse it rather than ignore it.
-    // (Distortions come with other CTYPEs, e.g. RA---TAN-SIP, which validate() refuses.)
+    // (Other distortions come with other CTYPEs, e.g. RA---TPV, which validate() refuses.)
     if (auto lonpole = fits.optional_double("LONPOLE"); lonpole && *lonpole != 180.0)
         throw Error("only LONPOLE = 180 is supported", fits.place(), 0, "LONPOLE");
     try {

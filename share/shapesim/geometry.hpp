@@ -9,12 +9,19 @@
 //   δ = atan2(η cos δ₀ + sin δ₀, √(ξ² + (cos δ₀ − η sin δ₀)²))
 // and its exact inverse, with cos c = sin δ sin δ₀ + cos δ cos δ₀ cos(α − α₀) > 0:
 //   ξ = cos δ sin(α − α₀) / cos c,  η = (cos δ₀ sin δ − sin δ₀ cos δ cos(α − α₀)) / cos c.
-// No distortion terms: CTYPEs other than RA---TAN/DEC--TAN (e.g. -SIP) are refused.
-// The pixel scale of a field is √|det CD| in arcsec.
+// Distortion: the SIP convention (Shupe et al. 2005; CTYPE RA---TAN-SIP / DEC--TAN-SIP), the
+// one HST, Spitzer and most survey pipelines write: before the CD matrix,
+//   u′ = u + Σ A_p_q u^p v^q,  v′ = v + Σ B_p_q u^p v^q   (u, v = x − CRPIX1, y − CRPIX2;
+//   2 ≤ p + q ≤ A_ORDER, B_ORDER),
+// inverted by Newton's method to 1e−10 pixel (the optional AP/BP inverse polynomials are
+// approximations and are not needed). Other projections and distortions (TPV, ZPN, SIN…)
+// are refused by name. The pixel scale of a field is √|det CD| in arcsec.
 #pragma once
 
 #include <optional>
 #include <string>
+#include <utility>
+#include <vector>
 
 namespace shapesim {
 
@@ -40,6 +47,15 @@ struct Wcs {
     /// RADESYS: the frame RA/Dec are in, as read (ICRS when the header names none; the
     /// formulas do not depend on it). Written back with every WCS.
     std::string radesys = "ICRS";
+    /// SIP distortion (CTYPEs end in -SIP): sip_a[p][q] = A_p_q for p + q ≤ sip_order (the
+    /// larger of A_ORDER and B_ORDER; missing terms 0); empty without distortion.
+    int sip_order = 0;
+    std::vector<std::vector<double>> sip_a, sip_b;
+
+    /// True when the WCS carries SIP distortion.
+    bool has_sip() const { return sip_order > 0; }
+    /// (u′, v′): the SIP-distorted offsets of (u, v) from CRPIX (the identity without SIP).
+    std::pair<double, double> distort(double u, double v) const;
 
     /// Sky position of a pixel position (exact TAN formulas above).
     SkyPosition pixel_to_sky(double x, double y) const;
@@ -48,7 +64,8 @@ struct Wcs {
     PixelPosition sky_to_pixel(double ra, double dec) const;
     /// Pixel scale √|det CD|, arcsec per pixel.
     double pixel_scale_arcsec() const;
-    /// Throws Error (field = keyword) unless finite, CTYPE is RA---TAN/DEC--TAN and det CD ≠ 0.
+    /// Throws Error (field = keyword) unless finite, CTYPE is RA---TAN/DEC--TAN (with -SIP
+    /// exactly when it has SIP terms) and det CD ≠ 0.
     void validate() const;
 };
 

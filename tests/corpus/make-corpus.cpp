@@ -174,9 +174,9 @@ int main(int argc, char** argv) {
                  }});
     write_image(out("sip.fits"), good, n, n, FLOAT_IMG,
                 {true, [](fitsfile* f, int& status) {
-                     // TAN with SIP distortion of up to 0.1 pixel at the corners.
+                     // TAN with SIP distortion of up to 0.05 pixel at the corners.
                      int order = 2;
-                     double a02 = 2e-6, a20 = -1.5e-6, b11 = 1e-6;
+                     double a02 = 2e-5, a20 = -1.5e-5, b11 = 1e-5;
                      fits_update_key(f, TSTRING, "CTYPE1", (void*)"RA---TAN-SIP", nullptr,
                                      &status);
                      fits_update_key(f, TSTRING, "CTYPE2", (void*)"DEC--TAN-SIP", nullptr,

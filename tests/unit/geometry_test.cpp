@@ -229,3 +229,75 @@ TEST_F(GeometryTest, HeaderConventionsAgree) {
               }()),
               dir_ + "/wcs.fits[SCI]: CTYPE1: keyword is missing");
 }
+
+// SIP distortion (the corpus's sip.fits: TAN with A_0_2, A_2_0, B_1_1, up to 0.05 pixel at
+// the corners): pixel → sky equals astropy 5.2's all_pix2world (origin 1) on the same header to
+// 1e−12°, sky → pixel inverts it to 1e−9 pixel, and the terms survive a write and a re-read.
+TEST_F(GeometryTest, SipDistortionMatchesAstropyAndInverts) {
+    FitsReader fits(SHAPESIM_SOURCE_DIR "/tests/corpus/cases/sip.fits", FitsStart::first_image);
+    const Wcs w = read_wcs(fits);
+    ASSERT_TRUE(w.has_sip());
+    EXPECT_EQ(w.sip_order, 2);
+    EXPECT_EQ(w.sip_a[0][2], 2e-5);
+    EXPECT_EQ(w.sip_b[1][1], 1e-5);
+    struct Reference {
+        double x, y, ra, dec;
+    };
+    for (const Reference& r : {Reference{91.12839393884606, 30.96733893712243, 189.19936533540357,
+                                         62.19962731421346},
+                               Reference{1, 1, 189.2015122969175, 62.19929488423822},
+                               Reference{128, 128, 189.19848667177973, 62.2007059953383},
+                               Reference{1, 128, 189.20151236751698, 62.2007050992932}}) {
+        const SkyPosition s = w.pixel_to_sky(r.x, r.y);
+        EXPECT_NEAR(s.ra, r.ra, 1e-12) << r.x << " " << r.y;
+        EXPECT_NEAR(s.dec, r.dec, 1e-12) << r.x << " " << r.y;
+    }
+    Wcs plain = w;  // the distortion is what moves the corner: 0.045 pixel, 1.8 mas here
+    plain.sip_order = 0;
+    plain.sip_a.clear();
+    plain.sip_b.clear();
+    plain.ctype1 = "RA---TAN";
+    plain.ctype2 = "DEC--TAN";
+    EXPECT_GT(separation_arcsec(w.pixel_to_sky(1, 1), plain.pixel_to_sky(1, 1)), 0.0015);
+    for (double x = -50; x <= 180; x += 23)
+        for (double y = -50; y <= 180; y += 29) {
+            const SkyPosition s = w.pixel_to_sky(x, y);
+            const PixelPosition p = w.sky_to_pixel(s.ra, s.dec);
+            EXPECT_NEAR(p.x, x, 1e-9);
+            EXPECT_NEAR(p.y, y, 1e-9);
+        }
+    const std::string path = dir_ + "/sip_out.fits";
+    {
+        FitsWriter out(path, "test");
+        out.write_image(ImageArray::Zero(4, 4), {"SCI", -32, "", w, {}, {}});
+        out.commit();
+    }
+    FitsReader back_file(path, FitsStart::first_image);
+    const Wcs back = read_wcs(back_file);
+    EXPECT_EQ(back.ctype1, "RA---TAN-SIP");
+    EXPECT_EQ(back.sip_a, w.sip_a);
+    EXPECT_EQ(back.sip_b, w.sip_b);
+}
+
+// A -SIP CTYPE without its orders names the missing keyword; other distortions are refused by
+// name.
+TEST_F(GeometryTest, SipWithoutOrdersAndOtherProjectionsAreRefused) {
+    const std::vector<FitsKeyword> common = {{"CRPIX1", 10.5}, {"CRPIX2", 20.5},
+                                             {"CRVAL1", 150.0}, {"CRVAL2", 2.2},
+                                             {"CD1_1", -1e-5},  {"CD2_2", 1e-5}};
+    auto error_with = [&](std::vector<FitsKeyword> extra) -> std::string {
+        extra.insert(extra.end(), common.begin(), common.end());
+        try {
+            FitsReader fits(image_with(extra), FitsStart::first_image);
+            read_wcs(fits);
+        } catch (const Error& e) {
+            return e.what();
+        }
+        return "no error";
+    };
+    EXPECT_NE(error_with({{"CTYPE1", "RA---TAN-SIP"}, {"CTYPE2", "DEC--TAN-SIP"}}).find("A_ORDER"),
+              std::string::npos);
+    EXPECT_NE(error_with({{"CTYPE1", "RA---TPV"}, {"CTYPE2", "DEC--TPV"}})
+                  .find("CTYPE1: expected 'RA---TAN' (TAN, with SIP or without), got 'RA---TPV'"),
+              std::string::npos);
+}
