@@ -65,7 +65,7 @@ bench: $(BENCH_BIN)
 # table; the program test tests/programs/corpus/matrix.sh checks both are current, and CI runs
 # the matrix once more on the programs built with SAN=1.
 CORPUS_GEN := $(BUILD)/tests/make-corpus
-$(CORPUS_GEN): tests/corpus/make-corpus.cpp | deps
+$(CORPUS_GEN): tests/corpus/make-corpus.cpp tests/corpus/tool_support.hpp | deps
 	@mkdir -p $(@D)
 	$(if $(Q),@echo "  LD   $@")
 	$(Q)$(CXX) -std=c++17 $(OPT) $(WARN) $< -lcfitsio -o $@.tmp && mv $@.tmp $@

@@ -5,6 +5,8 @@
 // BSCALE/BZERO, tile-compressed, in an extension, without or with an unusual WCS, degenerate
 // shapes and values. cfitsio directly (not the library under test), and our own generator
 // (splitmix64 + Box–Muller), so the bytes do not depend on the C++ library's distributions.
+#include "tool_support.hpp"
+
 #include <fitsio.h>
 
 #include <cmath>
@@ -20,20 +22,6 @@
 namespace {
 
 constexpr int kSize = 128;
-
-struct Rng {
-    std::uint64_t state;
-    std::uint64_t next() {
-        std::uint64_t z = (state += 0x9e3779b97f4a7c15ULL);
-        z = (z ^ (z >> 30)) * 0xbf58476d1ce4e5b9ULL;
-        z = (z ^ (z >> 27)) * 0x94d049bb133111ebULL;
-        return z ^ (z >> 31);
-    }
-    double uniform() { return (static_cast<double>(next() >> 11) + 0.5) * 0x1.0p-53; }
-    double normal() {
-        return std::sqrt(-2 * std::log(uniform())) * std::cos(2 * M_PI * uniform());
-    }
-};
 
 using Pixels = std::vector<double>;  // row-major, (x, y) at [y * nx + x], 0-based
 
@@ -65,7 +53,7 @@ void add_profile(Pixels& p, int nx, int ny, double x0, double y0, double flux, d
 // The field: five galaxies of S/N 30–400 and one star on noise of σ = 1.
 Pixels field(int nx, int ny, std::uint64_t seed) {
     Pixels p(static_cast<std::size_t>(nx) * ny, 0.0);
-    Rng rng{seed};
+    shapesim::testing::SplitMix rng{seed};
     for (double& v : p) v = rng.normal();
     const double fx = nx / 128.0, fy = ny / 128.0;
     add_profile(p, nx, ny, 40 * fx, 44 * fy, 4000, 4.0, 0.5, 0.6, false);
@@ -81,22 +69,6 @@ struct Header {
     bool wcs = true;                                   // north-up TAN WCS, 0.04″ pixels
     std::function<void(fitsfile*, int&)> extra = {};  // more keywords
 };
-
-void write_wcs(fitsfile* f, int nx, int ny, int& status) {
-    double crpix1 = (nx + 1) / 2.0, crpix2 = (ny + 1) / 2.0, crval1 = 189.2, crval2 = 62.2;
-    double cd = 0.04 / 3600;
-    double mcd = -cd, zero = 0;
-    fits_write_key(f, TSTRING, "CTYPE1", (void*)"RA---TAN", nullptr, &status);
-    fits_write_key(f, TSTRING, "CTYPE2", (void*)"DEC--TAN", nullptr, &status);
-    fits_write_key(f, TDOUBLE, "CRPIX1", &crpix1, nullptr, &status);
-    fits_write_key(f, TDOUBLE, "CRPIX2", &crpix2, nullptr, &status);
-    fits_write_key(f, TDOUBLE, "CRVAL1", &crval1, nullptr, &status);
-    fits_write_key(f, TDOUBLE, "CRVAL2", &crval2, nullptr, &status);
-    fits_write_key(f, TDOUBLE, "CD1_1", &mcd, nullptr, &status);
-    fits_write_key(f, TDOUBLE, "CD1_2", &zero, nullptr, &status);
-    fits_write_key(f, TDOUBLE, "CD2_1", &zero, nullptr, &status);
-    fits_write_key(f, TDOUBLE, "CD2_2", &cd, nullptr, &status);
-}
 
 // Write `p` (nx × ny) as BITPIX `bitpix` into a new file; integer types are scaled so that
 // [lo, hi] spans the type's range with BSCALE/BZERO. `compress`: Rice tile compression.
@@ -129,7 +101,7 @@ void write_image(const std::string& path, const Pixels& p, int nx, int ny, int b
     double gain = 1000, zp = 25;
     fits_write_key(f, TDOUBLE, "GAIN", &gain, "e-/unit (corpus)", &status);
     fits_write_key(f, TDOUBLE, "MAGZERO", &zp, "AB mag of one unit (corpus)", &status);
-    if (header.wcs) write_wcs(f, nx, ny, status);
+    if (header.wcs) shapesim::testing::write_tan_wcs_cards(f, nx, ny, 0.04, 189.2, 62.2, status);
     if (header.extra) header.extra(f, status);
     std::vector<double> data(p);
     fits_write_img(f, TDOUBLE, 1, static_cast<LONGLONG>(data.size()), data.data(), &status);

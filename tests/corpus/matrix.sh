@@ -83,6 +83,22 @@ run() {
   notes+=("| $case | $column | $cell: \`$(head -c 300 out.stderr | tr '\n' ' ' | sed 's/|/\\|/g')\` |")
 }
 
+# detect_and_decompose CASE NAME DETECT_ARGS...: two cells, detect's and (on its stamps)
+# decompose's, or "—" when detect made no stamps.
+detect_and_decompose() {
+  local case=$1 name=$2
+  shift 2
+  run detect "$case" detect "$@" --stamps out/stamps.fits
+  cells+=("$cell")
+  if [ "$cell" != error ] && [ -s out/stamps.fits ]; then
+    cp out/stamps.fits "stamps-$name.fits" && cp out.stdout "sources-$name.jsonl"
+    run decompose "$case" decompose -i "sources-$name.jsonl" --stamps "stamps-$name.fits"
+    cells+=("$cell")
+  else
+    cells+=("—")
+  fi
+}
+
 echo "| case | detect | decompose | smooth | sample | render | render \`--psf\` | measure |"
 echo "|---|---|---|---|---|---|---|---|"
 row() {
@@ -100,15 +116,7 @@ for f in good bitpix8 bitpix16 bitpix32 bitpix-64 fpack extension no-wcs blank-c
   scale=()
   case $f in no-wcs | blank-ctype) scale=(--pixel-scale 0.04 --ra 189.2 --dec 62.2) ;; esac
   cells=("\`$c\`")
-  run detect "$c" detect "$c" "${scale[@]}" --stamps out/stamps.fits
-  cells+=("$cell")
-  if [ "$cell" != error ] && [ -s out/stamps.fits ]; then
-    cp out/stamps.fits "stamps-$f.fits" && cp out.stdout "sources-$f.jsonl"
-    run decompose "$c" decompose -i "sources-$f.jsonl" --stamps "stamps-$f.fits"
-    cells+=("$cell")
-  else
-    cells+=("—")
-  fi
+  detect_and_decompose "$c" "$f" "$c" "${scale[@]}"
   run smooth "$c" smooth -i base/shapelets.jsonl --like "$c" "${scale[@]:0:2}"
   cells+=("$cell")
   run sample "$c" sample base/model.json --like "$c" "${scale[@]}" --seed 1
@@ -125,15 +133,7 @@ done
 for f in weight weight-zeros weight-nan weight-all-zero weight-small; do
   c=$f.fits
   cells=("\`good.fits --weight $c\`")
-  run detect "$c" detect good.fits --weight "$c" --stamps out/stamps.fits
-  cells+=("$cell")
-  if [ "$cell" != error ] && [ -s out/stamps.fits ]; then
-    cp out/stamps.fits "stamps-$f.fits" && cp out.stdout "sources-$f.jsonl"
-    run decompose "$c" decompose -i "sources-$f.jsonl" --stamps "stamps-$f.fits"
-    cells+=("$cell")
-  else
-    cells+=("—")
-  fi
+  detect_and_decompose "$c" "$f" good.fits --weight "$c"
   cells+=("—" "—" "—" "—")
   run measure "$c" measure good.fits --weight "$c"
   cells+=("$cell")

@@ -15,6 +15,7 @@
 #include "shapesim/app/run_main.hpp"
 #include "shapesim/error.hpp"
 #include "shapesim/fits_io.hpp"
+#include "../corpus/tool_support.hpp"
 
 #include <fitsio.h>
 
@@ -35,7 +36,8 @@ ImageArray gaussian_blur(const ImageArray& in, double sigma) {
     const int half = int(std::ceil(4 * sigma));
     std::vector<double> kernel(std::size_t(2 * half + 1));
     double sum = 0;
-    for (int k = -half; k <= half; ++k) sum += kernel[std::size_t(k + half)] = std::exp(-0.5 * k * k / (sigma * sigma));
+    for (int k = -half; k <= half; ++k)
+        sum += kernel[std::size_t(k + half)] = std::exp(-0.5 * k * k / (sigma * sigma));
     for (double& v : kernel) v /= sum;
     const int ny = int(in.rows()), nx = int(in.cols());
     const auto mirror = [](int i, int n) { return i < 0 ? -i - 1 : i >= n ? 2 * n - i - 1 : i; };
@@ -43,29 +45,19 @@ ImageArray gaussian_blur(const ImageArray& in, double sigma) {
     for (int j = 0; j < ny; ++j)
         for (int i = 0; i < nx; ++i) {
             double v = 0;
-            for (int k = -half; k <= half; ++k) v += kernel[std::size_t(k + half)] * in(j, mirror(i + k, nx));
+            for (int k = -half; k <= half; ++k)
+                v += kernel[std::size_t(k + half)] * in(j, mirror(i + k, nx));
             rows(j, i) = v;
         }
     for (int j = 0; j < ny; ++j)
         for (int i = 0; i < nx; ++i) {
             double v = 0;
-            for (int k = -half; k <= half; ++k) v += kernel[std::size_t(k + half)] * rows(mirror(j + k, ny), i);
+            for (int k = -half; k <= half; ++k)
+                v += kernel[std::size_t(k + half)] * rows(mirror(j + k, ny), i);
             out(j, i) = v;
         }
     return out;
 }
-
-// splitmix64 + Box–Muller: the same frame on every platform.
-struct Normal {
-    std::uint64_t state;
-    double uniform() {
-        std::uint64_t z = (state += 0x9e3779b97f4a7c15ULL);
-        z = (z ^ (z >> 30)) * 0xbf58476d1ce4e5b9ULL;
-        z = (z ^ (z >> 27)) * 0x94d049bb133111ebULL;
-        return (double((z ^ (z >> 31)) >> 11) + 0.5) * 0x1.0p-53;
-    }
-    double operator()() { return std::sqrt(-2 * std::log(uniform())) * std::cos(2 * M_PI * uniform()); }
-};
 
 void check(int status, const std::string& path) {
     if (status == 0) return;
@@ -85,7 +77,7 @@ int run(int argc, const char* const argv[]) {
     const double seeing = std::atof(argv[5]);
     const int bin = std::atoi(argv[6]);
     const double sky = std::atof(argv[7]), exposure = std::atof(argv[8]), gain = std::atof(argv[9]);
-    Normal normal{argc == 11 ? std::strtoull(argv[10], nullptr, 10) : 1};
+    shapesim::testing::SplitMix noise{argc == 11 ? std::strtoull(argv[10], nullptr, 10) : 1};
     if (!(scale > 0 && seeing > 0 && bin >= 1 && sky >= 0 && exposure > 0 && gain > 0))
         throw Error("PIXEL_SCALE, SEEING, EXPOSURE and GAIN must be > 0, BIN >= 1, SKY >= 0");
 
@@ -101,7 +93,7 @@ int run(int argc, const char* const argv[]) {
         for (int i = 0; i < nx; ++i) {
             const double value = blurred.block(j * bin, i * bin, bin, bin).sum() + sky;
             const double electrons = std::max(value, 0.0) * exposure;
-            const double a = (value * exposure + std::sqrt(electrons) * normal()) / gain;
+            const double a = (value * exposure + std::sqrt(electrons) * noise.normal()) / gain;
             adu[std::size_t(j) * std::size_t(nx) + std::size_t(i)] = a;
             lowest = std::min(lowest, a);
             highest = std::max(highest, a);
@@ -125,18 +117,7 @@ int run(int argc, const char* const argv[]) {
     fits_write_key(f, TDOUBLE, "SATURATE", &saturate, "ADU", &status);
     double magzpt = zero_point - 2.5 * std::log10(gain / exposure);  // 1 ADU = gain/exposure units
     fits_write_key(f, TDOUBLE, "MAGZPT", &magzpt, "AB mag of 1 ADU", &status);
-    double crpix1 = (nx + 1) / 2.0, crpix2 = (ny + 1) / 2.0, crval1 = 53.16, crval2 = -27.78;
-    double cd = scale * bin / 3600.0, mcd = -cd, zero = 0;
-    fits_write_key(f, TSTRING, "CTYPE1", (void*)"RA---TAN", nullptr, &status);
-    fits_write_key(f, TSTRING, "CTYPE2", (void*)"DEC--TAN", nullptr, &status);
-    fits_write_key(f, TDOUBLE, "CRPIX1", &crpix1, nullptr, &status);
-    fits_write_key(f, TDOUBLE, "CRPIX2", &crpix2, nullptr, &status);
-    fits_write_key(f, TDOUBLE, "CRVAL1", &crval1, nullptr, &status);
-    fits_write_key(f, TDOUBLE, "CRVAL2", &crval2, nullptr, &status);
-    fits_write_key(f, TDOUBLE, "CD1_1", &mcd, nullptr, &status);
-    fits_write_key(f, TDOUBLE, "CD1_2", &zero, nullptr, &status);
-    fits_write_key(f, TDOUBLE, "CD2_1", &zero, nullptr, &status);
-    fits_write_key(f, TDOUBLE, "CD2_2", &cd, nullptr, &status);
+    shapesim::testing::write_tan_wcs_cards(f, nx, ny, scale * bin, 53.16, -27.78, status);
     fits_write_img(f, TDOUBLE, 1, LONGLONG(adu.size()), adu.data(), &status);
     fits_close_file(f, &status);
     check(status, out_path);

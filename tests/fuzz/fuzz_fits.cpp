@@ -3,6 +3,7 @@
 // pixels, its WCS (or a --pixel-scale geometry without one), and as a stamp file. A
 // shapesim::Error is a clean refusal; anything else is a bug. cfitsio is a system library
 // without sanitizer instrumentation: only crashes inside it show.
+#include "refused_or_read.hpp"
 #include "shapesim/error.hpp"
 #include "shapesim/fits_io.hpp"
 #include "shapesim/geometry.hpp"
@@ -15,16 +16,9 @@
 #include <unistd.h>
 
 using namespace shapesim;
+using shapesim::fuzz::refused_or_read;
 
 namespace {
-
-template <class F>
-void refused_or_read(F&& f) {
-    try {
-        f();
-    } catch (const Error&) {
-    }
-}
 
 const std::string& scratch_file() {
     static const std::string path =

@@ -2,6 +2,7 @@
 // of any schema, each record converted by every record type (and to a model where there is
 // one), then as one JSON document (a morphology model). A shapesim::Error is a clean refusal;
 // anything else (another exception, a crash, a sanitizer report, a leak) is a bug.
+#include "refused_or_read.hpp"
 #include "shapesim/error.hpp"
 #include "shapesim/jsonl.hpp"
 #include "shapesim/morphology.hpp"
@@ -14,18 +15,7 @@
 #include <string>
 
 using namespace shapesim;
-
-namespace {
-
-template <class F>
-void refused_or_read(F&& f) {
-    try {
-        f();
-    } catch (const Error&) {
-    }
-}
-
-}  // namespace
+using shapesim::fuzz::refused_or_read;
 
 extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size) {
     const std::string text(reinterpret_cast<const char*>(data), size);
