@@ -405,6 +405,33 @@ DetectionResult detect_sources(const ImageArray& image, const ImageArray* invers
     if (result.bad_pixels == (long long)n)
         throw Error("no usable pixel: every pixel is NaN/infinite, ±1e30 or beyond, or has zero "
                     "weight");
+    // Without a weight map, a zero-filled region (a rotated mosaic's border, an empty tile)
+    // says "no data" only by being exactly 0: a pixel that is 0 with all its neighbours 0 is
+    // bad, so the background and its rms come from the data alone (noise never makes 3×3
+    // exact zeros in float data; σ ~ 1 DN integer data may lose ~1e-4 of its pixels). An image
+    // that is 0 everywhere is left to the no-noise error below.
+    if (!inverse_variance) {
+        std::vector<std::uint8_t> empty(n, 0);
+        long long count = 0;
+        for (Eigen::Index j = 0; j < ny; ++j)
+            for (Eigen::Index i = 0; i < nx; ++i) {
+                bool zero = true;
+                for (Eigen::Index b = std::max<Eigen::Index>(j - 1, 0);
+                     zero && b <= std::min<Eigen::Index>(j + 1, ny - 1); ++b)
+                    for (Eigen::Index a = std::max<Eigen::Index>(i - 1, 0);
+                         zero && a <= std::min<Eigen::Index>(i + 1, nx - 1); ++a)
+                        zero = image(b, a) == 0.0;
+                const std::size_t k = std::size_t(j * nx + i);
+                if (zero && !result.bad[k]) empty[k] = 1, ++count;
+            }
+        if (count > 0 && count < (long long)n - result.bad_pixels)
+            for (std::size_t k = 0; k < n; ++k)
+                if (empty[k]) {
+                    result.bad[k] = 1;
+                    ++result.bad_pixels;
+                    ++result.zero_noise_pixels;
+                }
+    }
 
     // Background: mesh, filter, spline; subtract.
     std::unique_ptr<sep_bkg, BackgroundDeleter> background;
@@ -445,12 +472,23 @@ DetectionResult detect_sources(const ImageArray& image, const ImageArray* invers
     } else {
         check_sep(sep_bkg_rmsarray(background.get(), result.sigma.data(), SEP_TDOUBLE),
                   "background rms");
+        // Where the local rms is zero the image is constant: a zero-filled border around a
+        // rotated mosaic, an empty tile. Nothing can be detected there; those pixels are bad,
+        // and only an image with no noise anywhere is an error.
         for (std::size_t k = 0; k < n; ++k) {
-            if (result.bad[k]) result.sigma.data()[k] = infinite;
-            else if (!(result.sigma.data()[k] > 0.0))
-                throw Error("background rms is zero: the image has no noise (a constant "
-                            "image?); give a weight map");
+            if (result.bad[k]) {
+                result.sigma.data()[k] = infinite;
+            } else if (!(result.sigma.data()[k] > 0.0)) {
+                result.bad[k] = 1;
+                result.image.data()[k] = 0.0;
+                result.sigma.data()[k] = infinite;
+                ++result.bad_pixels;
+                ++result.zero_noise_pixels;
+            }
         }
+        if (result.bad_pixels == (long long)n)
+            throw Error("background rms is zero: the image has no noise (a constant image?); "
+                        "give a weight map");
     }
 
     // libsep reads the noise array at masked pixels too: give it finite values there.

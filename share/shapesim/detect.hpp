@@ -132,6 +132,10 @@ struct DetectionResult {
     /// drizzled HDF. Aperture flux errors (FLUXERR_AUTO, circular_aperture_flux) include it.
     double noise_correlation = 1.0;
     long long bad_pixels = 0;
+    /// Pixels made bad as no data (no weight map only): exactly 0 with every neighbour 0, or
+    /// where the local background rms is zero: a zero-filled mosaic border, an empty tile.
+    /// Counted in bad_pixels too.
+    long long zero_noise_pixels = 0;
     /// Objects left out because libsep's moments of them are not finite (pixel values near
     /// the float range); their labels stay in `segmentation`.
     int non_finite_objects = 0;

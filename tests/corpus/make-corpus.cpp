@@ -195,6 +195,22 @@ int main(int argc, char** argv) {
             if (v > 5000 || (x >= 63 && x <= 65 && std::abs(y - 64) < 30)) v = 5000;
         }
     write_image(out("saturated-star.fits"), p, n, n, FLOAT_IMG);
+    // The field inside a zero-filled frame, tilted 30° as a rotated mosaic's footprint is:
+    // zeros, not NaN, with no weight map to say so.
+    {
+        const int m = 2 * n;
+        Pixels framed(std::size_t(m) * m, 0.0);
+        const double c = std::cos(M_PI / 6), s = std::sin(M_PI / 6);
+        for (int y = 0; y < m; ++y)
+            for (int x = 0; x < m; ++x) {
+                const double u = c * (x - m / 2.0) + s * (y - m / 2.0) + n / 2.0;
+                const double v = -s * (x - m / 2.0) + c * (y - m / 2.0) + n / 2.0;
+                const int i = int(std::floor(u)), j = int(std::floor(v));
+                if (i >= 0 && j >= 0 && i < n && j < n)
+                    framed[std::size_t(y) * m + x] = good[j * n + i];
+            }
+        write_image(out("zero-border.fits"), framed, m, m, FLOAT_IMG);
+    }
 
     // Weight maps (inverse variance; the field's noise is σ = 1).
     write_image(out("weight.fits"), Pixels(n * n, 1.0), n, n, FLOAT_IMG);

@@ -110,7 +110,7 @@ row() {
 # Images: every program that takes one. Headers without a WCS get --pixel-scale, as the
 # error message tells a user to do.
 for f in good bitpix8 bitpix16 bitpix32 bitpix-64 fpack extension no-wcs blank-ctype sip \
-  row column tiny all-zero all-nan inf huge tiny-values some-nan hot-pixels saturated-star \
+  row column tiny all-zero all-nan inf huge tiny-values some-nan hot-pixels saturated-star zero-border \
   truncated header-only empty text naxis0 cube; do
   c=$f.fits
   scale=()

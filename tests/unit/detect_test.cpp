@@ -1337,3 +1337,19 @@ TEST(DetectOdd, HugeSentinelPixelsAreBad) {
     EXPECT_EQ(detect_sources(below, nullptr, DetectionOptions{}).bad_pixels, 0);
 }
 
+
+// A zero-filled border (a rotated mosaic's, an empty tile) has no noise: without a weight map
+// its pixels (0 with every neighbour 0) become bad, the galaxies beside it are found, and only
+// an image constant everywhere is an error (it used to be one whenever any mesh was constant).
+TEST(DetectOdd, ZeroFilledBorderIsBadNotFatal) {
+    const std::vector<Blob> blobs{{90.2, 40.4, 3000.0, 2.5}, {100.0, 100.0, 2000.0, 2.0}};
+    ImageArray image = blobs_image(128, 128, blobs) + white_noise(128, 128, 1.0, 57);
+    image.leftCols(64) = 0.0;  // FITS x 1-64: no data
+    const DetectionResult r = detect_sources(image, nullptr, DetectionOptions{});
+    EXPECT_GE(r.zero_noise_pixels, 64 * 128 / 2);
+    EXPECT_LE(r.zero_noise_pixels, 64 * 128);
+    EXPECT_EQ(r.bad_pixels, r.zero_noise_pixels);
+    for (const Blob& b : blobs) EXPECT_LT(nearest(r.objects, b.x, b.y).distance, 0.5);
+    for (const Detection& d : r.objects) EXPECT_GT(d.x, 60.0);  // nothing in the border
+    EXPECT_THROW(detect_sources(ImageArray::Zero(64, 64), nullptr, DetectionOptions{}), Error);
+}

@@ -155,6 +155,10 @@ DetectionRun DetectionSettings::run(const ProgramOptions& options, const Log& lo
              "σ (background rms ", field.background_rms, ", weight scale ", field.weight_scale,
              ", correlated-noise factor ", field.noise_correlation, ")");
 
+    if (field.zero_noise_pixels > 0)
+        log.warn(field.zero_noise_pixels, " pixels with no data (0 with every neighbour 0, or "
+                 "no noise: a zero-filled border?) are treated as bad; give a weight map to say "
+                 "so");
     if (field.non_finite_objects > 0)
         log.warn(field.non_finite_objects, " objects left out: their moments are not finite "
                  "(pixel values near the float range?)");
