@@ -123,8 +123,12 @@ int run(int argc, const char* const argv[]) {
         stars_out = std::make_unique<JsonlWriter>(stars_file->stream(), s.stars);
     }
     JsonlWriter out(std::cout, "-");
-    long n_stars = 0;
+    long n_stars = 0, n_spikes = 0;
     for (const Detection& object : field.objects) {
+        if (is_single_pixel_event(object.peak, object.flux_iso)) {  // not a star: no PSF
+            ++n_spikes;
+            continue;
+        }
         const CoreFraction core = core_fraction(field, object, locus);
         const double star = stellarity(core, locus);
         const bool is_star = star > star_threshold;
@@ -163,6 +167,9 @@ int run(int argc, const char* const argv[]) {
     if (stars_file) stars_file->commit();
     log.info(out.count(), " galaxies, ", n_stars, " stars (stellarity > ", star_threshold,
              ") in ", log.elapsed(), " s");
+    if (n_spikes > 0)
+        log.info(n_spikes, " single-pixel events (cosmic rays, hot pixels: the peak holds ",
+                 "≥ 75% of the flux) left out");
     return 0;
 }
 

@@ -303,6 +303,7 @@ int run(int argc, const char* const argv[]) {
     std::vector<Job> jobs;
     long too_faint = 0;
     for (const Detection& object : field.objects) {
+        if (is_single_pixel_event(object.peak, object.flux_iso)) continue;  // a cosmic ray
         const CoreFraction core = core_fraction(field, object, detected.locus);
         const double star = stellarity(core, detected.locus);
         if (star > detection.star_threshold && !stars) continue;
