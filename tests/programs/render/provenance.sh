@@ -1,8 +1,8 @@
 #!/usr/bin/env bash
-# Every rendered FITS says how it was made (issue 15): the image HDU is EXTNAME SCI with its
-# WCS's RADESYS, the primary HDU holds the run's options as HIERARCH OPTION cards; -j and the
-# output's own path are not among them, so a run on two threads into another folder writes
-# the same bytes. A short option name never lands on a FITS keyword (--bitpix on BITPIX).
+# Every rendered FITS says how it was made (issue 15): the image HDU is EXTNAME SCI, with the
+# BUNIT of its --like image and its WCS's RADESYS; the primary HDU holds the run's options as
+# HIERARCH OPTION cards; -j and the output's own path are not among them, so a run on two
+# threads into another folder writes the same bytes. A short option name never lands on a FITS keyword (--bitpix on BITPIX).
 source "$(dirname "${BASH_SOURCE[0]}")/../lib.sh"
 tools=$(cd ../tools && pwd)
 cd "$TMPDIR"
@@ -22,4 +22,10 @@ grep -q "^BITPIX  =                    8" <<<"$primary" || fail "the primary BIT
 grep -q "^HIERARCH OPTION SEED = '3 *'" <<<"$primary" || fail "no OPTION SEED card"
 grep -q "^HIERARCH OPTION LIKE = '/" <<<"$primary" || fail "no OPTION LIKE card"
 grep -q "HIERARCH OPTION \(OUTPUT\|THREADS\|TRUTH\)" <<<"$primary" && fail "outputs or -j among the options"
+# A field made --like an image keeps its BUNIT (the COSMOS stamp's ELECTRONS); the HDF has none.
+grep -q '^BUNIT=' <<<"$header" && fail "BUNIT invented for a --like image without one"
+cosmos=$HDF_DATA/../cosmos_aegis/100610.img.fits
+"$BIN/shapesim-render" -q --like "$cosmos" --noise-rms 1 --seed 3 -o cosmos.fits </dev/null ||
+  fail "render --like the COSMOS stamp failed"
+python3 "$tools/fitsdata.py" cosmos.fits header | grep -qx 'BUNIT=ELECTRONS' || fail "BUNIT not kept"
 exit 0
