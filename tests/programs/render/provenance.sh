@@ -2,7 +2,8 @@
 # Every rendered FITS says how it was made (issue 15): the image HDU is EXTNAME SCI, with the
 # BUNIT of its --like image and its WCS's RADESYS; the primary HDU holds the run's options as
 # HIERARCH OPTION cards; -j and the output's own path are not among them, so a run on two
-# threads into another folder writes the same bytes. A short option name never lands on a FITS keyword (--bitpix on BITPIX).
+# threads into another folder writes the same bytes. A short option name never lands on a
+# FITS keyword (--bitpix on BITPIX).
 source "$(dirname "${BASH_SOURCE[0]}")/../lib.sh"
 tools=$(cd ../tools && pwd)
 cd "$TMPDIR"
