@@ -12,12 +12,14 @@ expect_error() {
   grep -q "$3" "$TMPDIR/err" || fail "stderr does not match $3: $(cat "$TMPDIR/err")"
 }
 
-# check_help PROG: --help exits 0 with a manual starting "Usage: PROG "; a bad option exits 2
+# check_help PROG: --help exits 0 with a manual starting "Usage: PROG ", its defaults as written
+# (0.97, not 0.96999999999999997); a bad option exits 2
 # with one stderr line "PROG: … (see --help)" and nothing on stdout.
 check_help() {
   local prog=$1 out rc=0
   out=$("$BIN/$prog" --help) || fail "$prog --help failed"
   grep -q "^Usage: $prog " <<<"$out" || fail "$prog --help: no 'Usage: $prog ' line"
+  ! grep -E '\(=-?[0-9]+\.[0-9]{9,}' <<<"$out" || fail "$prog --help: defaults not as written"
   "$BIN/$prog" --no-such-option >"$TMPDIR/out" 2>"$TMPDIR/err" || rc=$?
   expect_error "$rc" 2 "^$prog: .*(see --help)$"
   [ ! -s "$TMPDIR/out" ] || fail "$prog --no-such-option wrote to stdout"

@@ -274,3 +274,18 @@ TEST(Progress, PeriodicLinesOnlyWhenAsked) {
     }
     EXPECT_EQ(never.lines(), 0);
 }
+
+// --help prints defaults as written (issue 18's "0.96999999999999997"): the shortest text that
+// reads back as the same double; a description on the same line keeps its column; short
+// numbers and non-numbers are untouched.
+TEST(ProgramOptions, HelpPrintsDefaultsAsWritten) {
+    EXPECT_EQ(app::defaults_as_written("  --star-threshold arg (=0.96999999999999997)\n"),
+              "  --star-threshold arg (=0.97)\n");
+    const std::string same_line = "  --k arg (=0.10000000000000001)  smoothing factor\n";
+    const std::string tidy = app::defaults_as_written(same_line);
+    EXPECT_EQ(tidy.rfind("  --k arg (=0.1) ", 0), 0u) << tidy;
+    EXPECT_EQ(tidy.find("smoothing"), same_line.find("smoothing"));
+    EXPECT_EQ(app::defaults_as_written("(=0.039800000000000002)\n(=1e-08) (=2.5) (=weight)"),
+              "(=0.0398)\n(=1e-08) (=2.5) (=weight)");
+    EXPECT_EQ(app::defaults_as_written("(=-2.3396949999999999)"), "(=-2.339695)");
+}

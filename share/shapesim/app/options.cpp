@@ -4,10 +4,13 @@
 #include "shapesim/error.hpp"
 
 #include <cerrno>
+#include <cstdio>
+#include <cstdlib>
 #include <charconv>
 #include <cstring>
 #include <fstream>
 #include <iostream>
+#include <regex>
 #include <thread>
 
 
@@ -190,13 +193,42 @@ bool ProgramOptions::given(const std::string& name) const {
     return values_.count(name) && !values_[name].defaulted();
 }
 
+std::string shortest_number(double value) {
+    char text[32];
+    for (int digits = 1; digits <= 17; ++digits) {
+        std::snprintf(text, sizeof text, "%.*g", digits, value);
+        if (std::strtod(text, nullptr) == value) break;
+    }
+    return text;
+}
+
+std::string defaults_as_written(const std::string& help) {
+    // Boost prints a double default with 17 digits: (=0.96999999999999997). Print the
+    // shortest text that reads back as the same double, (=0.97); when the description goes on
+    // on the same line, pad so its column stays where Boost put it.
+    static const std::regex long_default(R"(\(=(-?[0-9]+\.[0-9]{8,}(e[-+]?[0-9]+)?)\))");
+    std::string out;
+    std::size_t from = 0;
+    for (std::sregex_iterator it(help.begin(), help.end(), long_default), end; it != end; ++it) {
+        const std::smatch& m = *it;
+        const std::size_t at = std::size_t(m.position(0)), length = std::size_t(m.length(0));
+        std::string tidy = "(=" + shortest_number(std::strtod(m.str(1).c_str(), nullptr)) + ")";
+        const std::size_t line_end = std::min(help.find('\n', at + length), help.size());
+        if (help.find_first_not_of(' ', at + length) < line_end && tidy.size() < length)
+            tidy += std::string(length - tidy.size(), ' ');
+        out += help.substr(from, at - from) + tidy;
+        from = at + length;
+    }
+    return out + help.substr(from);
+}
+
 std::string ProgramOptions::help() const {
     std::ostringstream s;
     s << "Usage: " << program_ << " " << synopsis_ << "\n" << description_ << "\n\n";
     for (const auto& group : groups_) s << *group.second << "\n";
     s << common_options_;
     if (!epilog_.empty()) s << "\n" << epilog_ << "\n";
-    return s.str();
+    return defaults_as_written(s.str());
 }
 
 std::vector<std::pair<std::string, std::string>> ProgramOptions::settings() const {

@@ -131,6 +131,10 @@ private:
 
 /// The items of a comma-separated option value ("a, b,,c" → a b c): spaces dropped, empty
 /// items skipped.
+/// `help` with every 17-digit double default, e.g. (=0.96999999999999997), printed as the
+/// shortest text that reads back as the same double, (=0.97) (Boost prints the former).
+std::string defaults_as_written(const std::string& help);
+
 std::vector<std::string> split_list(const std::string& list);
 
 /// NAME=FILE option values (--compare, --compare-sky) split at the first '='; po::error
