@@ -166,7 +166,7 @@ int run(int argc, const char* const argv[]) {
     if (stamps) stamps->commit();
     if (stars_file) stars_file->commit();
     log.info(out.count(), " galaxies, ", n_stars, " stars (stellarity > ", star_threshold,
-             ") in ", log.elapsed(), " s");
+             ", through ", detected.locus_note, ") in ", log.elapsed(), " s");
     if (n_spikes > 0)
         log.info(n_spikes, " single-pixel events (cosmic rays, hot pixels: the peak holds ",
                  "≥ 75% of the flux) left out");

@@ -338,7 +338,7 @@ int run(int argc, const char* const argv[]) {
     }
     log.info(out.count(), " objects measured", skipped ? ", " + std::to_string(skipped) + " skipped" : "",
              too_faint ? ", " + std::to_string(too_faint) + " fainter than --mag-limit left out" : "",
-             " in ", log.elapsed(), " s");
+             " in ", log.elapsed(), " s; stars (left out) through ", detected.locus_note);
     return 0;
 }
 

@@ -8,6 +8,7 @@
 
 #include <cmath>
 #include <memory>
+#include <sstream>
 
 namespace shapesim::app {
 
@@ -139,12 +140,20 @@ DetectionRun DetectionSettings::run(const ProgramOptions& options, const Log& lo
                                                           : std::nullopt);
         locus = image_point_source_locus(convolve_boxes(psf.pixels, psf.pixel_scale, s.psf_box),
                                          psf.pixel_scale, context.pixel_scale);
+        r.locus_note = "the PSF image " + s.psf_image;
     } else if (!s.psf_model.empty()) {
         // The stellarity needs the shape in image pixels; the flux is normalised out.
         const ShapeletModel model = read_psf_model(s.psf_model, context.pixel_scale);
         locus = model_point_source_locus(model);
+        r.locus_note = "the PSF model " + s.psf_model;
     } else {
         locus = gaussian_point_source_locus(s.psf_fwhm / context.pixel_scale);
+        std::ostringstream note;
+        note << "a Gaussian PSF of FWHM " << s.psf_fwhm << "\""
+             << (options.given("psf-fwhm") ? ""
+                                           : ", the --psf-fwhm default; give --psf-model or "
+                                             "--psf-image for this image's own");
+        r.locus_note = note.str();
     }
     log.verbose("point-source locus: FWHM ", locus.fwhm, " px, core fraction ", locus.ratio,
                 " ± ", locus.scatter, " (r ", locus.r_core, " / ", locus.r_outer, " px)");

@@ -19,6 +19,9 @@ struct DetectionRun {
     ImageArray image;        ///< the input image as read
     SourceContext context;   ///< geometry, zero point, noise correlation (stamps left empty)
     PointSourceLocus locus;  ///< the PSF's point-source locus for the stellarity
+    /// Where the locus came from, for the run's summary line: the PSF file, or the assumed
+    /// Gaussian (an assumption a user should see: it can call a star a galaxy).
+    std::string locus_note;
     DetectionResult field;   ///< detections, segmentation, background-subtracted image
 };
 
