@@ -3,6 +3,7 @@
 
 #include "shapesim/error.hpp"
 
+#include <cctype>
 #include <cerrno>
 #include <cstdio>
 #include <cstdlib>
@@ -10,7 +11,6 @@
 #include <cstring>
 #include <fstream>
 #include <iostream>
-#include <regex>
 #include <thread>
 
 
@@ -205,14 +205,31 @@ std::string shortest_number(double value) {
 std::string defaults_as_written(const std::string& help) {
     // Boost prints a double default with 17 digits: (=0.96999999999999997). Print the
     // shortest text that reads back as the same double, (=0.97); when the description goes on
-    // on the same line, pad so its column stays where Boost put it.
-    static const std::regex long_default(R"(\(=(-?[0-9]+\.[0-9]{8,}(e[-+]?[0-9]+)?)\))");
+    // on the same line, pad so its column stays where Boost put it. (A hand scan: std::regex
+    // trips GCC 12's -Wmaybe-uninitialized under the sanitizers.)
     std::string out;
     std::size_t from = 0;
-    for (std::sregex_iterator it(help.begin(), help.end(), long_default), end; it != end; ++it) {
-        const std::smatch& m = *it;
-        const std::size_t at = std::size_t(m.position(0)), length = std::size_t(m.length(0));
-        std::string tidy = "(=" + shortest_number(std::strtod(m.str(1).c_str(), nullptr)) + ")";
+    for (std::size_t at = help.find("(="); at != std::string::npos; at = help.find("(=", at + 2)) {
+        // "(=" [-] digits "." ≥ 8 digits [e[±]digits] ")"
+        std::size_t k = at + 2;
+        const auto digits = [&] {
+            const std::size_t start = k;
+            while (k < help.size() && std::isdigit(static_cast<unsigned char>(help[k]))) ++k;
+            return k - start;
+        };
+        if (k < help.size() && help[k] == '-') ++k;
+        if (digits() == 0 || k >= help.size() || help[k] != '.') continue;
+        ++k;
+        if (digits() < 8) continue;
+        if (k < help.size() && help[k] == 'e') {
+            ++k;
+            if (k < help.size() && (help[k] == '-' || help[k] == '+')) ++k;
+            if (digits() == 0) continue;
+        }
+        if (k >= help.size() || help[k] != ')') continue;
+        const std::size_t length = k + 1 - at;
+        const std::string number = help.substr(at + 2, length - 3);
+        std::string tidy = "(=" + shortest_number(std::strtod(number.c_str(), nullptr)) + ")";
         const std::size_t line_end = std::min(help.find('\n', at + length), help.size());
         if (help.find_first_not_of(' ', at + length) < line_end && tidy.size() < length)
             tidy += std::string(length - tidy.size(), ' ');
