@@ -168,7 +168,7 @@ int run_psf(const Settings& s, const app::ProgramOptions& options, const app::Lo
     out.write(psf_record(psf, target, "psf").to_json());
     log.info("PSF n_max ", psf.n_max, ", beta ", psf.model.beta_pix * target, "\" (",
              psf.model.beta_pix, " px): max |residual| ", psf.max_residual_fraction,
-             " of the peak, rms ", psf.rms_residual_fraction, "; sky ", psf.sky,
+             " of the peak, rms ", psf.rms_residual_fraction, "; sky ", image.sky,
              " subtracted (", log.elapsed(), " s)");
     if (!psf.reached_target)
         log.warn("the PSF model misses its residual target: max |residual| ",

@@ -276,12 +276,7 @@ int run(int argc, const char* const argv[]) {
     FitsImageSpec spec;
     spec.extname = "SCI";
     spec.bitpix = s.bitpix;
-    // The objects' fluxes are in the units of the image they were measured on: a field made
-    // --like an image keeps its BUNIT.
-    if (const std::string& like = options.common().like; !like.empty()) {
-        FitsReader like_image(like, FitsStart::first_image);
-        if (auto bunit = like_image.optional_string("BUNIT")) spec.bunit = *bunit;
-    }
+    spec.bunit = field.bunit;  // a field made --like an image keeps its units
     Wcs wcs = field.wcs;
     wcs.crpix1 -= double(window.x0 - 1);
     wcs.crpix2 -= double(window.y0 - 1);

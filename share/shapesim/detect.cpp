@@ -537,16 +537,6 @@ DetectionResult detect_sources(const ImageArray& image, const ImageArray* invers
     result.objects.reserve(std::size_t(cat.nobj));
     std::vector<std::array<double, 3>> pixels;
     for (int k = 0; k < cat.nobj; ++k) {
-        // Defence: libsep keeps fluxes and shapes as floats, which overflow past 3.4e38 (since
-        // kBadPixelValue, only for objects of ~1e8 pixels). Such an object has no position
-        // or shape: it is counted and left out (its pixels stay in the segmentation, so it
-        // still masks its neighbours), and the catalogue goes on.
-        if (!std::isfinite(cat.x[k]) || !std::isfinite(cat.y[k]) || !std::isfinite(cat.a[k]) ||
-            !std::isfinite(cat.b[k]) || !std::isfinite(cat.theta[k]) ||
-            !std::isfinite(cat.flux[k]) || !std::isfinite(cat.peak[k])) {
-            ++result.non_finite_objects;
-            continue;
-        }
         Detection d;
         d.label = k + 1;
         d.x = cat.x[k] + 1.0;

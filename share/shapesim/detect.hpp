@@ -119,7 +119,7 @@ struct Detection {
 
 /// Everything detection produced; later stages (stamps, stellarity) read from it.
 struct DetectionResult {
-    std::vector<Detection> objects;  ///< in libsep's order (label: its segmentation value)
+    std::vector<Detection> objects;  ///< in libsep's order; label = index + 1
     ImageArray image;                ///< background-subtracted image, bad pixels 0
     ImageArray sigma;                ///< pixel noise used for the threshold (∞ where bad)
     LabelArray segmentation;         ///< 0 sky, label of the object owning the pixel
@@ -136,9 +136,6 @@ struct DetectionResult {
     /// where the local background rms is zero: a zero-filled mosaic border, an empty tile.
     /// Counted in bad_pixels too.
     long long zero_noise_pixels = 0;
-    /// Objects left out because libsep's moments of them are not finite (pixel values near
-    /// the float range); their labels stay in `segmentation`.
-    int non_finite_objects = 0;
 
     bool is_bad(int row, int column) const {
         return bad[std::size_t(row) * std::size_t(image.cols()) + std::size_t(column)] != 0;

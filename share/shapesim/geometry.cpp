@@ -238,6 +238,7 @@ FieldGeometry read_field_geometry(const std::string& path, std::optional<double>
         throw Error("no WCS in the header: give --pixel-scale (and --ra/--dec)", fits.place());
     }
     g.pixel_scale = g.wcs.pixel_scale_arcsec();
+    g.bunit = fits.optional_string("BUNIT").value_or("");
     return g;
 }
 

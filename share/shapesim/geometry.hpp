@@ -86,6 +86,7 @@ struct FieldGeometry {
     int nx = 0, ny = 0;        ///< size in pixels (NAXIS1, NAXIS2)
     double pixel_scale = 0.0;  ///< arcsec per pixel (√|det CD|)
     Wcs wcs;
+    std::string bunit;         ///< BUNIT of a --like image (empty: none, or a made field)
 
     /// Area of the field in arcmin².
     double area_arcmin2() const;

@@ -1,5 +1,6 @@
 #include "shapesim/psf.hpp"
 
+#include "shapesim/compare.hpp"
 #include "shapesim/fits_io.hpp"
 
 #include "shapesim/error.hpp"
@@ -290,6 +291,14 @@ PsfImage read_psf_image(const std::string& path, std::optional<double> pixel_sca
     }
     if (!(out.pixel_scale > 0.0)) throw Error("PSF pixel scale must be > 0", fits.place());
     out.pixels = fits.read_image();
+    // A star cut from a field sits on the sky (a ground-based frame keeps its sky): the median
+    // of the image's outermost pixels is that level, removed here, so the shapelet fit and
+    // the stellarity locus both see the star alone. A model PSF's ring holds only faint wings
+    // (TinyTim's at 1.5″: ~1e−6 of the peak). Non-finite pixels are left to the callers.
+    if (out.pixels.allFinite()) {
+        out.sky = border_median(out.pixels);
+        out.pixels -= out.sky;
+    }
     return out;
 }
 
@@ -299,13 +308,7 @@ double border_median(const ImageArray& image) {
     for (Eigen::Index j = 0; j < ny; ++j)
         for (Eigen::Index i = 0; i < nx; ++i)
             if (j == 0 || i == 0 || j == ny - 1 || i == nx - 1) ring.push_back(image(j, i));
-    if (ring.empty()) return 0.0;
-    const std::size_t half = ring.size() / 2;
-    std::nth_element(ring.begin(), ring.begin() + std::ptrdiff_t(half), ring.end());
-    double median = ring[half];
-    if (ring.size() % 2 == 0)
-        median = 0.5 * (median + *std::max_element(ring.begin(), ring.begin() + std::ptrdiff_t(half)));
-    return median;
+    return ring.empty() ? 0.0 : median_of_values(std::move(ring));
 }
 
 PsfModel psf_from_oversampled(const ImageArray& fine, double fine_scale, double target_scale,
@@ -319,18 +322,13 @@ PsfModel psf_from_oversampled(const ImageArray& fine, double fine_scale, double 
                     std::to_string(stamp_pixels));
     if (fine.size() == 0) throw Error("PSF image is empty");
     if (!fine.allFinite()) throw Error("PSF image has NaN or infinite pixels");
-    // A star cut from a field sits on the sky (a ground-based frame keeps its sky): the median
-    // of the image's outermost pixels is that level, removed first. A model PSF's ring holds
-    // only faint wings (TinyTim's at 1.5″: ~1e−6 of the peak).
-    const double sky = border_median(fine);
-    const ImageArray smoothed = convolve_boxes(fine - sky, fine_scale, boxes_arcsec);
+    const ImageArray smoothed = convolve_boxes(fine, fine_scale, boxes_arcsec);
     const PixelPosition centroid = flux_centroid(smoothed);
     const double c = 0.5 * (stamp_pixels + 1);
     const ImageArray stamp = resample_pixel_integrated(
         smoothed, fine_scale, target_scale, centroid, stamp_pixels, stamp_pixels, {c, c});
     PsfModel out = fit_psf_image(stamp, options);
     out.flux_outside_stamp = 1.0 - stamp.sum() / smoothed.sum();
-    out.sky = sky;
     return out;
 }
 

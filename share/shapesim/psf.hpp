@@ -82,8 +82,6 @@ struct PsfModel {
     /// psf_from_oversampled only: 1 − (flux in the stamp)/(flux of the box-convolved fine
     /// image); NaN otherwise.
     double flux_outside_stamp = std::numeric_limits<double>::quiet_NaN();
-    /// psf_from_oversampled only: the sky level removed (border_median of the fine image).
-    double sky = 0.0;
     std::vector<PsfFitStep> steps;        ///< every n_max tried, in order
 };
 
@@ -98,7 +96,7 @@ PsfModel fit_psf_image(const ImageArray& psf_pixels_at_target_scale,
 double border_median(const ImageArray& image);
 
 /// An oversampled PSF image (pixels `fine_scale` wide, arcsec) to a PSF model at
-/// `target_scale` (arcsec per pixel): subtract its sky (border_median), convolve with each box of `boxes_arcsec` in turn (e.g.
+/// `target_scale` (arcsec per pixel): convolve with each box of `boxes_arcsec` in turn (e.g.
 /// the detector pixel and the drizzle drop, which TinyTim's subsampled PSFs lack; resample.hpp
 /// box_convolve), integrate over the target pixels into a stamp_pixels² stamp (odd) whose
 /// centre pixel holds the flux centroid (resample_pixel_integrated), and fit_psf_image it.
@@ -110,12 +108,13 @@ PsfModel psf_from_oversampled(const ImageArray& fine, double fine_scale, double 
 
 /// An oversampled PSF image as read from a file.
 struct PsfImage {
-    ImageArray pixels;
+    ImageArray pixels;         ///< sky removed
     double pixel_scale = 0.0;  ///< arcsec per pixel
+    double sky = 0.0;          ///< the level removed: border_median of the file's pixels
 };
 /// The first image of `path` (cfitsio syntax allowed) at `pixel_scale` when given, else at
-/// its header's PIXSCALE (TinyTim's keyword), else its WCS (a star cut from a field). Error
-/// naming the file when none is there.
+/// its header's PIXSCALE (TinyTim's keyword), else its WCS (a star cut from a field); its sky
+/// (border_median) subtracted. Error naming the file when no pixel scale is there.
 PsfImage read_psf_image(const std::string& path, std::optional<double> pixel_scale);
 
 /// The PSF shapelet record of `path` (its first line, e.g. shapesim-decompose's PSF mode) as

@@ -168,9 +168,6 @@ DetectionRun DetectionSettings::run(const ProgramOptions& options, const Log& lo
         log.warn(field.zero_noise_pixels, " pixels with no data (0 with every neighbour 0, or "
                  "no noise: a zero-filled border?) are treated as bad; give a weight map to say "
                  "so");
-    if (field.non_finite_objects > 0)
-        log.warn(field.non_finite_objects, " objects left out: their moments are not finite "
-                 "(pixel values near the float range?)");
     context.noise_correlation = field.noise_correlation;
     context.background_rms = field.background_rms;
     if (inverse_variance && (field.weight_scale > 100.0 || field.weight_scale < 0.01))
