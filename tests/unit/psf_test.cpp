@@ -403,6 +403,10 @@ TEST(Psf, ImagePixelScaleFromOptionHeaderOrWcs) {
         out.commit();
     }
     EXPECT_DOUBLE_EQ(read_psf_image(file + "[TINYTIM]", std::nullopt).pixel_scale, 0.01);
+    // The cutout's sky (its border's median, here the constant 1) is removed as it is read.
+    const PsfImage flat = read_psf_image(file + "[TINYTIM]", std::nullopt);
+    EXPECT_EQ(flat.sky, 1.0);
+    EXPECT_EQ(flat.pixels.abs().maxCoeff(), 0.0);
     EXPECT_DOUBLE_EQ(read_psf_image(file + "[TINYTIM]", 0.05).pixel_scale, 0.05);
     EXPECT_NEAR(read_psf_image(file + "[FIELD][2:6,2:6]", std::nullopt).pixel_scale, 0.04, 1e-12);
     try {
