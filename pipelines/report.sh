@@ -28,6 +28,16 @@ parent_counts() {
 parent_share() {
   parent_counts "$1" "$2" | awk '{ if ($1 == 0) printf "0/0"; else printf "%d/%d (%.0f%%) from %s", $3, $1, 100 * $3 / $1, $4 }'
 }
+# The merged run's fitted counts, from shapesim-sample's line in the log: "slope S dex/mag,
+# D per arcmin² over A–B, fitted to N galaxies".
+counts_fit() {
+  grep -a -m1 'galaxy counts:' "$1" |
+    awk '{ for (i = 1; i <= NF; i++) { if ($i == "dm") s = $(i + 2); if ($i == "over") { d = $(i - 3); a = $(i + 1); b = $(i + 3) }
+                                       if ($i == "to") n = $(i + 1) }
+           printf "slope %.3f dex/mag, %.0f per arcmin² over I = %.2f–%g, fitted to %d galaxies", s, d, a, b + 0, n }'
+}
+# The merged run's draw options from its command in the log ("--neighbours K --max-mag-shift S").
+merged_option() { grep -a -m1 -o -- "--$2 [0-9.]*" "$1" | cut -d' ' -f2; }
 # "N objects from K real galaxies".
 bright_parents() {
   parent_counts "$1" "$2" | awk '{ printf "%d objects from %d real galaxies", $1, $2 }'
@@ -142,7 +152,10 @@ cutouts of single galaxies (ACS, 0.03″). Each galaxy is fitted through its own
 \`shapesim-smooth --field\` combines the two fields' counts where each is complete
 ($(grep -o '"completeness":[0-9.]*' "$out/merged.json" | cut -d: -f2 | paste -sd/ -) mag) and takes the cutouts as shape-only parents (\`IMAGE=shapes\`: they
 shape the draws near their magnitude but are not counted), and \`shapesim-sample --neighbours\`
-draws shapes conditional on magnitude. Rendered through the HDF's PSF and noise, measured in
+draws shapes conditional on magnitude. The magnitudes come from a power law fitted to the two
+fields' counts (\`--counts fit\`, Poisson maximum likelihood: $(counts_fit "$out/pipeline.log")), not from
+their few bright galaxies' luck: each bright draw then takes the shape of one of the
+$(merged_option "$out/pipeline.log" neighbours) parents nearest its magnitude, at most $(merged_option "$out/pipeline.log" max-mag-shift) mag away, its β scaled as L^0.3. Rendered through the HDF's PSF and noise, measured in
 the Table above as \`merged6\`. The model has $(morph_points "$out/merged.json") parents, $(grep -o '"shape_only":true' "$out/merged.json" | grep -c .) of them shape-only, from
 $(grep -c . "$out/intrinsic.jsonl") HDF, $(grep -c . "$out/xdf/intrinsic.jsonl") XDF and $(cat "$out"/stamps/{aegis?,cosmos}.jsonl | grep -c .) cutout models fitted.
 

@@ -117,7 +117,10 @@ XDF_STAR   := [87:145,352:410]
 # arcmin²: (512 × 0.03985″)² and (500 × 0.06″)².
 HDF_AREA   := 0.115643
 XDF_AREA   := 0.25
-NEIGHBOURS ?= 16
+# Shapes from the 32 parents nearest each drawn magnitude, moved by at most 3 mag (β as L^0.3):
+# with magnitudes from the fitted counts, the few bright parents must reach the I < 24 draws.
+NEIGHBOURS ?= 32
+MAX_MAG_SHIFT ?= 3
 INPUTS     += $(XDF_IMAGE) $(XDF_WEIGHT)
 
 $(OUT)/xdf/psf.jsonl: $(XDF_IMAGE) $(call prog,decompose)
@@ -191,7 +194,7 @@ $(OUT)/merged.json: $(OUT)/intrinsic.jsonl $(OUT)/xdf/intrinsic.jsonl $(STAMPS:%
 	mv $(tmp) $@
 $(OUT)/merged6.objects.jsonl: $(OUT)/merged.json $(OUT)/params/seed $(OUT)/params/area $(call prog,sample)
 	$(call prog,sample) $< $(LARGE_FIELD) --seed $(SEED) --zero-point $(ZERO_POINT) \
-	  --neighbours $(NEIGHBOURS) > $(tmp)
+	  --neighbours $(NEIGHBOURS) --max-mag-shift $(MAX_MAG_SHIFT) > $(tmp)
 	mv $(tmp) $@
 $(OUT)/merged6.fits $(OUT)/merged6.truth.jsonl &: $(OUT)/merged6.objects.jsonl $(OUT)/psf.jsonl $(OUT)/hdf.noise.jsonl $(call prog,render)
 	$(call prog,render) --psf $(OUT)/psf.jsonl --noise-model $(OUT)/hdf.noise.jsonl --gain $(GAIN) \

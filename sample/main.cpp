@@ -39,6 +39,7 @@ struct Settings {
     app::FieldOptions field;
     double margin = 0.5;
     std::string star_histogram;
+    std::string counts = "fit";
     std::uint64_t count = 0, star_count = 0;
     std::vector<long> tile_grid;
     SampleOptions sample;
@@ -79,6 +80,9 @@ int run(int argc, const char* const argv[]) {
         ("max-mag-shift", po::value(&o.draw.max_mag_shift)->default_value(2.0)
              ->notifier(in_range("max-mag-shift", 0.0, 100.0)),
          "--neighbours only within this many magnitudes of the draw (the nearest always)")
+        ("counts", po::value(&s.counts)->default_value("fit")->value_name("fit|parents"),
+         "--neighbours draws' magnitudes: 'fit', from a power law fitted to the model's fields'\n"
+         "counts (and the density with it); 'parents', a parent's magnitude perturbed")
         ("size-slope", po::value(&o.draw.size_slope)->default_value(0.3)
              ->notifier(in_range("size-slope", -5.0, 5.0)),
          "a shape moved to another magnitude has its beta scaled as L^this")
@@ -125,9 +129,20 @@ int run(int argc, const char* const argv[]) {
             throw po::error("the model has no zero point: give --zero-point");
         o.zero_point = *morphology.zero_point;
     }
-    // The real field's density at this magnitude limit, when smooth recorded it (--like).
+    if (s.counts != "fit" && s.counts != "parents")
+        throw po::error("--counts takes 'fit' or 'parents', not '" + s.counts + "'");
+    o.fitted_counts = s.counts == "fit";
+    // The real field's density at this magnitude limit, when smooth recorded it (--like): the
+    // fitted counts' with them.
+    const std::optional<CountModel> counts =
+        o.fitted_counts ? conditional_counts(morphology, o.draw, o.mag_limit) : std::nullopt;
     if (!options.given("density") && !morphology.source_fields.empty())
-        o.density = field_density(morphology.source_fields, o.mag_limit);
+        o.density = counts ? counts->density() : field_density(morphology.source_fields, o.mag_limit);
+    if (counts)
+        log.info("galaxy counts: d log10 N / dm = ", counts->slope, ", ",
+                 counts->density(counts->bright, counts->faint), " per arcmin^2 over ", counts->bright,
+                 " - ", counts->faint, ", fitted to ", counts->galaxies, " galaxies of ",
+                 morphology.source_fields.size(), " field(s)");
     o.seed = options.common().seed;
     if (options.given("count")) o.count = s.count;
     if (options.given("star-count")) o.star_count = s.star_count;

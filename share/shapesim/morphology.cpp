@@ -273,6 +273,87 @@ double count_turnover(const std::vector<double>& sorted_mags) {
     return double(best + 1) * width;
 }
 
+double power_law_magnitude(double u, double slope, double lo, double hi) {
+    const double span = hi - lo;
+    const double k = slope * std::log(10.0);
+    if (std::abs(k * span) < 1e-9) return lo + u * span;
+    // N(< m) ∝ e^{k (m − lo)} − 1, inverted.
+    return lo + std::log1p(u * std::expm1(k * span)) / k;
+}
+
+namespace {
+
+// ∫_lo^hi e^{k (m − pivot)} dm and ∫_lo^hi (m − pivot) e^{k (m − pivot)} dm, with their limits
+// as k → 0.
+struct PowerMoments {
+    double zeroth = 0.0, first = 0.0;
+};
+PowerMoments power_moments(double k, double lo, double hi, double pivot) {
+    const double a = lo - pivot, b = hi - pivot;
+    if (std::abs(k) * std::max(std::abs(a), std::abs(b)) < 1e-7)
+        return {b - a, 0.5 * (b * b - a * a)};
+    const double ea = std::exp(k * a), eb = std::exp(k * b);
+    // ∫ x e^{kx} dx = e^{kx} (x/k − 1/k²)
+    return {(eb - ea) / k, eb * (b / k - 1.0 / (k * k)) - ea * (a / k - 1.0 / (k * k))};
+}
+
+}  // namespace
+
+double CountModel::density(double lo, double hi) const {
+    lo = std::max(lo, bright);
+    hi = std::min(hi, faint);
+    if (!(hi > lo)) return 0.0;
+    return std::pow(10.0, log_density) * power_moments(slope * std::log(10.0), lo, hi, pivot).zeroth;
+}
+
+CountModel fit_counts(const std::vector<SourceField>& fields, double bright, double faint) {
+    CountModel c;
+    c.bright = bright;
+    c.faint = faint;
+    struct Range {
+        double area, hi;
+    };
+    std::vector<Range> ranges;
+    double sum = 0.0, first = std::numeric_limits<double>::infinity(), last = -first;
+    for (const SourceField& f : fields) {
+        const double hi = std::min(faint, f.completeness);
+        if (!(hi > bright) || !(f.area_arcmin2 > 0.0)) continue;
+        ranges.push_back({f.area_arcmin2, hi});
+        for (double m : f.mags)
+            if (m >= bright && m <= hi) {
+                ++c.galaxies;
+                sum += m - c.pivot;
+                first = std::min(first, m);
+                last = std::max(last, m);
+            }
+    }
+    if (c.galaxies < 2 || !(last > first))
+        throw Error("the fields hold " + std::to_string(c.galaxies) +
+                    " galaxies of distinct magnitudes between " + std::to_string(bright) + " and " +
+                    std::to_string(faint) + ": too few to fit counts to");
+    const double mean = sum / double(c.galaxies);
+    const double ln10 = std::log(10.0);
+    // The mean magnitude (less the pivot) the power law of slope b predicts over the ranges,
+    // weighted by area; it rises with b, so bisection finds the score's root.
+    const auto predicted = [&](double b) {
+        double zeroth = 0.0, first_moment = 0.0;
+        for (const Range& r : ranges) {
+            const PowerMoments m = power_moments(b * ln10, bright, r.hi, c.pivot);
+            zeroth += r.area * m.zeroth;
+            first_moment += r.area * m.first;
+        }
+        return std::make_pair(zeroth, first_moment / zeroth);
+    };
+    double lo = -3.0, hi = 3.0;
+    for (int i = 0; i < 200 && hi - lo > 1e-13; ++i) {
+        const double mid = 0.5 * (lo + hi);
+        (predicted(mid).second < mean ? lo : hi) = mid;
+    }
+    c.slope = 0.5 * (lo + hi);
+    c.log_density = std::log10(double(c.galaxies) / predicted(c.slope).first);
+    return c;
+}
+
 Json Morphology::to_json() const {
     Json doc = Json::object();
     doc["schema"] = schema;
@@ -513,10 +594,11 @@ double conditional_mag_spread(const MorphologyPoint& p, double lambda_mag, const
 
 namespace {
 
-// One of the `k` parents nearest in magnitude to `mag` (`order` sorted by magnitude) that lie
-// within `max_shift` of it (the nearest always qualifies), chosen by the uniform deviate u.
-std::size_t near_in_magnitude(const Morphology& morphology, const std::vector<std::size_t>& order,
-                              double mag, std::size_t k, double max_shift, double u) {
+// The window [lo, hi) of `order` (sorted by magnitude) holding the `k` parents nearest in
+// magnitude to `mag` that lie within `max_shift` of it (the nearest always qualifies).
+std::pair<std::size_t, std::size_t> magnitude_window(const Morphology& morphology,
+                                                     const std::vector<std::size_t>& order,
+                                                     double mag, std::size_t k, double max_shift) {
     k = std::min(k, order.size());
     const auto at = [&](std::size_t i) { return morphology.points[order[i]].mag; };
     // [lo, hi) grows from the insertion point towards the nearer side, ties to the brighter.
@@ -535,11 +617,30 @@ std::size_t near_in_magnitude(const Morphology& morphology, const std::vector<st
         if (mag - at(lo) > at(hi - 1) - mag) ++lo;
         else --hi;
     }
-    k = hi - lo;
+    return {lo, hi};
+}
+
+// One parent of the window about `mag`, chosen uniformly by the deviate u.
+std::size_t near_in_magnitude(const Morphology& morphology, const DrawOptions& draw, double mag,
+                              double u) {
+    const std::vector<std::size_t>& order = draw.by_magnitude;
+    const auto [lo, hi] = magnitude_window(morphology, order, mag, std::size_t(draw.neighbours),
+                                           draw.max_mag_shift);
+    const std::size_t k = hi - lo;
     return order[lo + std::min(k - 1, std::size_t(u * double(k)))];
 }
 
 }  // namespace
+
+std::optional<CountModel> conditional_counts(const Morphology& morphology, const DrawOptions& draw,
+                                             double mag_limit) {
+    if (draw.neighbours <= 0 || morphology.lambda.is_delta() || morphology.source_fields.empty())
+        return std::nullopt;
+    const std::vector<std::size_t> order = magnitude_order(morphology, mag_limit);
+    if (order.empty()) return std::nullopt;
+    const double bright = morphology.points[order.front()].mag - 0.5 * draw.max_mag_shift;
+    return fit_counts(morphology.source_fields, bright, mag_limit);
+}
 
 DrawnGalaxy draw_galaxy(const Morphology& morphology, const std::vector<double>& parents,
                         RandomStream& stream, double pixel_scale, double zero_point,
@@ -549,11 +650,18 @@ DrawnGalaxy draw_galaxy(const Morphology& morphology, const std::vector<double>&
     g.parent = std::size_t(std::upper_bound(parents.begin(), parents.end(), u) - parents.begin());
     g.parent = std::min(g.parent, parents.size() - 1);
     while (g.parent > 0 && parents[g.parent] == parents[g.parent - 1]) --g.parent;  // weight 0
-    g.mag_parent = g.parent;
-    const MorphologyPoint& first = morphology.points[g.parent];
     const SmoothingLengths& l = morphology.lambda;
     const bool delta = l.is_delta();
     const bool conditional = draw.neighbours > 0 && !delta && !draw.by_magnitude.empty();
+    // Magnitudes from the fitted counts: drawn once (the same deviate), the shape parent the
+    // only parent.
+    const bool counted = conditional && draw.counts.has_value();
+    if (counted) {
+        g.mag = draw.counts->magnitude(u / parents.back());
+        g.parent = near_in_magnitude(morphology, draw, g.mag, stream.uniform());
+    }
+    g.mag_parent = g.parent;
+    const MorphologyPoint& first = morphology.points[g.parent];
     const PolarIndex* index = packed_indices().data();
     const double lambda_phase = l.phase_deg * degree;
     // The perturbed shape c' (aligned frame) of the shape parent.
@@ -566,7 +674,8 @@ DrawnGalaxy draw_galaxy(const Morphology& morphology, const std::vector<double>&
         if (g.redraws == max_redraws) {  // give up perturbing: the parent itself
             g.parent = g.mag_parent;
             beta = first.beta;
-            mag = first.mag;
+            mag = counted ? g.mag : first.mag;
+            if (counted) beta *= std::pow(10.0, -0.4 * draw.size_slope * (mag - first.mag));
             shape = first.shape;
             sum = 0.0;
             for (std::size_t k = 0; k < shape.size(); ++k)
@@ -574,15 +683,17 @@ DrawnGalaxy draw_galaxy(const Morphology& morphology, const std::vector<double>&
             change = 0.0;
             break;
         }
-        if (conditional) {
+        if (counted) {
+            mag = g.mag;
+            beta = p->beta * std::pow(10.0, -0.4 * draw.size_slope * (mag - p->mag)) +
+                   l.beta * stream.epanechnikov();
+        } else if (conditional) {
             // The shape parent is chosen once, at the first magnitude drawn within the limit:
             // redraws re-perturb it, so parents that ring (or fail more often) are not
             // replaced by easier ones.
             mag = first.mag + conditional_mag_spread(first, l.mag, draw) * stream.epanechnikov();
             if (!shape_chosen) {
-                g.parent = near_in_magnitude(morphology, draw.by_magnitude, mag,
-                                             std::size_t(draw.neighbours), draw.max_mag_shift,
-                                             stream.uniform());
+                g.parent = near_in_magnitude(morphology, draw, mag, stream.uniform());
                 shape_chosen = mag <= mag_limit;
             }
             p = &morphology.points[g.parent];

@@ -129,6 +129,35 @@ std::vector<std::size_t> fields_counted(const std::vector<SourceField>& fields, 
 /// of its galaxies (the turnover); ∞ for fewer than 10 galaxies.
 double count_turnover(const std::vector<double>& sorted_mags);
 
+/// A magnitude from power-law counts, d log₁₀ N / dm = `slope` on [lo, hi], by the inverse CDF
+/// of one uniform deviate u ∈ [0, 1) (stars and fitted galaxy counts alike).
+double power_law_magnitude(double u, double slope, double lo, double hi);
+
+/// Galaxy number counts as a power law, dN/dm = 10^{log_density + slope (m − pivot)} per arcmin²
+/// per magnitude, on [bright, faint] (issue 14 §3). A few-arcmin² field holds one or two galaxies
+/// at its bright end: drawn as they are (a parent's magnitude, perturbed), a 6 arcmin²
+/// simulation gets their Poisson luck times fifty; fitted, the bright end follows the slope the
+/// whole field measures.
+struct CountModel {
+    double pivot = 25.0;
+    double log_density = 0.0;  ///< log₁₀ dN/dm at the pivot (per arcmin² per magnitude)
+    double slope = 0.0;        ///< d log₁₀ N / dm
+    double bright = 0.0, faint = 0.0;  ///< the magnitudes drawn
+    std::size_t galaxies = 0;  ///< how many real galaxies the fit saw
+    /// Galaxies per arcmin² between lo and hi.
+    double density(double lo, double hi) const;
+    double density() const { return density(bright, faint); }
+    /// A magnitude in [bright, faint] from one uniform deviate u ∈ [0, 1).
+    double magnitude(double u) const { return power_law_magnitude(u, slope, bright, faint); }
+};
+
+/// The power law of most likelihood (Poisson, unbinned) for the galaxies of every field between
+/// `bright` and the fainter of `faint` and the field's completeness, each field over its own
+/// range and area. The slope solves the score equation (the mean magnitude it predicts equals the
+/// galaxies' own; |slope| ≤ 3), the density then gives back the number of galaxies seen. Throws
+/// Error with fewer than 2 galaxies in range, or when they all share one magnitude.
+CountModel fit_counts(const std::vector<SourceField>& fields, double bright, double faint);
+
 /// The morphology model that `shapesim-smooth` writes and `shapesim-sample` reads.
 struct Morphology {
     static constexpr const char* schema = "shapesim.morphology/1";
@@ -198,8 +227,18 @@ struct DrawOptions {
     /// draw peak, the peak ∝ flux/β²).
     double hole_allowance = 0.01;
     std::vector<std::size_t> by_magnitude;  ///< the parents in magnitude order (magnitude_order)
+    /// Conditional draws take their magnitude from these counts (fit_counts), not from a
+    /// parent's: then the shape parent is the only parent.
+    std::optional<CountModel> counts;
     void validate() const;
 };
+
+/// The counts a conditional draw takes its magnitudes from: a power law fitted to the model's
+/// fields (fit_counts) from half a `max_mag_shift` above the brightest parent (as far as a
+/// parent's shape is moved up at the bright end) to `mag_limit`. None when the draw is not
+/// conditional (neighbours 0, δ mode) or the model recorded no field.
+std::optional<CountModel> conditional_counts(const Morphology& morphology, const DrawOptions& draw,
+                                             double mag_limit);
 
 /// The half-width of a conditional draw's magnitude kernel about its magnitude parent `p`:
 /// λ_mag, widened to the gap to the nearest counted parent (mag_gap) but never past half of

@@ -21,10 +21,7 @@ double StarCounts::magnitude(double u) const {
         }
         return bins.back().hi;
     }
-    const double span = mag_max - mag_min;
-    if (slope == 0.0) return mag_min + u * span;
-    // N(< m) ∝ 10^{slope (m − mag_min)} − 1, inverted.
-    return mag_min + std::log10(1.0 + u * (std::pow(10.0, slope * span) - 1.0)) / slope;
+    return power_law_magnitude(u, slope, mag_min, mag_max);
 }
 
 void StarCounts::validate() const {
@@ -136,6 +133,7 @@ SampleSummary sample_field(const Morphology& morphology, const FieldGeometry& fi
     const std::vector<double> parents = parent_table(morphology, options.mag_limit);
     DrawOptions draw = options.draw;
     draw.by_magnitude = magnitude_order(morphology, options.mag_limit);
+    if (options.fitted_counts) draw.counts = conditional_counts(morphology, draw, options.mag_limit);
     if (options.count) {
         summary.galaxies = *options.count;
     } else {
@@ -145,11 +143,12 @@ SampleSummary sample_field(const Morphology& morphology, const FieldGeometry& fi
     // No galaxy reaches further than the widest parent, perturbed, at the top order: a tile
     // skips the shape draw of objects beyond that.
     // A shape moved to another magnitude is scaled by 10^{−0.4 s (m − m_parent)}, m within
-    // [brightest parent − its λ_mag (conditional: or its gap), mag_limit].
+    // [brightest parent − its λ_mag (conditional: or its gap; fitted counts: their bright end),
+    // mag_limit].
     const bool conditional = draw.neighbours > 0 && !morphology.lambda.is_delta();
-    double brightest = options.mag_limit;
+    double brightest = draw.counts ? draw.counts->bright : options.mag_limit;
     for (const auto& p : morphology.points)
-        if (p.weight > 0.0)
+        if (p.weight > 0.0 && !draw.counts)
             brightest = std::min(brightest,
                                  p.mag - (conditional ? conditional_mag_spread(p, morphology.lambda.mag, draw)
                                                       : morphology.lambda.mag));

@@ -55,6 +55,9 @@ struct SampleOptions {
     double margin = 0.0;               ///< pixels added to every reach (PSF, …)
     /// Shapes conditional on magnitude (morphology.hpp; `by_magnitude` is filled here).
     DrawOptions draw;
+    /// Conditional draws take their magnitudes from a power law fitted to the model's fields
+    /// (conditional_counts); false: from a parent's magnitude, perturbed.
+    bool fitted_counts = true;
     StarCounts stars;
     std::optional<std::uint64_t> star_count;
     void validate() const;

@@ -440,6 +440,139 @@ TEST(SourceFields, CountTurnover) {
     EXPECT_TRUE(std::isinf(count_turnover({25.0, 26.0})));
 }
 
+// Power-law magnitudes: the inverse CDF of N(< m) ∝ 10^{s (m − lo)} − 1, exactly, and its
+// uniform limit at s = 0; stars take the same law.
+TEST(FittedCounts, PowerLawMagnitudeInvertsTheCumulativeCounts) {
+    for (double slope : {-0.2, 0.0, 1e-12, 0.3, 0.6})
+        for (double u : {0.0, 0.1, 0.5, 0.93}) {
+            const double m = power_law_magnitude(u, slope, 20.0, 28.0);
+            const double cdf = slope == 0.0 ? (m - 20.0) / 8.0
+                                            : std::expm1(slope * std::log(10.0) * (m - 20.0)) /
+                                                  std::expm1(slope * std::log(10.0) * 8.0);
+            EXPECT_NEAR(cdf, u, 1e-11) << slope << " " << u;
+        }
+}
+
+namespace {
+
+// `n` magnitudes of power-law counts of `slope` on [lo, hi], from stream `key`.
+std::vector<double> power_law_sample(std::size_t n, double slope, double lo, double hi, std::uint64_t key) {
+    RandomStream r(key, 0, "counts");
+    std::vector<double> mags(n);
+    for (double& m : mags) m = power_law_magnitude(r.uniform(), slope, lo, hi);
+    std::sort(mags.begin(), mags.end());
+    return mags;
+}
+
+}  // namespace
+
+// The fit gives back a known power law: 0.3 dex/mag, 200 per arcmin² per mag at 25, drawn in
+// a shallow field (1 arcmin² complete to 26, galaxies past it counted nowhere) and a deep one
+// (3 arcmin² to 28). The slope's error is about 1/(ln10 · σ_m · √N) ≈ 0.006 here; the density
+// then reproduces the galaxies seen exactly (the Poisson normal equation).
+TEST(FittedCounts, FitGivesBackAPowerLaw) {
+    const double slope = 0.3, at25 = 200.0;
+    const auto expected = [&](double area, double lo, double hi) {
+        return area * at25 * (std::pow(10.0, slope * (hi - 25.0)) - std::pow(10.0, slope * (lo - 25.0))) /
+               (slope * std::log(10.0));
+    };
+    SourceField shallow{"a.fits", 1.0, power_law_sample(std::size_t(expected(1.0, 18.0, 26.0)), slope, 18.0, 26.0, 1), 26.0};
+    for (double m : {26.5, 27.0, 31.0}) shallow.mags.push_back(m);  // beyond its completeness
+    SourceField deep{"b.fits", 3.0, power_law_sample(std::size_t(expected(3.0, 18.0, 28.0)), slope, 18.0, 28.0, 2), 28.0};
+    const CountModel c = fit_counts({shallow, deep}, 18.0, 29.0);
+    std::cout << "  [measured] slope " << c.slope << " (0.3), dN/dm at 25 " << std::pow(10.0, c.log_density)
+              << " (200) from " << c.galaxies << " galaxies\n";
+    EXPECT_EQ(c.galaxies, shallow.mags.size() - 3 + deep.mags.size());
+    EXPECT_NEAR(c.slope, slope, 0.02);
+    EXPECT_NEAR(std::pow(10.0, c.log_density) / at25, 1.0, 0.05);
+    // Each field over its own range: the galaxies seen, exactly.
+    EXPECT_NEAR(1.0 * c.density(18.0, 26.0) + 3.0 * c.density(18.0, 28.0), double(c.galaxies),
+                1e-9 * double(c.galaxies));
+    EXPECT_DOUBLE_EQ(c.density(), c.density(18.0, 29.0));
+    EXPECT_DOUBLE_EQ(c.density(10.0, 40.0), c.density());  // clipped to [bright, faint]
+    // A flat field fits slope 0, and the magnitudes drawn from the fit cover [bright, faint].
+    SourceField flat{"c.fits", 2.0, {}, 30.0};
+    for (int i = 0; i < 4000; ++i) flat.mags.push_back(20.0 + 8.0 * (i + 0.5) / 4000.0);
+    const CountModel f = fit_counts({flat}, 20.0, 28.0);
+    EXPECT_NEAR(f.slope, 0.0, 1e-3);
+    EXPECT_NEAR(f.density(), 2000.0, 1e-6);
+    EXPECT_DOUBLE_EQ(f.magnitude(0.0), 20.0);
+    // Too few galaxies, or none apart, cannot be fitted.
+    EXPECT_THROW(fit_counts({SourceField{"d", 1.0, {24.0}, 30.0}}, 20.0, 28.0), Error);
+    EXPECT_THROW(fit_counts({SourceField{"d", 1.0, {24.0, 24.0}, 30.0}}, 20.0, 28.0), Error);
+    EXPECT_THROW(fit_counts({deep}, 29.0, 30.0), Error);  // complete to 28 only
+}
+
+// Conditional draws with fitted counts (DrawOptions::counts): a field whose one bright galaxy
+// (I = 20) sits far above the power law its faint ones (24–28, 0.6 dex/mag) follow no longer puts 1/N of its
+// draws at I ≈ 20: the magnitudes follow the fitted counts (KS against their CDF), the shape
+// parent is the one parent, one of the K nearest within max_mag_shift, and β follows the
+// magnitude as L^s.
+TEST(FittedCounts, ConditionalDrawsFollowTheFittedCounts) {
+    ShapeletModel m(0.0, 0.0, 2.0, 0);  // Gaussians: no holes, so no redraw biases a magnitude
+    m.coeffs[0] = 1.0;
+    std::vector<ShapeletRecord> records = {record_of(m, "bright", 20.0)};
+    const std::vector<double> faint = power_law_sample(400, 0.6, 24.0, 28.0, 3);
+    for (std::size_t i = 0; i < faint.size(); ++i)
+        records.push_back(record_of(m, "f" + std::to_string(i), faint[i]));
+    Morphology morph = build_morphology(records, SmoothOptions{});
+    morph.lambda.mag = 0.05;
+    morph.lambda.beta = 0.0;
+    std::vector<double> field_mags{20.0};
+    field_mags.insert(field_mags.end(), faint.begin(), faint.end());
+    morph.source_fields = {SourceField{"", 1.0, field_mags, 30.0}};
+    DrawOptions draw;
+    draw.neighbours = 8;
+    draw.by_magnitude = magnitude_order(morph, 28.0);
+    const std::optional<CountModel> counts = conditional_counts(morph, draw, 28.0);
+    ASSERT_TRUE(counts);
+    EXPECT_DOUBLE_EQ(counts->bright, 20.0 - 0.5 * draw.max_mag_shift);
+    EXPECT_DOUBLE_EQ(counts->faint, 28.0);
+    EXPECT_EQ(counts->galaxies, 401u);
+    draw.counts = counts;
+    const std::vector<double> parents = parent_table(morph, 28.0);
+    std::vector<double> drawn;
+    int bright_parent = 0, parents_bright = 0;
+    const int n = 20000;
+    for (int i = 0; i < n; ++i) {
+        RandomStream a(15, std::uint64_t(i), "galaxy"), b(15, std::uint64_t(i), "galaxy");
+        const DrawnGalaxy g = draw_galaxy(morph, parents, a, 0.04, 25.0, 28.0, draw);
+        EXPECT_EQ(g.parent, g.mag_parent);
+        const MorphologyPoint& p = morph.points[g.parent];
+        double nearest = 99.0;  // the nearest parent qualifies however far
+        for (const MorphologyPoint& q : morph.points) nearest = std::min(nearest, std::abs(q.mag - g.mag));
+        EXPECT_LE(std::abs(p.mag - g.mag), std::max(draw.max_mag_shift, nearest) + 1e-9) << g.mag;
+        EXPECT_NEAR(g.beta, p.beta * std::pow(10.0, -0.4 * 0.3 * (g.mag - p.mag)), 1e-12 * p.beta);
+        drawn.push_back(g.mag);
+        bright_parent += g.mag < 22.0;
+        DrawOptions by_parent = draw;
+        by_parent.counts.reset();
+        parents_bright += draw_galaxy(morph, parents, b, 0.04, 25.0, 28.0, by_parent).mag < 22.0;
+    }
+    std::sort(drawn.begin(), drawn.end());
+    double d = 0.0;
+    const double total = counts->density();
+    for (std::size_t i = 0; i < drawn.size(); ++i) {
+        const double cdf = counts->density(counts->bright, drawn[i]) / total;
+        d = std::max({d, std::abs(cdf - double(i) / n), std::abs(double(i + 1) / n - cdf)});
+    }
+    const double expected_bright = n * counts->density(counts->bright, 22.0) / total;
+    std::cout << "  [measured] KS distance from the fitted counts " << d << "; draws brighter than 22: "
+              << bright_parent << " (fitted counts expect " << expected_bright << "), " << parents_bright
+              << " from the parents' magnitudes\n";
+    EXPECT_LT(d, 0.0115);  // 20000 draws: the 1% critical value
+    EXPECT_NEAR(bright_parent, expected_bright, 4.0 * std::sqrt(expected_bright) + 1.0);
+    // From the parents' magnitudes: the bright galaxy's own 1/401 of the draws, about 50.
+    EXPECT_GT(parents_bright, 3.0 * expected_bright + 10.0);
+    // No fields, the paper's draw, or δ mode: no counts.
+    Morphology bare = morph;
+    bare.source_fields.clear();
+    EXPECT_FALSE(conditional_counts(bare, draw, 28.0));
+    DrawOptions paper = draw;
+    paper.neighbours = 0;
+    EXPECT_FALSE(conditional_counts(morph, paper, 28.0));
+}
+
 // Positivity: perturbed shapes whose model dips below zero deeper than the parent's (by more
 // than 1% of the peak) are redrawn with smaller perturbations; without the rule many draws of
 // this n_max 8 parent ring below −1%.

@@ -133,6 +133,38 @@ PY
 rc=0; "$BIN/$prog" morph.json --area 1 --neighbours -1 >out 2>err || rc=$?
 expect_error "$rc" 2 'neighbours'
 
+# With the real field recorded (smooth --like), conditional draws take their magnitudes from a
+# power law fitted to its counts (--counts fit, the default): the one I = 20.7 galaxy of a
+# 0.12 arcmin² cut no longer puts 1/64 of a 6 arcmin² field's draws at I ≈ 21 (67 brighter
+# than 22 where the fitted slope, 0.27 dex/mag, expects 29), and every draw's shape
+# parent is its one parent. --counts parents keeps the parents' magnitudes.
+"$BIN/$prog" dense.json --area 6 --pixel-scale 0.03985 --seed 7 --neighbours 16 \
+  >fit6.jsonl 2>fit6.err || fail "--counts fit failed: $(cat fit6.err)"
+"$BIN/$prog" dense.json --area 6 --pixel-scale 0.03985 --seed 7 --neighbours 16 --counts parents \
+  >parents6.jsonl 2>parents6.err || fail "--counts parents failed: $(cat parents6.err)"
+python3 - <<'PY' || fail "fitted counts: $(cat fit6.err parents6.err)"
+import json, re
+line = open("fit6.err").read()
+m = re.search(r"galaxy counts: d log10 N / dm = ([0-9.e+-]+), ([0-9.e+-]+) per arcmin\^2 over ([0-9.]+) - 29, fitted to (\d+) galaxies of 1 field", line)
+assert m, line
+slope, density = float(m.group(1)), float(m.group(2))
+assert 0.1 < slope < 0.6, slope
+assert abs(float(m.group(3)) - (20.7447 - 1.0)) < 1e-3, m.group(3)  # half the 2-mag shift above 117
+def rows(path):
+    return [json.loads(l) for l in open(path) if '"galaxy"' in l]
+fit, par = rows("fit6.jsonl"), rows("parents6.jsonl")
+assert "mag_parent" not in json.dumps(fit)
+assert any("mag_parent" in r for r in par)
+assert re.search(r"\(%g per arcmin\^2" % density, line) or abs(len(fit) / 6.0 - density) < 0.1 * density
+bright_fit = sum(1 for r in fit if r["mag"] < 22)
+bright_par = sum(1 for r in par if r["mag"] < 22)
+print("  [measured] galaxies brighter than I = 22 in 6 arcmin^2: fitted counts", bright_fit,
+      "parents' magnitudes", bright_par, "; slope", slope)
+assert bright_par > 1.5 * bright_fit + 5, (bright_fit, bright_par)
+PY
+rc=0; "$BIN/$prog" dense.json --area 1 --neighbours 4 --counts bogus >out 2>err || rc=$?
+expect_error "$rc" 2 'counts'
+
 rc=0; "$BIN/$prog" nosuch.json --area 1 >out 2>err || rc=$?
 expect_error "$rc" 1 'nosuch.json: cannot open'
 rc=0; "$BIN/$prog" shapelets.jsonl --area 1 >out 2>err || rc=$?
