@@ -31,13 +31,13 @@ parent_share() {
 # The merged run's fitted counts, from shapesim-sample's line in the log: "slope S dex/mag,
 # D per arcmin² over A–B, fitted to N galaxies".
 counts_fit() {
-  grep -a -m1 'galaxy counts:' "$1" |
+  grep -a 'galaxy counts:' "$1" | tail -1 |
     awk '{ for (i = 1; i <= NF; i++) { if ($i == "dm") s = $(i + 2); if ($i == "over") { d = $(i - 3); a = $(i + 1); b = $(i + 3) }
                                        if ($i == "to") n = $(i + 1) }
            printf "slope %.3f dex/mag, %.0f per arcmin² over I = %.2f–%g, fitted to %d galaxies", s, d, a, b + 0, n }'
 }
 # The merged run's draw options from its command in the log ("--neighbours K --max-mag-shift S").
-merged_option() { grep -a -m1 -o -- "--$2 [0-9.]*" "$1" | cut -d' ' -f2; }
+merged_option() { grep -a -o -- "--$2 [0-9.]*" "$1" | tail -1 | cut -d' ' -f2; }
 # "N objects from K real galaxies".
 bright_parents() {
   parent_counts "$1" "$2" | awk '{ printf "%d objects from %d real galaxies", $1, $2 }'
