@@ -38,6 +38,15 @@ counts_fit() {
 }
 # The merged run's draw options from its command in the log ("--neighbours K --max-mag-shift S").
 merged_option() { grep -a -o -- "--$2 [0-9.]*" "$1" | tail -1 | cut -d' ' -f2; }
+# Over the seeds of merged.shares.txt, the largest share brighter than I = $2: "a/b (c%) … at
+# seeds s…; at most 10% in k of n".
+seed_shares() {
+  awk -v limit="$2" '{ if (match($0, "I < " limit ": [0-9]+/[0-9]+")) {
+        split(substr($0, RSTART + length("I < " limit ": "), RLENGTH - length("I < " limit ": ")), f, "/")
+        share = f[2] > 0 ? f[1] / f[2] : 0; n++; if (share <= 0.1) k++
+        list = list (n > 1 ? ", " : "") sprintf("%s (%.0f%%)", f[1] "/" f[2], 100 * share) } }
+    END { printf "%s; at most 10%% in %d of %d", list, k, n }' "$1"
+}
 # "N objects from K real galaxies".
 bright_parents() {
   parent_counts "$1" "$2" | awk '{ printf "%d objects from %d real galaxies", $1, $2 }'
@@ -166,6 +175,13 @@ The largest share of one real parent among the galaxies brighter than each magni
 | I = 22 | $(parent_share "$out/sim6.objects.jsonl" 22) | $(parent_share "$out/merged6.objects.jsonl" 22) |
 | I = 24 | $(parent_share "$out/sim6.objects.jsonl" 24) | $(parent_share "$out/merged6.objects.jsonl" 24) |
 | I = 26 | $(parent_share "$out/sim6.objects.jsonl" 26) | $(parent_share "$out/merged6.objects.jsonl" 26) |
+
+One seed's largest share is one Poisson draw. Over the ten seeds from $(head -1 "$out/merged.shares.txt" | cut -d' ' -f1) on
+(\`merged.shares.txt\`), the merged model's largest share of one parent:
+
+- brighter than I = 22: $(seed_shares "$out/merged.shares.txt" 22);
+- brighter than I = 24: $(seed_shares "$out/merged.shares.txt" 24);
+- brighter than I = 26: $(seed_shares "$out/merged.shares.txt" 26).
 
 The brightest galaxy of each shipped field, fitted through its PSF as in the merged run: data |
 model (as the data see it) | residual, one stretch per row. A \`bad_fit\` is left out of the model.

@@ -192,9 +192,17 @@ $(OUT)/merged.json: $(OUT)/intrinsic.jsonl $(OUT)/xdf/intrinsic.jsonl $(STAMPS:%
 	  $(call prog,smooth) -v --field $(IMAGE)=$(HDF_AREA) --field $(XDF_IMAGE)=$(XDF_AREA) \
 	  $(foreach s,$(STAMPS),--field '$(call stamp_image,$(s))=shapes') > $(tmp)
 	mv $(tmp) $@
+MERGED_SAMPLE = $(call prog,sample) $(OUT)/merged.json $(LARGE_FIELD) --zero-point $(ZERO_POINT) \
+  --neighbours $(NEIGHBOURS) --max-mag-shift $(MAX_MAG_SHIFT)
 $(OUT)/merged6.objects.jsonl: $(OUT)/merged.json $(OUT)/params/seed $(OUT)/params/area $(call prog,sample)
-	$(call prog,sample) $< $(LARGE_FIELD) --seed $(SEED) --zero-point $(ZERO_POINT) \
-	  --neighbours $(NEIGHBOURS) --max-mag-shift $(MAX_MAG_SHIFT) > $(tmp)
+	$(MERGED_SAMPLE) --seed $(SEED) > $(tmp)
+	mv $(tmp) $@
+# One seed's largest share is one Poisson draw: the merged model's shares over ten seeds from
+# SEED on ("SEED I < 22: n/N from P; I < 24: …", sample's summary line), objects discarded.
+$(OUT)/merged.shares.txt: $(OUT)/merged.json $(OUT)/params/seed $(OUT)/params/area $(call prog,sample)
+	for s in $$(seq $(SEED) $$(($(SEED) + 9))); do \
+	  $(MERGED_SAMPLE) --seed $$s 2>&1 >/dev/null | sed -n "s/.*among the galaxies written: /$$s /p"; \
+	done > $(tmp)
 	mv $(tmp) $@
 $(OUT)/merged6.fits $(OUT)/merged6.truth.jsonl &: $(OUT)/merged6.objects.jsonl $(OUT)/psf.jsonl $(OUT)/hdf.noise.jsonl $(call prog,render)
 	$(call prog,render) --psf $(OUT)/psf.jsonl --noise-model $(OUT)/hdf.noise.jsonl --gain $(GAIN) \
@@ -310,7 +318,7 @@ FIGURES := $(OUT)/figures/hdf_delta_sim.png $(OUT)/figures/sim6.png $(OUT)/figur
 $(OUT)/report.md: $(R)pipelines/report.sh $(OUT)/table.md $(OUT)/sky.md $(OUT)/morphology.json $(OUT)/perturbations.md \
     $(OUT)/xdf/table.md $(OUT)/xdf/sky.md \
     $(FIGURES) $(INPUTS) $(OUT)/sim.truth.jsonl $(OUT)/delta.truth.jsonl $(OUT)/sim6.truth.jsonl \
-    $(OUT)/merged.json $(OUT)/merged6.objects.jsonl $(OUT)/sim6.objects.jsonl
+    $(OUT)/merged.json $(OUT)/merged6.objects.jsonl $(OUT)/sim6.objects.jsonl $(OUT)/merged.shares.txt
 	$(R)pipelines/report.sh $(OUT) $(INPUTS) > $(tmp)
 	mv $(tmp) $@
 

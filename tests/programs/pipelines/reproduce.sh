@@ -13,7 +13,8 @@ for f in report.md table.md sim.fits delta.fits sim6.fits sources.jsonl shapelet
          morphology.json delta.json hdf.morph.jsonl sim.morph.jsonl delta.morph.jsonl sim6.morph.jsonl \
          sim.truth.jsonl compare/distances.md compare/counts.png compare/c_a.png \
          figures/hdf_delta_sim.png figures/sim6.png figures/perturbations.png pipeline.log \
-         xdf/psf.jsonl xdf/intrinsic.jsonl intrinsic.jsonl merged.json merged6.fits merged6.morph.jsonl; do
+         xdf/psf.jsonl xdf/intrinsic.jsonl intrinsic.jsonl merged.json merged6.fits merged6.morph.jsonl \
+         merged.shares.txt; do
   [ -s "$out/$f" ] || fail "no $f"
 done
 ls "$out" | grep -q '\.tmp' && fail "temporary files left: $(ls "$out")"
@@ -72,6 +73,12 @@ objects = [json.loads(l) for l in open(out + "/merged6.objects.jsonl")]
 assert objects and all(o.get("frame") == "intrinsic" for o in objects if o["kind"] == "galaxy")
 PY
 grep -q '^| I = 24 | .* | .* from ' "$out/report.md" || fail "report.md lacks the parent shares"
+[ "$(cut -d' ' -f1 "$out/merged.shares.txt" | tr '\n' ' ')" = "7 8 9 10 11 12 13 14 15 16 " ] ||
+  fail "merged.shares.txt is not ten seeds from 7: $(cat "$out/merged.shares.txt")"
+grep -q '^- brighter than I = 24: .*; at most 10% in [0-9]* of 10;$' "$out/report.md" ||
+  fail "report.md lacks the shares over ten seeds"
+grep -q 'Poisson maximum likelihood: slope 0\.[0-9]* dex/mag, [0-9]* per arcmin² over I = [0-9.]*–29, fitted to [0-9]* galaxies)' \
+  "$out/report.md" || fail "report.md lacks the fitted counts: $(grep -a 'galaxy counts' "$out/pipeline.log")"
 
 # Nothing changed: nothing runs.
 run
