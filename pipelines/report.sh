@@ -136,6 +136,14 @@ cat <<EOF
 
 KS p of the δ against the real cutout:$(awk -F'|' '$3 ~ /xdf_delta/ && $2 ~ /^ (mag|fwhm_arcsec|e|c|a_sym|gini|m20) $/ { gsub(/ /, "", $2); gsub(/ /, "", $7); printf " %s %s;", $2, $7 }' "$out/xdf/compare/distances.md")
 
+## The δ-function simulations at five seeds
+
+One seed's KS p is one draw of the bootstrap and the noise. The HDF's and the XDF's δ-function
+simulations at five seeds from $(head -1 "$out/seeds.md" | grep -o 'seed [0-9]*' | head -1 | cut -d' ' -f2), each drawn, rendered and measured as above and compared with its real image
+(\`seeds.md\`; \`seeds/hdf/\`, \`seeds/xdf/\`):
+
+$(cat "$out/seeds.md")
+
 ## The paper's figures
 
 Number counts (Fig. 5), sizes (Fig. 6), size against magnitude (Fig. 7), ellipticities

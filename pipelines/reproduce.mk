@@ -91,8 +91,9 @@ $(OUT)/sim6.objects.jsonl: $(OUT)/morphology.json $(OUT)/params/seed $(OUT)/para
 # Galaxy models already hold the HDF's PSF (--galaxy-psf = --psf: no further convolution);
 # the noise is the HDF sky's, measured by detect (rms and 2-D autocorrelation), plus photon
 # noise; images the HDF's size vary its σ as the HDF's weight map does.
-RENDER = $(call prog,render) --psf $(OUT)/psf.jsonl --galaxy-psf $(OUT)/psf.jsonl \
-  --noise-model $(OUT)/hdf.noise.jsonl --gain $(GAIN) --seed $(SEED) -j $(THREADS)
+HDF_RENDER = $(call prog,render) --psf $(OUT)/psf.jsonl --galaxy-psf $(OUT)/psf.jsonl \
+  --noise-model $(OUT)/hdf.noise.jsonl --gain $(GAIN) -j $(THREADS)
+RENDER = $(HDF_RENDER) --seed $(SEED)
 $(OUT)/sim.fits $(OUT)/sim.truth.jsonl &: $(OUT)/sim.objects.jsonl $(OUT)/psf.jsonl $(OUT)/hdf.noise.jsonl $(call prog,render)
 	$(RENDER) --like $(IMAGE) --noise-weight $(WEIGHT) -o $(OUT)/sim.fits --truth $(OUT)/sim.truth.jsonl < $<
 $(OUT)/delta.fits $(OUT)/delta.truth.jsonl &: $(OUT)/delta.objects.jsonl $(OUT)/psf.jsonl $(OUT)/hdf.noise.jsonl $(call prog,render)
@@ -220,10 +221,10 @@ $(OUT)/xdf/delta.json: $(OUT)/xdf/intrinsic.jsonl $(call prog,smooth)
 $(OUT)/xdf/delta.objects.jsonl: $(OUT)/xdf/delta.json $(OUT)/params/seed $(call prog,sample)
 	$(call prog,sample) $< $(XDF_FIELD) --seed $(SEED) > $(tmp)
 	mv $(tmp) $@
+XDF_RENDER = $(call prog,render) --psf $(OUT)/xdf/psf.jsonl --noise-model $(OUT)/xdf/real.noise.jsonl \
+  --noise-weight $(XDF_WEIGHT) --gain $(XDF_GAIN) -j $(THREADS) $(XDF_FIELD)
 $(OUT)/xdf/delta.fits $(OUT)/xdf/delta.truth.jsonl &: $(OUT)/xdf/delta.objects.jsonl $(OUT)/xdf/psf.jsonl $(OUT)/xdf/real.noise.jsonl $(XDF_WEIGHT) $(call prog,render)
-	$(call prog,render) --psf $(OUT)/xdf/psf.jsonl --noise-model $(OUT)/xdf/real.noise.jsonl \
-	  --noise-weight $(XDF_WEIGHT) --gain $(XDF_GAIN) --seed $(SEED) -j $(THREADS) $(XDF_FIELD) \
-	  -o $(OUT)/xdf/delta.fits --truth $(OUT)/xdf/delta.truth.jsonl < $<
+	$(XDF_RENDER) --seed $(SEED) -o $(OUT)/xdf/delta.fits --truth $(OUT)/xdf/delta.truth.jsonl < $<
 $(OUT)/xdf/delta.noise.jsonl: $(OUT)/xdf/delta.fits $(XDF_WEIGHT) $(call prog,detect)
 	$(call prog,detect) $< --weight $(XDF_WEIGHT) --pixel-scale $(XDF_SCALE) --noise-model $(tmp) > /dev/null
 	mv $(tmp) $@
@@ -244,6 +245,39 @@ $(OUT)/xdf/table.md: $(OUT)/xdf/real.morph.jsonl $(OUT)/xdf/delta.morph.jsonl $(
 	$(call prog,measure) --compare $(foreach c,real delta,xdf_$c=$(OUT)/xdf/$c.morph.jsonl) \
 	  --out $(OUT)/xdf/compare
 	cp $(OUT)/xdf/compare/table.md $@
+
+# --- the δ-function simulations at five seeds ---------------------------------------------
+# One seed's KS p is one draw (of the bootstrap and the noise): the HDF's and the XDF's δ
+# simulations at SEED … SEED + 4, drawn, rendered and measured as above, each compared with its
+# real image in one --compare (seeds/hdf/distances.md, seeds/xdf/distances.md) and summed up
+# in seeds.md by pipelines/seeds.sh.
+SEEDS := $(shell seq $(SEED) $$(($(SEED) + 4)))
+$(OUT)/seeds/hdf_%.objects.jsonl: $(OUT)/delta.json $(IMAGE) $(call prog,sample)
+	@mkdir -p $(@D)
+	$(call prog,sample) -q $< --like $(IMAGE) --seed $* > $(tmp)
+	mv $(tmp) $@
+$(OUT)/seeds/hdf_%.fits: $(OUT)/seeds/hdf_%.objects.jsonl $(OUT)/psf.jsonl $(OUT)/hdf.noise.jsonl $(call prog,render)
+	$(HDF_RENDER) -q --seed $* --like $(IMAGE) --noise-weight $(WEIGHT) -o $@ < $<
+$(OUT)/seeds/hdf_%.morph.jsonl: $(OUT)/seeds/hdf_%.fits $(call prog,measure)
+	$(MEASURE) -q $< > $(tmp)
+	mv $(tmp) $@
+$(OUT)/seeds/xdf_%.objects.jsonl: $(OUT)/xdf/delta.json $(call prog,sample)
+	@mkdir -p $(@D)
+	$(call prog,sample) -q $< $(XDF_FIELD) --seed $* > $(tmp)
+	mv $(tmp) $@
+$(OUT)/seeds/xdf_%.fits: $(OUT)/seeds/xdf_%.objects.jsonl $(OUT)/xdf/psf.jsonl $(OUT)/xdf/real.noise.jsonl $(XDF_WEIGHT) $(call prog,render)
+	$(XDF_RENDER) -q --seed $* -o $@ < $<
+$(OUT)/seeds/xdf_%.morph.jsonl: $(OUT)/seeds/xdf_%.fits $(OUT)/xdf/psf.jsonl $(call prog,measure)
+	$(XDF_MEASURE) -q $< > $(tmp)
+	mv $(tmp) $@
+SEED_FILES := $(foreach f,hdf xdf,$(foreach s,$(SEEDS),$(foreach e,objects.jsonl fits morph.jsonl,$(OUT)/seeds/$(f)_$(s).$(e))))
+$(OUT)/seeds.md: $(R)pipelines/seeds.sh $(SEED_FILES) $(OUT)/hdf.morph.jsonl $(OUT)/xdf/real.morph.jsonl $(call prog,measure)
+	$(call prog,measure) -q --compare hdf=$(OUT)/hdf.morph.jsonl \
+	  $(foreach s,$(SEEDS),delta$(s)=$(OUT)/seeds/hdf_$(s).morph.jsonl) --out $(OUT)/seeds/hdf
+	$(call prog,measure) -q --compare xdf=$(OUT)/xdf/real.morph.jsonl \
+	  $(foreach s,$(SEEDS),delta$(s)=$(OUT)/seeds/xdf_$(s).morph.jsonl) --out $(OUT)/seeds/xdf
+	$(R)pipelines/seeds.sh $(OUT)/seeds/hdf $(OUT)/seeds/xdf > $(tmp)
+	mv $(tmp) $@
 
 # --- measure all four images alike, and compare -----------------------------------------
 MEASURE = $(call prog,measure) --zero-point $(ZERO_POINT) --mag-limit $(MAG_LIMIT) -j $(THREADS)
@@ -318,7 +352,8 @@ FIGURES := $(OUT)/figures/hdf_delta_sim.png $(OUT)/figures/sim6.png $(OUT)/figur
 $(OUT)/report.md: $(R)pipelines/report.sh $(OUT)/table.md $(OUT)/sky.md $(OUT)/morphology.json $(OUT)/perturbations.md \
     $(OUT)/xdf/table.md $(OUT)/xdf/sky.md \
     $(FIGURES) $(INPUTS) $(OUT)/sim.truth.jsonl $(OUT)/delta.truth.jsonl $(OUT)/sim6.truth.jsonl \
-    $(OUT)/merged.json $(OUT)/merged6.objects.jsonl $(OUT)/sim6.objects.jsonl $(OUT)/merged.shares.txt
+    $(OUT)/merged.json $(OUT)/merged6.objects.jsonl $(OUT)/sim6.objects.jsonl $(OUT)/merged.shares.txt \
+    $(OUT)/seeds.md
 	$(R)pipelines/report.sh $(OUT) $(INPUTS) > $(tmp)
 	mv $(tmp) $@
 
