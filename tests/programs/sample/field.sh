@@ -162,6 +162,18 @@ print("  [measured] galaxies brighter than I = 22 in 6 arcmin^2: fitted counts",
       "parents' magnitudes", bright_par, "; slope", slope)
 assert bright_par > 1.5 * bright_fit + 5, (bright_fit, bright_par)
 PY
+# Tiles of a fitted-counts field give its records back, byte for byte (2×2 over 1024²).
+"$BIN/$prog" dense.json --size 0.6797 --pixel-scale 0.03985 --seed 7 --neighbours 16 -q >fitw.jsonl ||
+  fail "--counts fit on 1024² failed"
+: >fitt.jsonl
+for y in "1 512" "513 1024"; do
+  for x in "1 512" "513 1024"; do
+    set -- $x $y
+    "$BIN/$prog" dense.json --size 0.6797 --pixel-scale 0.03985 --seed 7 --neighbours 16 -q \
+      --tile "$1" "$3" "$2" "$4" >>fitt.jsonl || fail "fitted-counts tile $x $y failed"
+  done
+done
+cmp -s <(sort -u fitt.jsonl) <(sort fitw.jsonl) || fail "fitted-counts tiles differ from their field"
 rc=0; "$BIN/$prog" dense.json --area 1 --neighbours 4 --counts bogus >out 2>err || rc=$?
 expect_error "$rc" 2 'counts'
 
