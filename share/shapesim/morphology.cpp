@@ -642,6 +642,92 @@ std::optional<CountModel> conditional_counts(const Morphology& morphology, const
     return fit_counts(morphology.source_fields, bright, mag_limit);
 }
 
+namespace {
+
+// A parent's shape c, perturbed: every coefficient by the Epanechnikov kernel of its smoothing
+// length times `shrink` (m = 0 in value, m > 0 in modulus and phase; in δ mode the draws are
+// made and c kept bit for bit), with the flux sum Σ_{n even} c'_{n,0} and ‖c' − c‖², ‖c‖².
+struct PerturbedShape {
+    std::vector<Complex> shape;
+    double sum = 0.0, change = 0.0, norm = 0.0;
+};
+PerturbedShape perturb_shape(const MorphologyPoint& p, const SmoothingLengths& l, double shrink,
+                             RandomStream& stream) {
+    const PolarIndex* index = packed_indices().data();
+    const bool delta = l.is_delta();
+    const double lambda_phase = l.phase_deg * degree;
+    const std::size_t count = p.shape.size();
+    const bool prepared = p.modulus.size() == count && p.phase.size() == count;
+    PerturbedShape out;
+    out.shape.assign(count, Complex(0.0, 0.0));
+    out.shape[0] = 1.0;
+    out.sum = 1.0;
+    for (std::size_t k = 0; k < count; ++k) {
+        const Complex c = p.shape[k];
+        out.norm += std::norm(c);
+        if (k == 0) continue;
+        if (index[k].m == 0) {
+            out.shape[k] = Complex(c.real() + shrink * l.coefficient[k] * stream.epanechnikov(), 0.0);
+            if (index[k].n % 2 == 0) out.sum += out.shape[k].real();
+        } else {
+            const double modulus = (prepared ? p.modulus[k] : std::abs(c)) +
+                                   shrink * l.coefficient[k] * stream.epanechnikov();
+            const double phase = (prepared ? p.phase[k] : std::arg(c)) +
+                                 shrink * lambda_phase * stream.epanechnikov();
+            out.shape[k] = delta ? c : std::polar(modulus, phase);
+        }
+        out.change += std::norm(out.shape[k] - c);
+    }
+    return out;
+}
+
+// The parent's own shape, unperturbed.
+PerturbedShape unperturbed(const MorphologyPoint& p) {
+    const PolarIndex* index = packed_indices().data();
+    PerturbedShape out;
+    out.shape = p.shape;
+    for (std::size_t k = 0; k < out.shape.size(); ++k) {
+        out.norm += std::norm(out.shape[k]);
+        if (index[k].m == 0 && index[k].n % 2 == 0) out.sum += out.shape[k].real();
+    }
+    return out;
+}
+
+// Whether a perturbed shape of parent `p`, drawn at `mag` and `beta`, rings no deeper than the
+// parent does: the parent's own holes are allowed at the depth (in flux) they had, so a shape
+// drawn brighter or more compact than its parent keeps them shallower relative to its peak.
+bool rings_no_deeper(const std::vector<Complex>& shape, const MorphologyPoint& p, double mag,
+                     double beta, double allowance) {
+    ShapeletModel candidate(0.0, 0.0, 1.0, p.n_max);
+    candidate.coeffs = shape;
+    const double peak_ratio = std::pow(10.0, -0.4 * (mag - p.mag)) * (p.beta / beta) * (p.beta / beta);
+    return hole_depth(candidate) <= p.hole / std::max(peak_ratio, 1.0) + allowance;
+}
+
+// The aligned shape placed: a_{n,m} = a_{0,0} c_{n,m}, reflected about x (a → conj a), then
+// rotated by ρ (a_{n,m} → a_{n,m} e^{−imρ}): one complex exponential per coefficient.
+ShapeletModel placed_model(const std::vector<Complex>& shape, int n_max, double beta_pix,
+                           double a00, double rotation, bool reflected) {
+    const PolarIndex* index = packed_indices().data();
+    std::vector<Complex> turn(std::size_t(n_max) + 1);  // e^{−imρ} by powers
+    const Complex step = std::polar(1.0, -rotation);
+    turn[0] = 1.0;
+    for (std::size_t m = 1; m < turn.size(); ++m) turn[m] = turn[m - 1] * step;
+    ShapeletModel model(0.0, 0.0, beta_pix, n_max);
+    for (std::size_t k = 0; k < shape.size(); ++k) {
+        const int m = index[k].m;
+        if (m == 0) {
+            model.coeffs[k] = a00 * shape[k];
+        } else {
+            const Complex placed = reflected ? std::conj(shape[k]) : shape[k];
+            model.coeffs[k] = a00 * placed * turn[std::size_t(m)];
+        }
+    }
+    return model;
+}
+
+}  // namespace
+
 DrawnGalaxy draw_galaxy(const Morphology& morphology, const std::vector<double>& parents,
                         RandomStream& stream, double pixel_scale, double zero_point,
                         double mag_limit, const DrawOptions& draw) {
@@ -662,31 +748,27 @@ DrawnGalaxy draw_galaxy(const Morphology& morphology, const std::vector<double>&
     }
     g.mag_parent = g.parent;
     const MorphologyPoint& first = morphology.points[g.parent];
-    const PolarIndex* index = packed_indices().data();
-    const double lambda_phase = l.phase_deg * degree;
-    // The perturbed shape c' (aligned frame) of the shape parent.
-    std::vector<Complex> shape;
-    double beta = first.beta, mag = first.mag, sum = 0.0, change = 0.0, norm = 0.0;
+    // The size–luminosity relation moves a shape's β with its magnitude.
+    const auto scaled_beta = [&](const MorphologyPoint& p, double mag) {
+        return p.beta * std::pow(10.0, -0.4 * draw.size_slope * (mag - p.mag));
+    };
+    PerturbedShape drawn;
+    double beta = first.beta, mag = first.mag;
     constexpr int max_redraws = 1000, hole_redraws = 500;
     bool shape_chosen = false;
     for (;; ++g.redraws) {
         const MorphologyPoint* p = &first;
         if (g.redraws == max_redraws) {  // give up perturbing: the parent itself
             g.parent = g.mag_parent;
-            beta = first.beta;
             mag = counted ? g.mag : first.mag;
-            if (counted) beta *= std::pow(10.0, -0.4 * draw.size_slope * (mag - first.mag));
-            shape = first.shape;
-            sum = 0.0;
-            for (std::size_t k = 0; k < shape.size(); ++k)
-                if (index[k].m == 0 && index[k].n % 2 == 0) sum += shape[k].real();
-            change = 0.0;
+            beta = counted ? scaled_beta(first, mag) : first.beta;
+            drawn = unperturbed(first);
+            drawn.change = 0.0;
             break;
         }
         if (counted) {
             mag = g.mag;
-            beta = p->beta * std::pow(10.0, -0.4 * draw.size_slope * (mag - p->mag)) +
-                   l.beta * stream.epanechnikov();
+            beta = scaled_beta(*p, mag) + l.beta * stream.epanechnikov();
         } else if (conditional) {
             // The shape parent is chosen once, at the first magnitude drawn within the limit:
             // redraws re-perturb it, so parents that ring (or fail more often) are not
@@ -697,81 +779,33 @@ DrawnGalaxy draw_galaxy(const Morphology& morphology, const std::vector<double>&
                 shape_chosen = mag <= mag_limit;
             }
             p = &morphology.points[g.parent];
-            beta = p->beta * std::pow(10.0, -0.4 * draw.size_slope * (mag - p->mag)) +
-                   l.beta * stream.epanechnikov();
+            beta = scaled_beta(*p, mag) + l.beta * stream.epanechnikov();
         } else {
             beta = p->beta + l.beta * stream.epanechnikov();
             mag = p->mag + l.mag * stream.epanechnikov();
         }
-        const std::size_t count = p->shape.size();
-        const bool prepared = p->modulus.size() == count && p->phase.size() == count;
         // A shape that keeps failing (holes, too large a change) is perturbed less: halved
         // every 100 redraws, so it ends as new as positivity allows rather than a copy.
-        const double shrink = std::ldexp(1.0, -(g.redraws / 100));
-        shape.assign(count, Complex(0.0, 0.0));
-        shape[0] = 1.0;
-        sum = 1.0;
-        change = 0.0;
-        norm = 0.0;
-        for (std::size_t k = 0; k < count; ++k) {
-            const Complex c = p->shape[k];
-            norm += std::norm(c);
-            if (k == 0) continue;
-            if (index[k].m == 0) {
-                shape[k] = Complex(c.real() + shrink * l.coefficient[k] * stream.epanechnikov(), 0.0);
-                if (index[k].n % 2 == 0) sum += shape[k].real();
-            } else {
-                const double modulus = (prepared ? p->modulus[k] : std::abs(c)) +
-                                       shrink * l.coefficient[k] * stream.epanechnikov();
-                const double phase = (prepared ? p->phase[k] : std::arg(c)) +
-                                     shrink * lambda_phase * stream.epanechnikov();
-                // The δ-function PDF keeps the parent's coefficients bit for bit.
-                shape[k] = delta ? c : std::polar(modulus, phase);
-            }
-            change += std::norm(shape[k] - c);
-        }
-        if (beta > 0.0 && sum > 0.0 && mag <= mag_limit &&
-            change <= draw.max_perturbation * draw.max_perturbation * norm) {
+        drawn = perturb_shape(*p, l, std::ldexp(1.0, -(g.redraws / 100)), stream);
+        if (beta > 0.0 && drawn.sum > 0.0 && mag <= mag_limit &&
+            drawn.change <= draw.max_perturbation * draw.max_perturbation * drawn.norm) {
             // Past `hole_redraws` the shape is as close to its parent as halving makes it: its
             // holes are the parent's own, which the renderer clips (a copy of the magnitude
             // parent would be a clone).
             if (delta || p->n_max == 0 || g.redraws >= hole_redraws) break;
-            ShapeletModel candidate(0.0, 0.0, 1.0, p->n_max);
-            candidate.coeffs = shape;
-            // The parent's own holes are allowed at the depth (in flux) they had: a shape drawn
-            // brighter or more compact than its parent keeps them shallower relative to its peak.
-            const double peak_ratio = std::pow(10.0, -0.4 * (mag - p->mag)) *
-                                      (p->beta / beta) * (p->beta / beta);
-            if (hole_depth(candidate) <= p->hole / std::max(peak_ratio, 1.0) + draw.hole_allowance)
-                break;
+            if (rings_no_deeper(drawn.shape, *p, mag, beta, draw.hole_allowance)) break;
         }
     }
-    const MorphologyPoint& p = morphology.points[g.parent];
     g.mag = mag;
     g.beta = beta;
     g.flux = std::pow(10.0, -0.4 * (mag - zero_point));
     const double beta_pix = beta / pixel_scale;
-    const double a00 = g.flux / (2.0 * std::sqrt(pi) * beta_pix * sum);
+    const double a00 = g.flux / (2.0 * std::sqrt(pi) * beta_pix * drawn.sum);
     g.rotation = stream.angle();
     g.reflected = stream.coin();
-    // Reflection about x (a → conj a), then rotation by ρ (a_{n,m} → a_{n,m} e^{−imρ}): one
-    // complex exponential per coefficient.
-    std::vector<Complex> turn(std::size_t(p.n_max) + 1);  // e^{−imρ} by powers
-    const Complex step = std::polar(1.0, -g.rotation);
-    turn[0] = 1.0;
-    for (std::size_t m = 1; m < turn.size(); ++m) turn[m] = turn[m - 1] * step;
-    ShapeletModel model(0.0, 0.0, beta_pix, p.n_max);
-    for (std::size_t k = 0; k < shape.size(); ++k) {
-        const int m = index[k].m;
-        if (m == 0) {
-            model.coeffs[k] = a00 * shape[k];
-        } else {
-            const Complex placed = g.reflected ? std::conj(shape[k]) : shape[k];
-            model.coeffs[k] = a00 * placed * turn[std::size_t(m)];
-        }
-    }
-    g.perturbation = norm > 0.0 ? std::sqrt(change / norm) : 0.0;
-    g.model = std::move(model);
+    g.model = placed_model(drawn.shape, morphology.points[g.parent].n_max, beta_pix, a00, g.rotation,
+                           g.reflected);
+    g.perturbation = drawn.norm > 0.0 ? std::sqrt(drawn.change / drawn.norm) : 0.0;
     return g;
 }
 
