@@ -52,6 +52,7 @@ struct Settings {
     int psf_stamp = 41, psf_n_max_cap = 20;
     std::string input = "-";
     bool ignore_correlation = false;
+    bool round_lowest = false;
     double noise_correlation = 0.0;
     DecomposeOptions fit;
 };
@@ -104,7 +105,10 @@ void declare(app::ProgramOptions& options, Settings& s) {
          "correlated-noise factor for the effective degrees of freedom (default: the "
          "record's noise_correlation from shapesim-detect, else 1)")
         ("white-noise", po::bool_switch(&s.ignore_correlation),
-         "use the textbook chi2_r (F = 1) even when the record has a factor");
+         "use the textbook chi2_r (F = 1) even when the record has a factor")
+        ("round-lowest", po::bool_switch(&s.round_lowest),
+         "keep n_max 0 fits round (the paper's); by default a sheared Gaussian replaces them\n"
+         "when its ellipticity is significant (flag elliptical)");
     options.group("PSF mode").add_options()
         ("psf-image", po::value(&s.psf_image)->value_name("FILE"),
          "model this PSF image instead of reading sources")
@@ -194,6 +198,7 @@ int run(int argc, const char* const argv[]) {
     Settings s;
     declare(options, s);
     if (!options.parse(argc, argv)) return 0;
+    s.fit.elliptical = !s.round_lowest;
     const app::Log log("shapesim-decompose", options.common().verbosity);
     if (s.fit.n_max_min > s.fit.n_max_cap)
         throw po::error("--n-max-min must not exceed --n-max-cap");

@@ -7,8 +7,10 @@
 #include "shapesim/moments.hpp"
 #include "shapesim/polar.hpp"
 #include "shapesim/render.hpp"
+#include "shapesim/transform.hpp"
 
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <limits>
 #include <optional>
@@ -160,6 +162,101 @@ private:
 
 }  // namespace
 
+ShapeletModel elliptical_gaussian(double beta_pix, double g1, double g2) {
+    ShapeletModel round(0.0, 0.0, beta_pix, 0);
+    round.coeffs[0] = 1.0;
+    ProjectionOptions order;
+    order.n_out = elliptical_order;
+    return shear(round, g1, g2, order).model;
+}
+
+namespace {
+
+// The elliptical lowest order (see decompose.hpp): the sheared Gaussian of least χ² at the
+// round fit's centre, (g1, g2, ln β) by Nelder–Mead from the round fit's β.
+struct EllipticalFit {
+    ShapeletFit fit;
+    double g1 = 0.0, g2 = 0.0;
+};
+std::optional<EllipticalFit> fit_elliptical(const ImageArray& image, const ImageArray& weight,
+                                            const MaskArray* mask, const ShapeletFit& round,
+                                            double theta_min, double reach,
+                                            const DecomposeOptions& options, long& fits) {
+    const double x = round.model.x, y = round.model.y;
+    std::optional<EllipticalFit> best;
+    const auto chi2 = [&](const std::array<double, 3>& v) {
+        const double g = std::hypot(v[0], v[1]), beta = std::exp(v[2]);
+        // The minor axis resolved as n_max 0's β must be, the major axis inside the stamp.
+        if (!(g < 0.9) || beta * std::sqrt((1.0 - g) / (1.0 + g)) < theta_min ||
+            beta * std::sqrt((1.0 + g) / (1.0 - g)) > reach)
+            return infinite;
+        ++fits;
+        try {
+            const ShapeletModel shape = elliptical_gaussian(beta, v[0], v[1]);
+            ShapeletFit fit = fit_shape_amplitude(image, weight, mask, x, y, shape,
+                                                  options.psf ? &*options.psf : nullptr);
+            const double value = fit.chi2;
+            if (!std::isfinite(value)) return infinite;
+            if (!best || value < best->fit.chi2) best = EllipticalFit{std::move(fit), v[0], v[1]};
+            return value;
+        } catch (const Error&) {
+            return infinite;
+        }
+    };
+    // Nelder–Mead (reflection 1, expansion 2, contraction ½, shrink ½).
+    std::array<std::array<double, 3>, 4> p;
+    p.fill({0.0, 0.0, std::log(round.model.beta_pix)});
+    p[1][0] += 0.15;
+    p[2][1] += 0.15;
+    p[3][2] += 0.15;
+    std::array<double, 4> f;
+    for (int i = 0; i < 4; ++i) f[std::size_t(i)] = chi2(p[std::size_t(i)]);
+    const auto along = [](const std::array<double, 3>& a, const std::array<double, 3>& b, double t) {
+        return std::array<double, 3>{a[0] + t * (b[0] - a[0]), a[1] + t * (b[1] - a[1]),
+                                     a[2] + t * (b[2] - a[2])};
+    };
+    for (int step = 0; step < 120; ++step) {
+        std::array<int, 4> order{0, 1, 2, 3};
+        std::sort(order.begin(), order.end(), [&](int a, int b) { return f[std::size_t(a)] < f[std::size_t(b)]; });
+        std::array<std::array<double, 3>, 4> q;
+        std::array<double, 4> g;
+        for (int i = 0; i < 4; ++i) {
+            q[std::size_t(i)] = p[std::size_t(order[std::size_t(i)])];
+            g[std::size_t(i)] = f[std::size_t(order[std::size_t(i)])];
+        }
+        p = q;
+        f = g;
+        if (std::isfinite(f[3]) && f[3] - f[0] < 1e-6 * std::max(1.0, std::abs(f[0]))) break;
+        std::array<double, 3> centroid{0.0, 0.0, 0.0};
+        for (int i = 0; i < 3; ++i)
+            for (int k = 0; k < 3; ++k) centroid[std::size_t(k)] += p[std::size_t(i)][std::size_t(k)] / 3.0;
+        const auto reflected = along(centroid, p[3], -1.0);
+        const double fr = chi2(reflected);
+        if (fr < f[0]) {
+            const auto expanded = along(centroid, p[3], -2.0);
+            const double fe = chi2(expanded);
+            if (fe < fr) p[3] = expanded, f[3] = fe;
+            else p[3] = reflected, f[3] = fr;
+        } else if (fr < f[2]) {
+            p[3] = reflected, f[3] = fr;
+        } else {
+            const auto contracted = along(centroid, p[3], 0.5);
+            const double fc = chi2(contracted);
+            if (fc < f[3]) {
+                p[3] = contracted, f[3] = fc;
+            } else {
+                for (int i = 1; i < 4; ++i) {
+                    p[std::size_t(i)] = along(p[0], p[std::size_t(i)], 0.5);
+                    f[std::size_t(i)] = chi2(p[std::size_t(i)]);
+                }
+            }
+        }
+    }
+    return best;
+}
+
+}  // namespace
+
 Decomposition decompose(const ImageArray& image, const ImageArray& weight, const MaskArray* mask,
                         double x, double y, double beta_start, const DecomposeOptions& options) {
     options.validate();
@@ -256,6 +353,21 @@ Decomposition decompose(const ImageArray& image, const ImageArray& weight, const
         if (n == options.n_max_cap) out.stop = "n_max_cap";
     }
     if (!have_kept) throw Error("no usable fit: the stamp is too small for the lowest order");
+    if (options.elliptical && kept.model.n_max == 0 && options.n_max_cap >= elliptical_order) {
+        const double reach = std::min(std::min(x_start - 0.5, nx + 0.5 - x_start),
+                                      std::min(y_start - 0.5, ny + 0.5 - y_start));
+        const double f2 = options.noise_correlation * options.noise_correlation;
+        const std::optional<EllipticalFit> e =
+            fit_elliptical(image, weight, mask, kept, options.theta_min, reach, options, out.fits);
+        if (e && kept.chi2 - e->fit.chi2 > f2 * (2.0 + options.order_sigmas * 2.0)) {
+            kept = e->fit;
+            // Three parameters besides β: the amplitude and the shear.
+            kept_chi2r = kept.chi2 / std::max(1.0, double(kept.pixels_used) - 3.0 * f2);
+            out.elliptical = true;
+            out.g1 = e->g1;
+            out.g2 = e->g2;
+        }
+    }
     out.fit = std::move(kept);
     out.chi2r = kept_chi2r;
     out.converged = within_target(out.fit, out.chi2r, options);
@@ -277,10 +389,15 @@ Decomposition decompose(const ImageArray& image, const ImageArray& weight, const
     constexpr double h = 0.05;
     try {
         const ShapeletModel& m = out.fit.model;
-        const ShapeletFit lo =
-            fit_model(image, weight, mask, m.x, m.y, m.beta_pix * std::exp(-h), m.n_max, options);
-        const ShapeletFit hi =
-            fit_model(image, weight, mask, m.x, m.y, m.beta_pix * std::exp(h), m.n_max, options);
+        // At β e^{±h}: the same family (an elliptical model keeps its shear).
+        const auto at = [&](double beta_pix) {
+            if (!out.elliptical) return fit_model(image, weight, mask, m.x, m.y, beta_pix, m.n_max, options);
+            return fit_shape_amplitude(image, weight, mask, m.x, m.y,
+                                       elliptical_gaussian(beta_pix, out.g1, out.g2),
+                                       options.psf ? &*options.psf : nullptr);
+        };
+        const ShapeletFit lo = at(m.beta_pix * std::exp(-h));
+        const ShapeletFit hi = at(m.beta_pix * std::exp(h));
         out.fits += 2;
         const double curvature = (lo.chi2 + hi.chi2 - 2.0 * out.fit.chi2) / (h * h);
         const double slope = (flux(hi.model) - flux(lo.model)) / (2.0 * h);
@@ -367,6 +484,7 @@ ShapeletRecord shapelet_record(const SourceRecord& source, const Decomposition& 
 
     r.flags.push_back(decomposition.converged ? "converged" : "not_converged");
     if (decomposition.stop == "n_max_cap") r.flags.push_back("n_max_cap");
+    if (decomposition.elliptical) r.flags.push_back("elliptical");
     if (decomposition.bad_fit) r.flags.push_back("bad_fit");
     if (decomposition.holes) r.flags.push_back("holes");
     // Undefined (null) for a model with no positive peak or total: all hole.
@@ -404,6 +522,7 @@ ShapeletRecord shapelet_record(const SourceRecord& source, const Decomposition& 
     if (std::isfinite(sigma_flux)) e["flux_err"] = sigma_flux;
     e["flux_err_truncation"] = decomposition.truncation_error;
     e["stop"] = decomposition.stop;
+    if (decomposition.elliptical) e["shear"] = Json::array({decomposition.g1, decomposition.g2});
     e["fits"] = decomposition.fits;
     Json trials = Json::array();
     for (const OrderTrial& t : decomposition.trials)

@@ -203,4 +203,39 @@ ShapeletFit fit_convolved_shapelets(const ImageArray& image, const ImageArray& w
     return fit;
 }
 
+ShapeletFit fit_shape_amplitude(const ImageArray& image, const ImageArray& weight,
+                                const MaskArray* mask, double x, double y,
+                                const ShapeletModel& shape, const CartesianModel* psf) {
+    const int n_max = shape.n_max;
+    const double beta_pix = shape.beta_pix;
+    check_fit_inputs(n_max, beta_pix);
+    const CleanStamp s = clean_stamp(image, weight, mask);
+    check_pixels(s, 0);
+    const Eigen::VectorXd unit = pack_cartesian(to_cartesian(shape).b, n_max);
+    // The shape as the data see it: through the PSF's exact convolution map, or as it is.
+    const int n_out = psf ? n_max + psf->n_max : n_max;
+    const double scale = psf ? convolved_beta(beta_pix, psf->beta_pix) : beta_pix;
+    const Eigen::VectorXd seen =
+        psf ? Eigen::VectorXd(cartesian_convolution_matrix(*psf, beta_pix, n_max) * unit) : unit;
+    const int nx = int(image.cols()), ny = int(image.rows());
+    const NormalSystem full = normal_system(s, pixel_basis_1d(n_out, scale, 1.0 - x, nx),
+                                            pixel_basis_1d(n_out, scale, 1.0 - y, ny), n_out);
+    const double normal = seen.dot(full.normal * seen);
+    if (!(normal > 0.0) || !std::isfinite(normal))
+        throw Error("the shape leaves no light on the stamp's usable pixels");
+    const double a = seen.dot(full.rhs) / normal;
+    const Solution sol{a * unit, unit * unit.transpose() / normal};
+    CartesianModel observed(x, y, scale, n_out);
+    observed.b = unpack_cartesian(a * seen, n_out);
+    ShapeletFit fit = finish_fit(image, s, sol, x, y, beta_pix, n_max, observed);
+    // The rank-one covariance in the real parameters directly: a diagonal rounded from the
+    // Cartesian one can fall a hair below zero.
+    const Eigen::VectorXd real = change_basis_rows(BasisChange::cartesian_to_real, unit, n_max);
+    fit.covariance = real * real.transpose() / normal;
+    fit.dof = s.used - 1;
+    fit.chi2r = fit.chi2 / double(fit.dof);
+    fit.solver_used = LsqSolver::normal;
+    return fit;
+}
+
 }  // namespace shapesim

@@ -69,4 +69,14 @@ ShapeletFit fit_convolved_shapelets(const ImageArray& image, const ImageArray& w
                                     int n_max, const CartesianModel& psf,
                                     LsqSolver solver = LsqSolver::automatic);
 
+/// The best multiple of one fixed shape: the model a·`shape` (its coefficients and β_pix; its
+/// centre replaced by (x, y)), seen through `psf` when given (intrinsic, as
+/// fit_convolved_shapelets), a the one linear unknown. `model` is a·shape, `covariance` that
+/// of its real parameters (Var a times the shape's outer product), `dof` pixels − 1; images and
+/// χ² as the other fits'. For a family of shapes searched outside (decompose's elliptical
+/// Gaussians). Throws Error as fit_shapelets, or when the shape leaves no light on the pixels.
+ShapeletFit fit_shape_amplitude(const ImageArray& image, const ImageArray& weight,
+                                const MaskArray* mask, double x, double y,
+                                const ShapeletModel& shape, const CartesianModel* psf = nullptr);
+
 }  // namespace shapesim

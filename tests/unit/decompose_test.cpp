@@ -463,3 +463,59 @@ TEST(DecomposeOrders, IntrinsicHolesAreJudgedThroughThePsf) {
     report("intrinsic_fit_own_frame_hole_depth", pixel_holes(to_cartesian(d.fit.model)).depth);
     EXPECT_GT(pixel_holes(to_cartesian(d.fit.model)).depth, o.max_hole);
 }
+
+// The elliptical lowest order (decompose.hpp). A faint galaxy elongated by g = (0.3, −0.15)
+// (a sheared Gaussian, β 2.4 px, peak S/N 2.5 in a 41² stamp), 40 noise draws: where the order
+// search alone ends at a round n_max 0 (18 draws), the sheared Gaussian is significant in most
+// (12; flag "elliptical") and gives the shear back (mean 0.290, −0.133), so the model's
+// ellipticity is the galaxy's instead of 0. A round galaxy of the same S/N is seldom called
+// elliptical: the threshold, 2 + 2·3 for two parameters, is χ²₂ beyond 8, 1.8% of pure noise.
+TEST(DecomposeElliptical, FaintElongatedGalaxyKeepsItsShape) {
+    const int side = 41, seeds = 40;
+    const double g1 = 0.3, g2 = -0.15, snr = 2.5;
+    DecomposeOptions round_only;
+    round_only.elliptical = false;
+    const auto draws = [&](const ShapeletModel& truth, auto&& each) {
+        const double sigma = render_stamp(truth, side, side).maxCoeff() / snr;
+        const ImageArray weight = ImageArray::Constant(side, side, 1.0 / (sigma * sigma));
+        for (int seed = 0; seed < seeds; ++seed) {
+            const ImageArray image = test::noisy_stamp(truth, side, sigma, 500 + std::uint64_t(seed), 1);
+            each(decompose(image, weight, nullptr, 21.0, 21.0, 2.0, DecomposeOptions{}),
+                 decompose(image, weight, nullptr, 21.0, 21.0, 2.0, round_only));
+        }
+    };
+    ShapeletModel elongated = elliptical_gaussian(2.4, g1, g2);
+    elongated.x = elongated.y = 21.0;
+    int round_search = 0, elliptical = 0;
+    double sum_g1 = 0.0, sum_g2 = 0.0, e_on = 0.0;
+    draws(elongated, [&](const Decomposition& on, const Decomposition& off) {
+        if (off.fit.model.n_max != 0) return;
+        ++round_search;
+        EXPECT_DOUBLE_EQ(std::abs(moments(off.fit.model).epsilon), 0.0);
+        if (!on.elliptical) return;
+        ++elliptical;
+        sum_g1 += on.g1;
+        sum_g2 += on.g2;
+        e_on += std::abs(moments(on.fit.model).epsilon);
+        EXPECT_EQ(on.fit.model.n_max, elliptical_order);
+        EXPECT_TRUE(has_flag(record_of(on, side), "elliptical"));
+        EXPECT_LT(on.chi2r, 1.2);
+    });
+    ShapeletModel round(21.0, 21.0, 2.4, 0);
+    round.coeffs[0] = 1.0;
+    int false_positive = 0;
+    draws(round, [&](const Decomposition& on, const Decomposition&) { false_positive += on.elliptical; });
+    report("round_search_n_max_0", round_search);
+    report("elliptical_models", elliptical);
+    report("mean_g1", sum_g1 / std::max(elliptical, 1));
+    report("mean_g2", sum_g2 / std::max(elliptical, 1));
+    report("mean_model_ellipticity", e_on / std::max(elliptical, 1));
+    report("truth_ellipticity", std::abs(moments(elongated).epsilon));
+    report("round_called_elliptical", false_positive);
+    ASSERT_GE(round_search, 12);
+    EXPECT_GE(elliptical, round_search / 2);
+    EXPECT_NEAR(sum_g1 / elliptical, g1, 0.05);
+    EXPECT_NEAR(sum_g2 / elliptical, g2, 0.06);
+    EXPECT_NEAR(e_on / elliptical, std::abs(moments(elongated).epsilon), 0.06);
+    EXPECT_LE(false_positive, 3);  // 1.8% of 40 is 0.7
+}
