@@ -135,8 +135,8 @@ expect_error "$rc" 2 'neighbours'
 
 # With the real field recorded (smooth --like), conditional draws take their magnitudes from a
 # power law fitted to its counts (--counts fit, the default): the one I = 20.7 galaxy of a
-# 0.12 arcmin² cut no longer puts 1/64 of a 6 arcmin² field's draws at I ≈ 21 (67 brighter
-# than 22 where the fitted slope, 0.27 dex/mag, expects 29), and every draw's shape
+# 0.12 arcmin² cut no longer puts 1/64 of a 6 arcmin² field's draws at I ≈ 21 (73 brighter
+# than 22 where the fitted slope, 0.27 dex/mag, expects 28), and every draw's shape
 # parent is its one parent. --counts parents keeps the parents' magnitudes.
 "$BIN/$prog" dense.json --area 6 --pixel-scale 0.03985 --seed 7 --neighbours 16 \
   >fit6.jsonl 2>fit6.err || fail "--counts fit failed: $(cat fit6.err)"
