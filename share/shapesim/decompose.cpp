@@ -5,6 +5,7 @@
 #include "shapesim/jsonl.hpp"
 #include "shapesim/model.hpp"
 #include "shapesim/moments.hpp"
+#include "shapesim/optimize.hpp"
 #include "shapesim/polar.hpp"
 #include "shapesim/render.hpp"
 #include "shapesim/transform.hpp"
@@ -173,7 +174,7 @@ ShapeletModel elliptical_gaussian(double beta_pix, double g1, double g2) {
 namespace {
 
 // The elliptical lowest order (see decompose.hpp): the sheared Gaussian of least χ² at the
-// round fit's centre, (g1, g2, ln β) by Nelder–Mead from the round fit's β.
+// round fit's centre, (g1, g2, ln β) by Nelder–Mead (optimize.hpp) from the round fit's β.
 struct EllipticalFit {
     ShapeletFit fit;
     double g1 = 0.0, g2 = 0.0;
@@ -203,55 +204,12 @@ std::optional<EllipticalFit> fit_elliptical(const ImageArray& image, const Image
             return infinite;
         }
     };
-    // Nelder–Mead (reflection 1, expansion 2, contraction ½, shrink ½).
-    std::array<std::array<double, 3>, 4> p;
-    p.fill({0.0, 0.0, std::log(round.model.beta_pix)});
-    p[1][0] += 0.15;
-    p[2][1] += 0.15;
-    p[3][2] += 0.15;
-    std::array<double, 4> f;
-    for (int i = 0; i < 4; ++i) f[std::size_t(i)] = chi2(p[std::size_t(i)]);
-    const auto along = [](const std::array<double, 3>& a, const std::array<double, 3>& b, double t) {
-        return std::array<double, 3>{a[0] + t * (b[0] - a[0]), a[1] + t * (b[1] - a[1]),
-                                     a[2] + t * (b[2] - a[2])};
-    };
-    for (int step = 0; step < 120; ++step) {
-        std::array<int, 4> order{0, 1, 2, 3};
-        std::sort(order.begin(), order.end(), [&](int a, int b) { return f[std::size_t(a)] < f[std::size_t(b)]; });
-        std::array<std::array<double, 3>, 4> q;
-        std::array<double, 4> g;
-        for (int i = 0; i < 4; ++i) {
-            q[std::size_t(i)] = p[std::size_t(order[std::size_t(i)])];
-            g[std::size_t(i)] = f[std::size_t(order[std::size_t(i)])];
-        }
-        p = q;
-        f = g;
-        if (std::isfinite(f[3]) && f[3] - f[0] < 1e-6 * std::max(1.0, std::abs(f[0]))) break;
-        std::array<double, 3> centroid{0.0, 0.0, 0.0};
-        for (int i = 0; i < 3; ++i)
-            for (int k = 0; k < 3; ++k) centroid[std::size_t(k)] += p[std::size_t(i)][std::size_t(k)] / 3.0;
-        const auto reflected = along(centroid, p[3], -1.0);
-        const double fr = chi2(reflected);
-        if (fr < f[0]) {
-            const auto expanded = along(centroid, p[3], -2.0);
-            const double fe = chi2(expanded);
-            if (fe < fr) p[3] = expanded, f[3] = fe;
-            else p[3] = reflected, f[3] = fr;
-        } else if (fr < f[2]) {
-            p[3] = reflected, f[3] = fr;
-        } else {
-            const auto contracted = along(centroid, p[3], 0.5);
-            const double fc = chi2(contracted);
-            if (fc < f[3]) {
-                p[3] = contracted, f[3] = fc;
-            } else {
-                for (int i = 1; i < 4; ++i) {
-                    p[std::size_t(i)] = along(p[0], p[std::size_t(i)], 0.5);
-                    f[std::size_t(i)] = chi2(p[std::size_t(i)]);
-                }
-            }
-        }
-    }
+    NelderMeadOptions search;
+    search.step = 0.15;   // in g and in ln β
+    search.xatol = 1e-3;
+    search.fatol = 1e-3;  // in χ²
+    search.max_calls = 200;
+    nelder_mead<3>(chi2, {0.0, 0.0, std::log(round.model.beta_pix)}, search);
     return best;
 }
 

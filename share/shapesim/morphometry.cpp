@@ -1,6 +1,7 @@
 #include "shapesim/morphometry.hpp"
 
 #include "shapesim/error.hpp"
+#include "shapesim/optimize.hpp"
 
 extern "C" {
 #include <sep.h>
@@ -204,80 +205,6 @@ Grid rotate180(const Grid& in, double xc, double yc) {
     return out;
 }
 
-// Nelder–Mead as scipy.optimize.fmin (non-adaptive): returns the best vertex.
-std::array<double, 2> nelder_mead(const std::function<double(const std::array<double, 2>&)>& f,
-                                  std::array<double, 2> start) {
-    using V = std::array<double, 2>;
-    std::array<V, 3> v;
-    v[0] = start;
-    for (int k = 0; k < 2; ++k) {
-        V p = start;
-        p[std::size_t(k)] = p[std::size_t(k)] != 0.0 ? 1.05 * p[std::size_t(k)] : 0.00025;
-        v[std::size_t(k) + 1] = p;
-    }
-    std::array<double, 3> fv{f(v[0]), f(v[1]), f(v[2])};
-    int calls = 3, iterations = 1;
-    auto sort = [&] {
-        std::array<int, 3> order{0, 1, 2};
-        std::stable_sort(order.begin(), order.end(), [&](int a, int b) { return fv[std::size_t(a)] < fv[std::size_t(b)]; });
-        std::array<V, 3> v2;
-        std::array<double, 3> f2;
-        for (int k = 0; k < 3; ++k) {
-            v2[std::size_t(k)] = v[std::size_t(order[std::size_t(k)])];
-            f2[std::size_t(k)] = fv[std::size_t(order[std::size_t(k)])];
-        }
-        v = v2;
-        fv = f2;
-    };
-    sort();
-    while (calls < 400 && iterations < 400) {
-        double size = 0.0, spread = 0.0;
-        for (int k = 1; k < 3; ++k) {
-            for (int d = 0; d < 2; ++d) size = std::max(size, std::abs(v[std::size_t(k)][std::size_t(d)] - v[0][std::size_t(d)]));
-            spread = std::max(spread, std::abs(fv[0] - fv[std::size_t(k)]));
-        }
-        if (size <= 1e-6 && spread <= 1e-4) break;
-        const V bar{0.5 * (v[0][0] + v[1][0]), 0.5 * (v[0][1] + v[1][1])};
-        auto point = [&](double t) { return V{bar[0] + t * (v[2][0] - bar[0]), bar[1] + t * (v[2][1] - bar[1])}; };
-        const V xr = point(-1.0);
-        const double fr = f(xr);
-        ++calls;
-        bool shrink = false;
-        if (fr < fv[0]) {
-            const V xe = point(-2.0);
-            const double fe = f(xe);
-            ++calls;
-            if (fe < fr) { v[2] = xe; fv[2] = fe; }
-            else { v[2] = xr; fv[2] = fr; }
-        } else if (fr < fv[1]) {
-            v[2] = xr;
-            fv[2] = fr;
-        } else if (fr < fv[2]) {
-            const V xc = point(-0.5);
-            const double fc = f(xc);
-            ++calls;
-            if (fc <= fr) { v[2] = xc; fv[2] = fc; }
-            else shrink = true;
-        } else {
-            const V xcc = point(0.5);
-            const double fcc = f(xcc);
-            ++calls;
-            if (fcc < fv[2]) { v[2] = xcc; fv[2] = fcc; }
-            else shrink = true;
-        }
-        if (shrink)
-            for (int k = 1; k < 3; ++k) {
-                for (int d = 0; d < 2; ++d)
-                    v[std::size_t(k)][std::size_t(d)] = v[0][std::size_t(d)] + 0.5 * (v[std::size_t(k)][std::size_t(d)] - v[0][std::size_t(d)]);
-                fv[std::size_t(k)] = f(v[std::size_t(k)]);
-                ++calls;
-            }
-        sort();
-        ++iterations;
-    }
-    return v[0];
-}
-
 }  // namespace
 
 Morphometry measure_morphometry(const ImageArray& image, const LabelArray& labels, int label,
@@ -399,7 +326,7 @@ Morphometry measure_morphometry(const ImageArray& image, const LabelArray& label
         if (!(s_abs > 0.0)) return nan;
         return (d - area * sky_asymmetry) / s_abs;
     };
-    std::array<double, 2> centre = nelder_mead(asymmetry_at, {out.x_centroid, out.y_centroid});
+    std::array<double, 2> centre = nelder_mead<2>(asymmetry_at, {out.x_centroid, out.y_centroid});
     if (left_stamp) {
         flag("asymmetry_centre_left_stamp");
         centre = {out.x_centroid, out.y_centroid};

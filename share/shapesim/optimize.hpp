@@ -1,0 +1,110 @@
+// Derivative-free minimisation: Nelder–Mead as scipy.optimize.fmin (non-adaptive: reflection 1,
+// expansion 2, contraction ½, shrink ½; outside and inside contraction told apart), over N
+// parameters. Morphometry's asymmetry centre (statmorph's choice, so its defaults are scipy's)
+// and decompose's elliptical Gaussians use it.
+#pragma once
+
+#include <algorithm>
+#include <array>
+#include <cmath>
+#include <cstddef>
+#include <numeric>
+
+namespace shapesim {
+
+/// How nelder_mead() starts and stops.
+struct NelderMeadOptions {
+    /// Start simplex: each coordinate moved by `step` when > 0, else (scipy's rule) by 5% of
+    /// itself, or 0.00025 when it is 0.
+    double step = 0.0;
+    double xatol = 1e-6;  ///< stop when every vertex lies within this of the best, per coordinate …
+    double fatol = 1e-4;  ///< … and their values within this of the best value
+    int max_calls = 400;  ///< or after this many calls of f
+    int max_iterations = 400;
+};
+
+/// The best vertex found minimising f (std::array<double, N> → double; +∞ marks a forbidden
+/// point) from `start`.
+template <std::size_t N, class F>
+std::array<double, N> nelder_mead(const F& f, const std::array<double, N>& start,
+                                  const NelderMeadOptions& options = {}) {
+    using V = std::array<double, N>;
+    std::array<V, N + 1> v;
+    std::array<double, N + 1> fv;
+    v[0] = start;
+    for (std::size_t k = 0; k < N; ++k) {
+        V p = start;
+        if (options.step > 0.0) p[k] += options.step;
+        else p[k] = p[k] != 0.0 ? 1.05 * p[k] : 0.00025;
+        v[k + 1] = p;
+    }
+    for (std::size_t k = 0; k <= N; ++k) fv[k] = f(v[k]);
+    int calls = int(N) + 1, iterations = 1;
+    const auto sort = [&] {
+        std::array<std::size_t, N + 1> order;
+        std::iota(order.begin(), order.end(), std::size_t(0));
+        std::stable_sort(order.begin(), order.end(), [&](std::size_t a, std::size_t b) { return fv[a] < fv[b]; });
+        std::array<V, N + 1> v2;
+        std::array<double, N + 1> f2;
+        for (std::size_t k = 0; k <= N; ++k) {
+            v2[k] = v[order[k]];
+            f2[k] = fv[order[k]];
+        }
+        v = v2;
+        fv = f2;
+    };
+    sort();
+    while (calls < options.max_calls && iterations < options.max_iterations) {
+        double size = 0.0, spread = 0.0;
+        for (std::size_t k = 1; k <= N; ++k) {
+            for (std::size_t d = 0; d < N; ++d) size = std::max(size, std::abs(v[k][d] - v[0][d]));
+            spread = std::max(spread, std::abs(fv[0] - fv[k]));
+        }
+        if (size <= options.xatol && spread <= options.fatol) break;
+        V bar{};
+        for (std::size_t k = 0; k < N; ++k)
+            for (std::size_t d = 0; d < N; ++d) bar[d] += v[k][d];
+        for (std::size_t d = 0; d < N; ++d) bar[d] /= double(N);
+        const auto point = [&](double t) {
+            V p;
+            for (std::size_t d = 0; d < N; ++d) p[d] = bar[d] + t * (v[N][d] - bar[d]);
+            return p;
+        };
+        const V xr = point(-1.0);
+        const double fr = f(xr);
+        ++calls;
+        bool shrink = false;
+        if (fr < fv[0]) {
+            const V xe = point(-2.0);
+            const double fe = f(xe);
+            ++calls;
+            if (fe < fr) v[N] = xe, fv[N] = fe;
+            else v[N] = xr, fv[N] = fr;
+        } else if (fr < fv[N - 1]) {
+            v[N] = xr, fv[N] = fr;
+        } else if (fr < fv[N]) {
+            const V xc = point(-0.5);
+            const double fc = f(xc);
+            ++calls;
+            if (fc <= fr) v[N] = xc, fv[N] = fc;
+            else shrink = true;
+        } else {
+            const V xcc = point(0.5);
+            const double fcc = f(xcc);
+            ++calls;
+            if (fcc < fv[N]) v[N] = xcc, fv[N] = fcc;
+            else shrink = true;
+        }
+        if (shrink)
+            for (std::size_t k = 1; k <= N; ++k) {
+                for (std::size_t d = 0; d < N; ++d) v[k][d] = v[0][d] + 0.5 * (v[k][d] - v[0][d]);
+                fv[k] = f(v[k]);
+                ++calls;
+            }
+        sort();
+        ++iterations;
+    }
+    return v[0];
+}
+
+}  // namespace shapesim
