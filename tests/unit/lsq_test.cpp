@@ -21,6 +21,23 @@ double max_relative_error(const ShapeletModel& fit, const ShapeletModel& truth) 
     const Eigen::VectorXd a = real_parameters(fit), b = real_parameters(truth);
     return (a - b).cwiseAbs().maxCoeff() / b.cwiseAbs().maxCoeff();
 }
+
+// The rms of pull(image, weight, d) over `draws` images: `clean` plus Gaussian noise of σ
+// (std::mt19937_64 seeded with `seed`), weights 1/σ².
+template <class Pull>
+double pull_rms(const ImageArray& clean, double sigma, unsigned seed, int draws, const Pull& pull) {
+    const ImageArray weight = ImageArray::Constant(clean.rows(), clean.cols(), 1.0 / (sigma * sigma));
+    std::mt19937_64 engine(seed);
+    std::normal_distribution<double> normal(0.0, sigma);
+    double sum2 = 0.0;
+    for (int d = 0; d < draws; ++d) {
+        ImageArray image = clean;
+        for (Eigen::Index k = 0; k < image.size(); ++k) image.data()[k] += normal(engine);
+        const double p = pull(image, weight, d);
+        sum2 += p * p;
+    }
+    return std::sqrt(sum2 / draws);
+}
 }  // namespace
 
 // Noise-free fits of the 24 GalSim stamps at their own centre and β recover the stored
@@ -158,20 +175,10 @@ TEST(LsqConvolved, PullsAndSolversAgree) {
     for (auto& c : psf.coeffs) c /= f;
     const CartesianModel psf_cart = to_cartesian(psf);
     const ImageArray clean = render_stamp(to_cartesian(convolve(galaxy, psf)), 40, 40);
-    const double sigma = 0.02 * clean.maxCoeff();
-    const ImageArray weight = ImageArray::Constant(40, 40, 1.0 / (sigma * sigma));
-    std::mt19937_64 engine(5);
-    std::normal_distribution<double> normal(0.0, sigma);
-    double sum2 = 0.0;
-    const int draws = 200;
-    for (int d = 0; d < draws; ++d) {
-        ImageArray image = clean;
-        for (Eigen::Index k = 0; k < image.size(); ++k) image.data()[k] += normal(engine);
+    const double rms = pull_rms(clean, 0.02 * clean.maxCoeff(), 5, 200,
+                                [&](const ImageArray& image, const ImageArray& weight, int d) {
         const ShapeletFit fit = fit_convolved_shapelets(image, weight, nullptr, galaxy.x, galaxy.y,
                                                         2.0, 4, psf_cart);
-        const double pull = (real_parameters(fit.model)(0) - real_parameters(galaxy)(0)) /
-                            std::sqrt(fit.covariance(0, 0));
-        sum2 += pull * pull;
         if (d == 0) {
             const ShapeletFit qr = fit_convolved_shapelets(image, weight, nullptr, galaxy.x,
                                                            galaxy.y, 2.0, 4, psf_cart, LsqSolver::qr);
@@ -179,8 +186,9 @@ TEST(LsqConvolved, PullsAndSolversAgree) {
             EXPECT_NEAR(qr.chi2, fit.chi2, 1e-8 * fit.chi2);
             EXPECT_EQ(qr.solver_used, LsqSolver::qr);
         }
-    }
-    const double rms = std::sqrt(sum2 / draws);
+        return (real_parameters(fit.model)(0) - real_parameters(galaxy)(0)) /
+               std::sqrt(fit.covariance(0, 0));
+    });
     std::cout << "  [measured] a_00 pull rms " << rms << "\n";
     EXPECT_NEAR(rms, 1.0, 0.15);
 }
@@ -210,20 +218,11 @@ TEST(LsqAmplitude, RecoversTheAmplitudeOfAFixedShape) {
     EXPECT_NEAR(b.model.coeffs[0].real(), 3.7, 1e-9);
     EXPECT_LT(b.residual.abs().maxCoeff(), 1e-9 * seen.abs().maxCoeff());
     // Pulls of the amplitude.
-    const double sigma = 0.05 * plain.maxCoeff();
-    const ImageArray weight = ImageArray::Constant(40, 40, 1.0 / (sigma * sigma));
-    std::mt19937_64 engine(7);
-    std::normal_distribution<double> normal(0.0, sigma);
-    double sum2 = 0.0;
-    const int draws = 300;
-    for (int d = 0; d < draws; ++d) {
-        ImageArray image = plain;
-        for (Eigen::Index k = 0; k < image.size(); ++k) image.data()[k] += normal(engine);
+    const double rms = pull_rms(plain, 0.05 * plain.maxCoeff(), 7, 300,
+                                [&](const ImageArray& image, const ImageArray& weight, int) {
         const ShapeletFit fit = fit_shape_amplitude(image, weight, nullptr, truth.x, truth.y, shape);
-        const double pull = (fit.model.coeffs[0].real() - 3.7) / std::sqrt(fit.covariance(0, 0));
-        sum2 += pull * pull;
-    }
-    const double rms = std::sqrt(sum2 / draws);
+        return (fit.model.coeffs[0].real() - 3.7) / std::sqrt(fit.covariance(0, 0));
+    });
     std::cout << "  [measured] amplitude pull rms " << rms << "\n";
     EXPECT_NEAR(rms, 1.0, 0.12);
     EXPECT_THROW(fit_shape_amplitude(plain, ImageArray::Zero(40, 40), nullptr, 20.0, 20.0, shape), Error);
