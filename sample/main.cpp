@@ -131,18 +131,22 @@ int run(int argc, const char* const argv[]) {
     }
     if (s.counts != "fit" && s.counts != "parents")
         throw po::error("--counts takes 'fit' or 'parents', not '" + s.counts + "'");
-    o.fitted_counts = s.counts == "fit";
     // The real field's density at this magnitude limit, when smooth recorded it (--like): the
     // fitted counts' with them.
-    const std::optional<CountModel> counts =
-        o.fitted_counts ? conditional_counts(morphology, o.draw, o.mag_limit) : std::nullopt;
+    if (s.counts == "fit") {
+        try {
+            o.draw.counts = conditional_counts(morphology, o.draw, o.mag_limit);
+        } catch (const Error& e) {
+            throw Error(e.message() + "; draw with --counts parents", s.model);
+        }
+    }
+    const std::optional<CountModel>& counts = o.draw.counts;
     if (!options.given("density") && !morphology.source_fields.empty())
         o.density = counts ? counts->density() : field_density(morphology.source_fields, o.mag_limit);
     if (counts)
-        log.info("galaxy counts: d log10 N / dm = ", counts->slope, ", ",
-                 counts->density(counts->bright, counts->faint), " per arcmin^2 over ", counts->bright,
-                 " - ", counts->faint, ", fitted to ", counts->galaxies, " galaxies of ",
-                 morphology.source_fields.size(), " field(s)");
+        log.info("galaxy counts: d log10 N / dm = ", counts->slope, ", ", counts->density(),
+                 " per arcmin^2 over ", counts->bright, " - ", counts->faint, ", fitted to ",
+                 counts->galaxies, " galaxies of ", morphology.source_fields.size(), " field(s)");
     o.seed = options.common().seed;
     if (options.given("count")) o.count = s.count;
     if (options.given("star-count")) o.star_count = s.star_count;

@@ -181,8 +181,9 @@ struct EllipticalFit {
 };
 std::optional<EllipticalFit> fit_elliptical(const ImageArray& image, const ImageArray& weight,
                                             const MaskArray* mask, const ShapeletFit& round,
-                                            double theta_min, double reach,
-                                            const DecomposeOptions& options, long& fits) {
+                                            double reach, const DecomposeOptions& options,
+                                            long& fits) {
+    const double theta_min = options.theta_min;
     const double x = round.model.x, y = round.model.y;
     std::optional<EllipticalFit> best;
     const auto chi2 = [&](const std::array<double, 3>& v) {
@@ -231,12 +232,12 @@ Decomposition decompose(const ImageArray& image, const ImageArray& weight, const
     double kept_chi2r = infinite;
     double beta = beta_start;
     const double x_start = x, y_start = y;
+    // Largest scale inside the stamp, measured from the start centre (the centre moves by a
+    // fraction of a pixel, the bound need not follow it).
+    const double reach = std::min(std::min(x_start - 0.5, nx + 0.5 - x_start),
+                                  std::min(y_start - 0.5, ny + 0.5 - y_start));
     for (int n = options.n_max_min; n <= options.n_max_cap; ++n) {
         const double root = std::sqrt(n + 1.0);
-        // Largest scale inside the stamp, measured from the start centre (the centre moves by
-        // a fraction of a pixel, the bound need not follow it).
-        const double reach = std::min(std::min(x_start - 0.5, nx + 0.5 - x_start),
-                                      std::min(y_start - 0.5, ny + 0.5 - y_start));
         const double lo = options.theta_min * root, hi = reach / root;
         if (lo > hi) {
             out.stop = "stamp_small";
@@ -312,11 +313,9 @@ Decomposition decompose(const ImageArray& image, const ImageArray& weight, const
     }
     if (!have_kept) throw Error("no usable fit: the stamp is too small for the lowest order");
     if (options.elliptical && kept.model.n_max == 0 && options.n_max_cap >= elliptical_order) {
-        const double reach = std::min(std::min(x_start - 0.5, nx + 0.5 - x_start),
-                                      std::min(y_start - 0.5, ny + 0.5 - y_start));
         const double f2 = options.noise_correlation * options.noise_correlation;
         const std::optional<EllipticalFit> e =
-            fit_elliptical(image, weight, mask, kept, options.theta_min, reach, options, out.fits);
+            fit_elliptical(image, weight, mask, kept, reach, options, out.fits);
         if (e && kept.chi2 - e->fit.chi2 > f2 * (2.0 + options.order_sigmas * 2.0)) {
             kept = e->fit;
             // Three parameters besides β: the amplitude and the shear.

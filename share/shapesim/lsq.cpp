@@ -217,16 +217,16 @@ ShapeletFit fit_shape_amplitude(const ImageArray& image, const ImageArray& weigh
     const double scale = psf ? convolved_beta(beta_pix, psf->beta_pix) : beta_pix;
     const Eigen::VectorXd seen =
         psf ? Eigen::VectorXd(cartesian_convolution_matrix(*psf, beta_pix, n_max) * unit) : unit;
-    const int nx = int(image.cols()), ny = int(image.rows());
-    const NormalSystem full = normal_system(s, pixel_basis_1d(n_out, scale, 1.0 - x, nx),
-                                            pixel_basis_1d(n_out, scale, 1.0 - y, ny), n_out);
-    const double normal = seen.dot(full.normal * seen);
+    // One basis function: its image u, then a = Σ w I u / Σ w u², Var a = 1 / Σ w u².
+    CartesianModel observed(x, y, scale, n_out);
+    observed.b = unpack_cartesian(seen, n_out);
+    const Eigen::MatrixXd u = render_stamp(observed, int(image.cols()), int(image.rows())).matrix();
+    const double normal = s.weight.cwiseProduct(u.cwiseProduct(u)).sum();
     if (!(normal > 0.0) || !std::isfinite(normal))
         throw Error("the shape leaves no light on the stamp's usable pixels");
-    const double a = seen.dot(full.rhs) / normal;
+    const double a = s.weight.cwiseProduct(s.image).cwiseProduct(u).sum() / normal;
     const Solution sol{a * unit, unit * unit.transpose() / normal};
-    CartesianModel observed(x, y, scale, n_out);
-    observed.b = unpack_cartesian(a * seen, n_out);
+    observed.b *= a;
     ShapeletFit fit = finish_fit(image, s, sol, x, y, beta_pix, n_max, observed);
     // The rank-one covariance in the real parameters directly: a diagonal rounded from the
     // Cartesian one can fall a hair below zero.

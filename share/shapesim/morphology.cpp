@@ -763,7 +763,6 @@ DrawnGalaxy draw_galaxy(const Morphology& morphology, const std::vector<double>&
             mag = counted ? g.mag : first.mag;
             beta = counted ? scaled_beta(first, mag) : first.beta;
             drawn = unperturbed(first);
-            drawn.change = 0.0;
             break;
         }
         if (counted) {

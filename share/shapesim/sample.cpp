@@ -133,7 +133,6 @@ SampleSummary sample_field(const Morphology& morphology, const FieldGeometry& fi
     const std::vector<double> parents = parent_table(morphology, options.mag_limit);
     DrawOptions draw = options.draw;
     draw.by_magnitude = magnitude_order(morphology, options.mag_limit);
-    if (options.fitted_counts) draw.counts = conditional_counts(morphology, draw, options.mag_limit);
     if (options.count) {
         summary.galaxies = *options.count;
     } else {

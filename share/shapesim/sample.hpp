@@ -54,10 +54,9 @@ struct SampleOptions {
     double zero_point = 0.0;           ///< of the output fluxes
     double margin = 0.0;               ///< pixels added to every reach (PSF, …)
     /// Shapes conditional on magnitude (morphology.hpp; `by_magnitude` is filled here).
+    /// With draw.counts (conditional_counts), conditional draws take their magnitudes from
+    /// those fitted counts; without, from a parent's magnitude, perturbed.
     DrawOptions draw;
-    /// Conditional draws take their magnitudes from a power law fitted to the model's fields
-    /// (conditional_counts); false: from a parent's magnitude, perturbed.
-    bool fitted_counts = true;
     StarCounts stars;
     std::optional<std::uint64_t> star_count;
     void validate() const;

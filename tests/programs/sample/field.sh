@@ -174,6 +174,17 @@ for y in "1 512" "513 1024"; do
   done
 done
 cmp -s <(sort -u fitt.jsonl) <(sort fitw.jsonl) || fail "fitted-counts tiles differ from their field"
+# A field too thin to fit counts to: one line that names the model and the way out.
+python3 - <<'PY'
+import json
+m = json.load(open("dense.json"))
+m["source_field"]["mags"] = m["source_field"]["mags"][:1]
+json.dump(m, open("thin.json", "w"))
+PY
+rc=0; "$BIN/$prog" thin.json --area 1 --neighbours 4 >out 2>err || rc=$?
+expect_error "$rc" 1 'thin.json: .*too few to fit counts to; draw with --counts parents'
+[ ! -s out ] || fail "a failed fit wrote objects"
+"$BIN/$prog" thin.json --area 1 --neighbours 4 --counts parents -q >out || fail "--counts parents on a thin field failed"
 rc=0; "$BIN/$prog" dense.json --area 1 --neighbours 4 --counts bogus >out 2>err || rc=$?
 expect_error "$rc" 2 'counts'
 
