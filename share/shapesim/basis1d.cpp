@@ -79,12 +79,13 @@ Eigen::MatrixXd sampled_basis_1d(int n_max, double beta_pix, double first_offset
 }
 
 void pixel_basis_1d(int n_max, double beta_pix, double first_offset, int npix,
-                    Eigen::MatrixXd& out) {
+                    Eigen::Ref<Eigen::MatrixXd> out, Eigen::Ref<Eigen::MatrixXd> edges) {
     require(n_max >= 0 && beta_pix > 0 && npix >= 0, "pixel_basis_1d: bad arguments");
-    if (out.rows() != n_max + 1 || out.cols() != npix) out.resize(n_max + 1, npix);
+    require(out.rows() == n_max + 1 && out.cols() == npix && edges.rows() == n_max + 1 &&
+                edges.cols() == npix + 1,
+            "pixel_basis_1d: wrong buffer sizes");
     if (npix == 0) return;
     // φ at the npix+1 pixel edges, each computed once and shared by its two pixels.
-    Eigen::MatrixXd edges(n_max + 1, npix + 1);
     for (int e = 0; e <= npix; ++e)
         hermite_functions((first_offset + e - 0.5) / beta_pix, n_max, edges.col(e).data());
     const double norm = std::sqrt(beta_pix);  // ∫ B_n dx = β^{1/2} I_n
@@ -98,8 +99,9 @@ void pixel_basis_1d(int n_max, double beta_pix, double first_offset, int npix,
 }
 
 Eigen::MatrixXd pixel_basis_1d(int n_max, double beta_pix, double first_offset, int npix) {
-    Eigen::MatrixXd out;
-    pixel_basis_1d(n_max, beta_pix, first_offset, npix, out);
+    require(n_max >= 0 && npix >= 0, "pixel_basis_1d: bad arguments");
+    Eigen::MatrixXd out(n_max + 1, npix), edges(n_max + 1, npix + 1);
+    pixel_basis_1d(n_max, beta_pix, first_offset, npix, out, edges);
     return out;
 }
 

@@ -34,9 +34,10 @@ Eigen::MatrixXd sampled_basis_1d(int n_max, double beta_pix, double first_offset
 /// Cost O(n_max · npix); returns an (n_max+1) × npix matrix.
 Eigen::MatrixXd pixel_basis_1d(int n_max, double beta_pix, double first_offset, int npix);
 
-/// In-place variant of pixel_basis_1d for hot loops (resizes `out` only when needed).
+/// In-place variant of pixel_basis_1d for hot loops: `out` must be (n_max+1) × npix and
+/// `edges` (n_max+1) × (npix+1) scratch (caller-owned, so a loop allocates nothing).
 void pixel_basis_1d(int n_max, double beta_pix, double first_offset, int npix,
-                    Eigen::MatrixXd& out);
+                    Eigen::Ref<Eigen::MatrixXd> out, Eigen::Ref<Eigen::MatrixXd> edges);
 
 /// K-point Gauss–Hermite rule in "Hermite-function" form: for any polynomial p of degree
 /// ≤ 2K−1,  ∫ p(u) e^{-u²} du = Σ_i weights[i] · p(nodes[i]) e^{-nodes[i]²}  exactly.

@@ -1,6 +1,7 @@
 #include "shapesim/render.hpp"
 
 #include "shapesim/basis1d.hpp"
+#include "shapesim/error.hpp"
 #include "shapesim/polar.hpp"
 
 #include <algorithm>
@@ -19,6 +20,33 @@ PixelWindow PixelWindow::clipped_to(int image_nx, int image_ny) const {
     return w;
 }
 
+namespace {
+
+// A (rows × cols) matrix over `buffer`, grown (never shrunk) to hold it.
+Eigen::Map<Eigen::MatrixXd> grown(std::vector<double>& buffer, Eigen::Index rows, Eigen::Index cols) {
+    if (buffer.size() < std::size_t(rows * cols)) buffer.resize(std::size_t(rows * cols));
+    return Eigen::Map<Eigen::MatrixXd>(buffer.data(), rows, cols);
+}
+
+// The model integrated over the ny × nx pixels whose first pixel centre lies (dx0, dy0)
+// pixels from the model centre: block(j, i) = Σ_{n2} Φ_y(n2, j) Σ_{n1} b(n1, n2) Φ_x(n1, i),
+// column-major, in the workspace.
+Eigen::Map<Eigen::MatrixXd> pixel_block(const CartesianModel& model, double dx0, double dy0,
+                                        int nx, int ny, RenderWorkspace& ws) {
+    const int n = model.n_max + 1;
+    auto phi_x = grown(ws.phi_x, n, nx);
+    auto phi_y = grown(ws.phi_y, n, ny);
+    pixel_basis_1d(model.n_max, model.beta_pix, dx0, nx, phi_x, grown(ws.edges, n, nx + 1));
+    pixel_basis_1d(model.n_max, model.beta_pix, dy0, ny, phi_y, grown(ws.edges, n, ny + 1));
+    auto partial = grown(ws.partial, n, nx);
+    partial.noalias() = model.b.transpose() * phi_x;
+    auto block = grown(ws.block, ny, nx);
+    block.noalias() = phi_y.transpose() * partial;
+    return block;
+}
+
+}  // namespace
+
 void add_to_image(const CartesianModel& model, ImageArray& image, const PixelWindow& window,
                   RenderWorkspace& ws) {
     const PixelWindow w = window.clipped_to(int(image.cols()), int(image.rows()));
@@ -26,12 +54,17 @@ void add_to_image(const CartesianModel& model, ImageArray& image, const PixelWin
     // Offsets of the window's first pixel centre from the model centre, in pixels.
     const double dx0 = fits_x_of_column(w.column0) - model.x;
     const double dy0 = fits_y_of_row(w.row0) - model.y;
-    pixel_basis_1d(model.n_max, model.beta_pix, dx0, w.nx, ws.phi_x);
-    pixel_basis_1d(model.n_max, model.beta_pix, dy0, w.ny, ws.phi_y);
-    // block(j, i) = Σ_{n2} Φ_y(n2, j) Σ_{n1} b(n1, n2) Φ_x(n1, i)
-    ws.partial.noalias() = model.b.transpose() * ws.phi_x;
-    ws.block.noalias() = ws.phi_y.transpose() * ws.partial;
-    image.block(w.row0, w.column0, w.ny, w.nx) += ws.block.array();
+    image.block(w.row0, w.column0, w.ny, w.nx) += pixel_block(model, dx0, dy0, w.nx, w.ny, ws).array();
+}
+
+void render_window(const CartesianModel& model, const PixelWindow& window,
+                   std::vector<double>& out, RenderWorkspace& ws) {
+    require(window.nx >= 0 && window.ny >= 0, "render_window: negative size");
+    out.resize(std::size_t(window.nx) * std::size_t(window.ny));
+    if (window.empty()) return;
+    const auto block = pixel_block(model, fits_x_of_column(window.column0) - model.x,
+                                   fits_y_of_row(window.row0) - model.y, window.nx, window.ny, ws);
+    Eigen::Map<ImageArray>(out.data(), window.ny, window.nx) = block.array();
 }
 
 void add_to_image(const CartesianModel& model, ImageArray& image, const PixelWindow& window) {

@@ -12,6 +12,8 @@
 
 #include <Eigen/Dense>
 
+#include <vector>
+
 namespace shapesim {
 
 /// A rectangle of pixels, 0-based column/row of its first pixel and its size.
@@ -23,11 +25,19 @@ struct PixelWindow {
     PixelWindow clipped_to(int image_nx, int image_ny) const;
 };
 
-/// Reusable buffers so that rendering many models does not allocate in the hot loop.
+/// Reusable buffers so that rendering many models does not allocate in the hot loop. They only
+/// grow: Eigen's resize reallocates at every new size, and large blocks go back to the system
+/// (munmap), whose TLB shootdowns stall every other thread of the process — painting on two
+/// threads was slower than on one (issue 16).
 struct RenderWorkspace {
-    Eigen::MatrixXd phi_x, phi_y, partial;
-    Eigen::MatrixXd block;
+    std::vector<double> phi_x, phi_y, edges, partial, block;
 };
+
+/// The model integrated over `window` of the image its centre refers to (0-based columns and
+/// rows, not clipped: a window may overhang the image), row-major in `out` (resized to
+/// ny · nx; its capacity only grows). The same numbers add_to_image adds there.
+void render_window(const CartesianModel& model, const PixelWindow& window,
+                   std::vector<double>& out, RenderWorkspace& workspace);
 
 /// Add the pixel-integrated model into `window` of `image` (clipped to the image). The model's
 /// centre is in the image's own FITS pixel coordinates.
