@@ -57,6 +57,12 @@ constexpr std::uint64_t fnv1a_64(std::string_view text) {
 std::array<std::uint64_t, 4> philox_block(const std::array<std::uint64_t, 4>& counter,
                                           const std::array<std::uint64_t, 2>& key);
 
+/// A purpose already hashed (fnv1a_64 at compile time), for streams made per pixel.
+struct PurposeHash {
+    std::uint64_t value;
+    constexpr explicit PurposeHash(std::string_view purpose) : value(fnv1a_64(purpose)) {}
+};
+
 /// A reproducible random stream for one (run seed, object, purpose). Cheap to construct
 /// (no state beyond the key and a position); not shared between threads — make one per use.
 class RandomStream {
@@ -64,6 +70,9 @@ public:
     /// @param seed the run seed (`--seed`); @param object_id the object's integer id;
     /// @param purpose what the numbers are for ("position", "noise", …; hashed by FNV-1a)
     RandomStream(std::uint64_t seed, std::uint64_t object_id, std::string_view purpose);
+    /// The same with the purpose hashed once (a stream per pixel need not hash it each time).
+    RandomStream(std::uint64_t seed, std::uint64_t object_id, PurposeHash purpose)
+        : key_{seed, object_id}, purpose_(purpose.value) {}
     /// String object id, hashed by FNV-1a (= the integer form with fnv1a_64(object_id)).
     RandomStream(std::uint64_t seed, std::string_view object_id, std::string_view purpose);
 
@@ -137,6 +146,12 @@ public:
         if (x < x_[layer + 1]) return (word & 128) ? -x : x;
         return std::numeric_limits<double>::quiet_NaN();
     }
+    /// x_i, the layers' edges: x_0 the base layer's width V/f(R), x_1 = R, x_128 = 0 (for
+    /// other word layouts, as pixel_noise.hpp's single-precision one).
+    double edge(int i) const { return x_[i]; }
+    /// |deviate| for an abscissa x ∈ [x_{layer+1}, x_layer) outside its layer's rectangle: the
+    /// wedge or tail test, drawing what it needs from `more`.
+    double finish(int layer, double x, RandomStream& more) const { return slow(layer, x, more); }
     static const Ziggurat& instance();
 
 private:

@@ -3,6 +3,7 @@
 #include "shapesim/basis1d.hpp"
 #include "shapesim/convolve.hpp"
 #include "shapesim/error.hpp"
+#include "shapesim/pixel_noise.hpp"
 #include "shapesim/polar.hpp"
 #include "shapesim/rng.hpp"
 
@@ -253,116 +254,40 @@ void add_noise(ImageArray& image, const Tile& window, long field_nx, const Scene
     const ImageArray* scale = options.noise_scale ? &*options.noise_scale : nullptr;
     require(!scale || (scale->cols() == field_nx && scale->rows() >= window.y1 && window.x1 <= field_nx),
             "add_noise: the noise scale map does not cover the field");
-    const int K = kernel.radius, width = 2 * K + 1, terms = int(kernel.columns.size());
-    const bool white = K == 0;
     const double sigma = options.noise_rms;
-    const Ziggurat& zig = Ziggurat::instance();
-    // White noise of field pixel (row R, column C), 0-based: for R ≥ −1, C ≥ −2, word C + 2 of
-    // Philox blocks keyed {seed, R + 1} (counter {block, purpose}, four words per block), its
-    // rare ziggurat retries from a stream keyed by the pixel; further out (only a wide
-    // kernel's margin reaches there), a stream keyed by the pixel.
-    const std::uint64_t stride = std::uint64_t(field_nx) + 4;
-    const std::uint64_t purpose = fnv1a_64("background noise");
-    auto retry = [&](long row, long column, std::uint64_t word) {
-        RandomStream more(options.seed, std::uint64_t(row + 1) * stride + std::uint64_t(column),
-                          "background noise retry");
-        return zig(word, [&]() -> RandomStream& { return more; });
-    };
-    auto margin = [&](long row, long column) {
-        const std::uint64_t key = (std::uint64_t(row + max_noise_kernel_radius) << 32) ^
-                                  std::uint64_t(column + max_noise_kernel_radius);
-        RandomStream stream(options.seed, key, "background noise margin");
-        return stream.gaussian();
-    };
-    auto white_row = [&](long row, long c_first, long count, double* out) {
-        long skip = 0;  // columns left of −2 (or the whole row above −1): the margin stream
-        if (row < -1) skip = count;
-        else if (c_first < -2) skip = std::min(count, -2 - c_first);
-        for (long c = 0; c < skip; ++c) out[c] = margin(row, c_first + c);
-        if (skip == count) return;
-        const std::array<std::uint64_t, 2> key{options.seed, std::uint64_t(row + 1)};
-        const long first = c_first + skip + 2, last = c_first + count + 2;  // word indices ≥ 0
-        double* const base = out - (c_first + 2);
-        for (long block = first / 4; block * 4 < last; ++block) {
-            const std::array<std::uint64_t, 4> words =
-                philox_block({std::uint64_t(block), purpose, 0, 0}, key);
-            for (long lane = 0; lane < 4; ++lane) {
-                const long c = block * 4 + lane;
-                if (c < first || c >= last) continue;
-                const std::uint64_t w = words[std::size_t(lane)];
-                const double z = zig.fast(w);
-                base[c] = std::isnan(z) ? retry(row, c, w) : z;
-            }
-        }
-    };
     // Photon noise only where it adds at least `photon_tolerance` of the background variance:
     // elsewhere it would change nothing measurable (all pixels when there is no background).
-    const double photon_floor = options.photon_tolerance * sigma * sigma;
+    // Its variance is s/gain, so the test is s ≥ photon_floor · gain (and s > 0).
+    const bool photons = options.gain > 0.0;
+    const double photon_signal = options.photon_tolerance * sigma * sigma * options.gain;
     in_bands(ny, options.threads, [&](long first, long last) {
         if (first >= last) return;
-        // A ring of the 2K + 1 white rows' horizontal sums, one per separable term: ring slot
-        // (R mod width) holds row R; white rows carry K columns of margin each side.
-        std::vector<double> raw(std::size_t(nx + 2 * K)), sum((std::size_t(nx)));
-        std::vector<std::vector<double>> ring(std::size_t(width * terms),
-                                              std::vector<double>(std::size_t(nx)));
-        auto load = [&](long row) {
-            white_row(row, window.x0 - 1 - K, nx + 2 * K, raw.data());
-            const std::size_t slot = std::size_t(((row % width) + width) % width);
-            for (int t = 0; t < terms; ++t) {
-                const std::vector<double>& h = kernel.rows[std::size_t(t)];
-                double* out = ring[slot * std::size_t(terms) + std::size_t(t)].data();
-                std::fill(out, out + nx, 0.0);
-                for (int d = 0; d < width; ++d) {
-                    const double c = h[std::size_t(d)];
-                    const double* w = raw.data() + d;
-                    for (long i = 0; i < nx; ++i) out[i] += c * w[i];
-                }
-            }
-        };
-        const long row_first = window.y0 - 1 + first;
-        if (!white && sigma > 0.0)
-            for (long row = row_first - K; row < row_first + K; ++row) load(row);
+        CorrelatedNoise background(kernel, options.seed, window.x0 - 1, nx);
         for (long j = first; j < last; ++j) {
             const long row = window.y0 - 1 + j;  // field 0-based
             double* pixels = &image(j, 0);
             // Photon noise (and the sky level) first: it follows the noise-free signal.
-            for (long i = 0; i < nx; ++i) {
-                const double s = pixels[i] + options.sky;
-                double value = s;
-                if (options.gain > 0.0 && s > 0.0 && s / options.gain >= photon_floor) {
+            for (long i = 0; i < nx; ++i) pixels[i] += options.sky;
+            if (photons)
+                for (long i = 0; i < nx; ++i) {
+                    const double s = pixels[i];
+                    if (!(s > 0.0 && s >= photon_signal)) continue;
                     const long col = window.x0 - 1 + i;
+                    static constexpr PurposeHash purpose("photon");
                     RandomStream photon(options.seed,
-                                        std::uint64_t(row) * std::uint64_t(field_nx) +
-                                            std::uint64_t(col),
-                                        "photon");
-                    value = double(photon.poisson(s * options.gain)) / options.gain;
+                                        std::uint64_t(row) * std::uint64_t(field_nx) + std::uint64_t(col),
+                                        purpose);
+                    pixels[i] = double(photon.poisson(s * options.gain)) / options.gain;
                 }
-                pixels[i] = value;
-            }
             if (!(sigma > 0.0)) continue;
             // The background's local σ: the scale map's, keyed by the field pixel.
-            const double* local = scale ? &(*scale)(row, window.x0 - 1) : nullptr;
-            if (white) {
-                white_row(row, window.x0 - 1, nx, raw.data());
-                for (long i = 0; i < nx; ++i)
-                    pixels[i] += sigma * (local ? local[i] : 1.0) * raw[std::size_t(i)];
-                continue;
+            const float* n = background.row(row);
+            if (scale) {
+                const double* local = &(*scale)(row, window.x0 - 1);
+                for (long i = 0; i < nx; ++i) pixels[i] += sigma * local[i] * double(n[i]);
+            } else {
+                for (long i = 0; i < nx; ++i) pixels[i] += sigma * double(n[i]);
             }
-            load(row + K);
-            // Σ over rows and terms as whole-row multiply-adds (vectorised), in a fixed order.
-            std::fill(sum.begin(), sum.end(), 0.0);
-            for (int d = 0; d < width; ++d) {
-                const long r = row - K + d;
-                const std::size_t slot = std::size_t(((r % width) + width) % width);
-                for (int t = 0; t < terms; ++t) {
-                    const double c = kernel.columns[std::size_t(t)][std::size_t(d)];
-                    const double* h = ring[slot * std::size_t(terms) + std::size_t(t)].data();
-                    double* acc = sum.data();
-                    for (long i = 0; i < nx; ++i) acc[i] += c * h[i];
-                }
-            }
-            for (long i = 0; i < nx; ++i)
-                pixels[i] += sigma * (local ? local[i] : 1.0) * sum[std::size_t(i)];
         }
     });
 }

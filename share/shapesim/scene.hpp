@@ -110,7 +110,7 @@ double stamp_radius(const CartesianModel& model, double threshold);
 ImageArray noise_scale_from_weight(const ImageArray& weight);
 
 /// Widest noise kernel add_noise draws (its margin stream's keys).
-constexpr int max_noise_kernel_radius = 64;
+constexpr int max_noise_kernel_radius = 64;  // = WhiteNoise::margin (pixel_noise.hpp)
 
 /// The scene's truncation threshold for a model: truncation × noise rms, or × the model's
 /// value at its centre (one pixel's worth) when the image is noise-free or noiseless.

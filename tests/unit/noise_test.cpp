@@ -298,8 +298,9 @@ TEST(SceneNoise, WeightMapScalesTheBackground) {
 }
 
 // The histogram comparison is of the noise about each sky's own median: the same noise offset
-// by 0.1σ (a background subtracted differently) agrees, the offset reported; louder noise
-// is still told apart.
+// by 0.1σ (a background subtracted differently) agrees, the offset reported to within 4σ of the
+// two medians' own scatter (each of 128² decimated, nearly independent pixels: 1.2533/128 =
+// 0.0098, so 0.055 for the difference); louder noise is still told apart.
 TEST(SkyComparisonTest, ComparesTheNoiseAboutItsMedian) {
     const NoiseKernel k = gaussian_kernel(1.0, 4);
     const NoiseRecord a = measure_sky_noise(as_sky(drawn_noise(k, 1.0, 512, 9)));
@@ -307,7 +308,7 @@ TEST(SkyComparisonTest, ComparesTheNoiseAboutItsMedian) {
     for (double& q : b.quantiles) q += 0.1;  // detection subtracts a constant: shift its record
     const SkyComparison c = compare_sky(a, b);
     report("offset_sky_ks_p", c.ks_p);
-    EXPECT_NEAR(c.median_offset, 0.1, 0.02);
+    EXPECT_NEAR(c.median_offset, 0.1, 0.055);
     EXPECT_GT(c.ks_p, 0.01);
     NoiseRecord louder = measure_sky_noise(as_sky(drawn_noise(k, 1.10, 512, 11)));
     for (double& q : louder.quantiles) q += 0.1;

@@ -8,6 +8,8 @@
 
 #include "shapesim/error.hpp"
 
+#include "test_support.hpp"
+
 #include <gtest/gtest.h>
 
 #include <algorithm>
@@ -18,27 +20,11 @@
 #include <vector>
 
 using namespace shapesim;
+using test::ks_p_value;
 
 namespace {
 
 constexpr std::uint64_t kSeed = 20250611;
-
-// Kolmogorov–Smirnov p-value of a sample against a CDF (asymptotic distribution with
-// Stephens' small-sample correction; Press et al., Numerical Recipes §14.3).
-double ks_p_value(std::vector<double> sample, const std::function<double(double)>& cdf) {
-    std::sort(sample.begin(), sample.end());
-    const double n = double(sample.size());
-    double d = 0.0;
-    for (size_t i = 0; i < sample.size(); ++i) {
-        const double f = cdf(sample[i]);
-        d = std::max({d, std::abs(f - i / n), std::abs((i + 1) / n - f)});
-    }
-    const double lambda = (std::sqrt(n) + 0.12 + 0.11 / std::sqrt(n)) * d;
-    double sum = 0.0, sign = 1.0;
-    for (int j = 1; j <= 100; ++j, sign = -sign)
-        sum += sign * 2.0 * std::exp(-2.0 * j * j * lambda * lambda);
-    return std::clamp(sum, 0.0, 1.0);
-}
 
 // Regularised upper incomplete gamma Q(a, x): series below a + 1, continued fraction above.
 double gamma_q(double a, double x) {

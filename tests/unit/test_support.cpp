@@ -354,4 +354,19 @@ Morphology synthetic_morphology(bool heavy) {
     return build_morphology(records, SmoothOptions{});
 }
 
+double ks_p_value(std::vector<double> sample, const std::function<double(double)>& cdf) {
+    std::sort(sample.begin(), sample.end());
+    const double n = double(sample.size());
+    double d = 0.0;
+    for (size_t i = 0; i < sample.size(); ++i) {
+        const double f = cdf(sample[i]);
+        d = std::max({d, std::abs(f - i / n), std::abs((i + 1) / n - f)});
+    }
+    const double lambda = (std::sqrt(n) + 0.12 + 0.11 / std::sqrt(n)) * d;
+    double sum = 0.0, sign = 1.0;
+    for (int j = 1; j <= 100; ++j, sign = -sign)
+        sum += sign * 2.0 * std::exp(-2.0 * j * j * lambda * lambda);
+    return std::clamp(sum, 0.0, 1.0);
+}
+
 }  // namespace shapesim::test

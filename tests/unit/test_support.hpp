@@ -137,4 +137,8 @@ MeanRms mean_rms(const std::vector<double>& v, const std::vector<double>& key,
 /// 160 at 0, the rest 2–7), or `heavy`: n_max = k mod 16.
 Morphology synthetic_morphology(bool heavy);
 
+/// Kolmogorov–Smirnov p-value of a sample against a CDF (asymptotic distribution with
+/// Stephens' small-sample correction; Press et al., Numerical Recipes §14.3).
+double ks_p_value(std::vector<double> sample, const std::function<double(double)>& cdf);
+
 }  // namespace shapesim::test

@@ -5,7 +5,8 @@
 # measured alike (its own detection, the HDF's weight map, objects of S/N ≥ 4 masked), the
 # simulated sky has the real one's autocorrelation within 0.02 at every lag up to 3 pixels,
 # its rms within 2% and a pixel histogram the KS test cannot tell apart (p > 0.05)
-# (shapesim-measure --compare-sky). Tiles with the wide kernel equal the whole image; bad
+# (shapesim-measure --compare-sky). Tiles with the wide kernel equal the whole image, and so
+# does the image drawn without AVX2 (SHAPESIM_SIMD=sse: the baseline SSE4.1 generator); bad
 # noise models fail with one line.
 source "$(dirname "${BASH_SOURCE[0]}")/../lib.sh"
 prog=shapesim-render
@@ -31,6 +32,10 @@ for t in "1 1 512 200" "1 201 512 512"; do
   "$BIN/$prog" "${common[@]}" -q --tile $t -o "tile_${t// /_}.fits" <objects.jsonl ||
     fail "--tile $t failed"
 done
+
+SHAPESIM_SIMD=sse "$BIN/$prog" "${common[@]}" -q -o delta_sse.fits <objects.jsonl ||
+  fail "render with SHAPESIM_SIMD=sse failed"
+cmp -s delta.fits delta_sse.fits || fail "the SSE4.1 and AVX2 noise differ"
 
 python3 - "$tools" <<'PY' || fail "the sky checks fail: $(cat sky.md)"
 import json, sys

@@ -1,0 +1,183 @@
+// pixel_noise.hpp: the vectorised Philox4x32 against Random123's, the white noise's
+// distribution (moments, KS, tails, neighbours, keys) and tile invariance, and the correlated
+// noise against a brute-force double-precision sum.
+#include "shapesim/pixel_noise.hpp"
+
+#include "shapesim/error.hpp"
+#include "shapesim/rng.hpp"
+#include "test_support.hpp"
+
+#include <Random123/philox.h>
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <iostream>
+
+using namespace shapesim;
+using test::ks_p_value;
+
+namespace {
+
+void report(const std::string& name, double value) {
+    std::cout << "[ metric ] pixel_noise." << name << " = " << value << "\n";
+}
+
+double normal_cdf(double x) { return 0.5 * std::erfc(-x / std::sqrt(2.0)); }
+
+}  // namespace
+
+// Random123's known answers (kat_vectors: philox4x32 10) and, for every count 0 … 41 (the
+// SIMD widths and their tails) at keys and counters near the 32-bit wrap, r123::Philox4x32.
+TEST(Philox4x32Blocks, EqualsRandom123) {
+    std::uint32_t out[4 * 64];
+    philox4x32_blocks(0, 0, 0, 0, 0, 1, out);
+    EXPECT_EQ(out[0], 0x6627e8d5u);
+    EXPECT_EQ(out[1], 0xe169c58du);
+    EXPECT_EQ(out[2], 0xbc57ac4cu);
+    EXPECT_EQ(out[3], 0x9b00dbd8u);
+    philox4x32_blocks(0x299f31d0a4093822ULL, 0x243f6a88u, 0x85a308d3u, 0x13198a2eu, 0x03707344u, 1, out);
+    EXPECT_EQ(out[0], 0xd16cfe09u);
+    EXPECT_EQ(out[1], 0x94fdccebu);
+    EXPECT_EQ(out[2], 0x5001e420u);
+    EXPECT_EQ(out[3], 0x24126ea1u);
+    for (const std::uint64_t key : {0x0ULL, 0xffffffffffffffffULL, 0x123456789abcdef0ULL})
+        for (const std::uint32_t first : {0u, 7u, 0xfffffff0u})
+            for (std::size_t count = 0; count <= 41; ++count) {
+                philox4x32_blocks(key, first, 11, 0xdeadbeefu, 3, count, out);
+                const r123::Philox4x32::key_type k = {{std::uint32_t(key), std::uint32_t(key >> 32)}};
+                for (std::size_t b = 0; b < count; ++b) {
+                    const r123::Philox4x32::ctr_type c = {{first + std::uint32_t(b), 11, 0xdeadbeefu, 3}};
+                    const auto r = r123::Philox4x32()(c, k);
+                    for (int w = 0; w < 4; ++w)
+                        ASSERT_EQ(out[4 * b + std::size_t(w)], r.v[w]) << key << " " << first << " " << count;
+                }
+            }
+}
+
+// 4 194 304 deviates of a 2048² field: mean, variance and kurtosis within 5σ; KS against Φ;
+// the fractions beyond 2, 3, 4 and 4.5σ within 5σ of the normal's; the correlation of
+// horizontal, vertical and diagonal neighbours and of two seeds below 5/√N.
+TEST(WhiteNoise, IsStandardNormalAndIndependent) {
+    const long n = 2048;
+    const WhiteNoise a(17), b(18);
+    std::vector<float> field(std::size_t(n * n)), other(std::size_t(n * n));
+    for (long r = 0; r < n; ++r) {
+        a.row(r, 0, n, field.data() + r * n);
+        b.row(r, 0, n, other.data() + r * n);
+    }
+    const double count = double(n * n);
+    double m1 = 0, m2 = 0, m4 = 0;
+    long beyond[4] = {0, 0, 0, 0};
+    const double edges[4] = {2.0, 3.0, 4.0, 4.5};
+    double right = 0, down = 0, diagonal = 0, seeds = 0;
+    double largest = 0.0;
+    for (long r = 0; r < n; ++r)
+        for (long c = 0; c < n; ++c) {
+            const double z = field[std::size_t(r * n + c)];
+            m1 += z;
+            m2 += z * z;
+            m4 += z * z * z * z;
+            largest = std::max(largest, std::abs(z));
+            for (int e = 0; e < 4; ++e) beyond[e] += std::abs(z) > edges[e];
+            if (c + 1 < n) right += z * field[std::size_t(r * n + c + 1)];
+            if (r + 1 < n) down += z * field[std::size_t((r + 1) * n + c)];
+            if (r + 1 < n && c + 1 < n) diagonal += z * field[std::size_t((r + 1) * n + c + 1)];
+            seeds += z * other[std::size_t(r * n + c)];
+        }
+    EXPECT_NEAR(m1 / count, 0.0, 5.0 / std::sqrt(count));
+    EXPECT_NEAR(m2 / count, 1.0, 5.0 * std::sqrt(2.0 / count));
+    EXPECT_NEAR(m4 / count, 3.0, 5.0 * std::sqrt(96.0 / count));
+    for (int e = 0; e < 4; ++e) {
+        const double p = std::erfc(edges[e] / std::sqrt(2.0));
+        EXPECT_NEAR(double(beyond[e]) / count, p, 5.0 * std::sqrt(p / count)) << edges[e];
+    }
+    const double bound = 5.0 / std::sqrt(count);
+    EXPECT_LT(std::abs(right / count), bound);
+    EXPECT_LT(std::abs(down / count), bound);
+    EXPECT_LT(std::abs(diagonal / count), bound);
+    EXPECT_LT(std::abs(seeds / count), bound);
+    std::vector<double> sample(field.begin(), field.begin() + 400000);
+    const double p = ks_p_value(sample, normal_cdf);
+    report("ks_p", p);
+    report("largest_sigma", largest);
+    EXPECT_GT(p, 1e-3);
+}
+
+// The tail beyond R = 3.44 (the ziggurat's base layer, drawn by Ziggurat::finish): 2·10⁵
+// deviates conditioned on |z| > R follow the normal tail to beyond 5σ (KS), and the tail
+// reaches as far as it should (the largest of 2·10⁵ tail draws is ≈ 5.2σ; more than 4.9).
+TEST(WhiteNoise, TailFollowsTheNormalBeyondR) {
+    const double R = Ziggurat::instance().edge(1), tail = std::erfc(R / std::sqrt(2.0));
+    std::vector<double> beyond;
+    const WhiteNoise noise(5);
+    std::vector<float> row(1 << 16);
+    for (long r = 0; beyond.size() < 200000; ++r) {
+        noise.row(r, -64, long(row.size()), row.data());
+        for (const float z : row)
+            if (std::abs(z) > R) beyond.push_back(std::abs(z));
+    }
+    const double p = ks_p_value(beyond, [&](double x) {
+        return x <= R ? 0.0 : 1.0 - std::erfc(x / std::sqrt(2.0)) / tail;
+    });
+    const double largest = *std::max_element(beyond.begin(), beyond.end());
+    report("tail_ks_p", p);
+    report("tail_largest_sigma", largest);
+    EXPECT_GT(p, 1e-3);
+    EXPECT_GT(largest, 4.9);
+}
+
+// A pixel's deviate does not depend on the span asked for: rows drawn whole equal rows drawn
+// in pieces of every length 1 … 13 from every start (SIMD groups and their tails), margins
+// included; pixels outside the keyed range are refused.
+TEST(WhiteNoise, IsAFunctionOfThePixel) {
+    const WhiteNoise noise(99);
+    const long width = 200;
+    std::vector<float> whole(static_cast<std::size_t>(width)), piece(16);
+    for (const long row : {-64L, -1L, 0L, 12345L}) {
+        noise.row(row, -64, width, whole.data());
+        for (long length = 1; length <= 13; ++length)
+            for (long start = -64; start + length <= -64 + width; start += 7) {
+                noise.row(row, start, length, piece.data());
+                for (long i = 0; i < length; ++i)
+                    ASSERT_EQ(piece[std::size_t(i)], whole[std::size_t(start + 64 + i)]) << row << " " << start;
+            }
+    }
+    EXPECT_THROW(noise.row(-65, 0, 1, piece.data()), Error);
+    EXPECT_THROW(noise.row(0, -65, 1, piece.data()), Error);
+}
+
+// Correlated noise equals the direct double-precision sum Σ_d k(d) w(p + d) of the same white
+// pixels to single precision, for a drizzle kernel and a measured-like wide one, row after row
+// (the ring) and over a window that starts inside the field.
+TEST(CorrelatedNoise, EqualsTheDirectSum) {
+    NoiseCorrelation xi;
+    xi.radius = 6;
+    xi.values.assign(13 * 13, 0.0);
+    for (int dy = -6; dy <= 6; ++dy)
+        for (int dx = -6; dx <= 6; ++dx)
+            xi.values[std::size_t((dy + 6) * 13 + dx + 6)] = std::exp(-(dx * dx + 1.5 * dy * dy + dx * dy) / 4.0);
+    for (const NoiseKernel& kernel : {drizzle_noise_kernel(1.84), correlated_noise_kernel(xi)}) {
+        const int K = kernel.radius, w = 2 * K + 1;
+        const std::vector<double> k = kernel.dense();
+        const long first = 37, nx = 53;
+        CorrelatedNoise noise(kernel, 8, first, nx);
+        const WhiteNoise white(8);
+        std::vector<float> strip(std::size_t(nx + 2 * K));
+        double worst = 0.0;
+        for (long row = 3; row < 40; row += (row < 20 ? 1 : 9)) {
+            const float* got = noise.row(row);
+            std::vector<double> expect(std::size_t(nx), 0.0);
+            for (int dy = -K; dy <= K; ++dy) {
+                white.row(row + dy, first - K, nx + 2 * K, strip.data());
+                for (int dx = -K; dx <= K; ++dx)
+                    for (long i = 0; i < nx; ++i)
+                        expect[std::size_t(i)] += k[std::size_t((dy + K) * w + dx + K)] * strip[std::size_t(i + K + dx)];
+            }
+            for (long i = 0; i < nx; ++i)
+                worst = std::max(worst, std::abs(double(got[i]) - expect[std::size_t(i)]));
+        }
+        report("correlated_max_error_radius_" + std::to_string(K), worst);
+        EXPECT_LT(worst, 2e-5) << K;
+        EXPECT_THROW(noise.row(2), Error);
+    }
+}
