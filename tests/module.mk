@@ -56,8 +56,13 @@ program-test: all examples
 	BIN=$(abspath $(BIN)) EXAMPLES=$(abspath $(BUILD)/examples) \
 	  tests/run-program-tests.sh $(PROGRAM_TESTS)
 
-bench: $(BENCH_BIN)
+# Google Benchmark (every stage: run time and the error it buys), then the HDF scene end to end
+# through shapesim-render at 1 and 2 threads (tests/bench/hdf_scene.sh; make reproduce's
+# morphology, PSF and sky).
+bench: $(BENCH_BIN) all
 	$(BENCH_BIN) $(BENCH_ARGS)
+	@[ -f out/reproduce/morphology.json ] || $(MAKE) reproduce
+	tests/bench/hdf_scene.sh $(BIN) out/reproduce
 
 # The bad- and odd-input corpus (issue 15). `make corpus` rewrites tests/corpus/cases/ with
 # the generator (cfitsio only; the files are committed); `make corpus-matrix` reruns every
