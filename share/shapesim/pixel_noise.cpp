@@ -9,6 +9,7 @@
 #include <cmath>
 #include <cstdlib>
 #include <cstring>
+#include <optional>
 #include <string>
 
 #if defined(__x86_64__) && defined(__SSE4_1__)
@@ -233,6 +234,64 @@ void WhiteNoise::row(long row, long first, long count, float* out) const {
         const float x = std::abs(out[i]);
         const double z = zig.finish(int(w[i] & 127), double(x), more);
         out[i] = float((w[i] & 128) ? -z : z);
+    }
+}
+
+namespace {
+
+// The uniforms of one pixel's photon draw: its block's two words, then a stream of its own.
+class PhotonWords {
+public:
+    PhotonWords(const std::uint32_t* block, std::uint64_t seed, std::uint64_t pixel)
+        : block_(block), seed_(seed), pixel_(pixel) {}
+    double uniform() { return double(next() >> 11) * 0x1.0p-53; }
+    double uniform_open() { return (double(next() >> 11) + 0.5) * 0x1.0p-53; }
+
+private:
+    std::uint64_t next() {
+        if (used_ < 2) {
+            const std::uint64_t word = block_[2 * used_] | (std::uint64_t(block_[2 * used_ + 1]) << 32);
+            ++used_;
+            return word;
+        }
+        static constexpr PurposeHash more("photon noise more");
+        if (!more_) more_.emplace(seed_, pixel_, more);
+        return more_->next_u64();
+    }
+    const std::uint32_t* block_;
+    std::uint64_t seed_, pixel_;
+    int used_ = 0;
+    std::optional<RandomStream> more_;
+};
+
+}  // namespace
+
+void PhotonNoise::row(long row, long first, long count, double gain, double least,
+                      double* pixels) const {
+    auto bright = [&](long i) { return pixels[i] > 0.0 && pixels[i] >= least; };
+    constexpr std::uint64_t purpose = fnv1a_64("photon noise");
+    const std::uint64_t row_key = std::uint64_t(row + WhiteNoise::margin) << 32;
+    // Runs of pixels bright enough, each run's blocks drawn together.
+    for (long i0 = 0; i0 < count;) {
+        if (!bright(i0)) {
+            ++i0;
+            continue;
+        }
+        long i1 = i0 + 1;
+        while (i1 < count && bright(i1)) ++i1;
+        require(row >= 0 && first >= 0 && row + WhiteNoise::margin < (1L << 32) &&
+                    first + count + WhiteNoise::margin <= (1L << 32),
+                "photon noise: pixel outside the keyed range");
+        const std::uint64_t q0 = std::uint64_t(first + i0 + WhiteNoise::margin);
+        words_.resize(4 * std::size_t(i1 - i0));
+        philox4x32_blocks(seed_, std::uint32_t(q0), std::uint32_t(row + WhiteNoise::margin),
+                          std::uint32_t(purpose), std::uint32_t(purpose >> 32), std::size_t(i1 - i0),
+                          words_.data());
+        for (long i = i0; i < i1; ++i) {
+            PhotonWords source(words_.data() + 4 * (i - i0), seed_, row_key + q0 + std::uint64_t(i - i0));
+            pixels[i] = double(poisson_deviate(pixels[i] * gain, source)) / gain;
+        }
+        i0 = i1;
     }
 }
 

@@ -48,6 +48,23 @@ private:
     mutable std::vector<long> slow_;
 };
 
+/// Photon noise keyed by the field pixel: pixel (R, C) ≥ 0 of signal s (image units) becomes
+/// N/gain, N ~ Poisson(s · gain) (poisson_deviate), from the two 64-bit words of its
+/// Philox4x32-10 block (key as WhiteNoise; counter (C + 64, R + 64, P mod 2³², ⌊P / 2³²⌋),
+/// P = FNV-1a 64 of "photon noise"; words 0–1 then 2–3, low first), then, for the rare deviate
+/// that needs more, RandomStream(seed, (R + 64)·2³² + C + 64, "photon noise more").
+class PhotonNoise {
+public:
+    explicit PhotonNoise(std::uint64_t seed) : seed_(seed) {}
+    /// Field row `row`, columns first … first + count − 1: every pixel with s > 0 and
+    /// s ≥ `least` (where photon noise is worth drawing) replaced by its photon-noise draw.
+    void row(long row, long first, long count, double gain, double least, double* pixels) const;
+
+private:
+    std::uint64_t seed_;
+    mutable std::vector<std::uint32_t> words_;
+};
+
 /// Rows of correlated noise over columns first … first + nx − 1 of the field, in increasing
 /// row order (a ring of 2K + 1 white rows: each white row is drawn once).
 class CorrelatedNoise {

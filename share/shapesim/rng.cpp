@@ -57,7 +57,8 @@ double RandomStream::epanechnikov() {
     return first_is_highest ? second : first;
 }
 
-namespace {
+namespace detail {
+
 // ln k! for integral k ≥ 0, thread-safe and libm-light (std::lgamma writes the global signgam):
 // exact products up to 20!, then Stirling's series for ln Γ(k + 1) with terms to x⁻⁷ (the next
 // term is < 1/(1188 x⁹) < 1e-15 for x ≥ 21).
@@ -72,44 +73,40 @@ double log_factorial(double k) {
     return (x - 0.5) * std::log(x) - x + 0.91893853320467274178 + series;  // ½ ln 2π
 }
 
+namespace {
+// 1/k for the inversion's steps: a multiply instead of a division on the loop's critical path.
+struct Reciprocals {
+    double value[64];
+    Reciprocals() {
+        value[0] = 0.0;
+        for (int k = 1; k < 64; ++k) value[k] = 1.0 / k;
+    }
+};
+const Reciprocals reciprocals;
+}  // namespace
+
 // Inversion: walk the CDF from 0 with one uniform (μ < 10, so e^{−μ} > 4.5e-5).
 std::uint64_t poisson_inversion(double mean, double u) {
     double p = std::exp(-mean), cdf = p;
     std::uint64_t k = 0;
     while (u > cdf) {
         ++k;
-        p *= mean / double(k);
+        p *= k < 64 ? mean * reciprocals.value[k] : mean / double(k);
         if (p < 1e-300) break;  // u beyond the rounded total: the far tail, probability ~1e-16
         cdf += p;
     }
     return k;
 }
-}  // namespace
 
-std::uint64_t RandomStream::poisson(double mean) {
+void check_poisson_mean(double mean) {
     if (!(mean >= 0.0) || !(mean <= 0x1.0p62))
         throw Error("poisson: mean must be finite, >= 0 and <= 2^62, got " +
                     std::to_string(mean));
-    if (mean == 0.0) return 0;
-    if (mean < 10.0) return poisson_inversion(mean, uniform());
-    // PTRS (Hörmann 1993, §3, with his constants): a transformed-rejection proposal from a
-    // hat over the inverse CDF, a squeeze for fast acceptance, and the exact test otherwise.
-    const double root = std::sqrt(mean), log_mean = std::log(mean);
-    const double b = 0.931 + 2.53 * root;
-    const double a = -0.059 + 0.02483 * b;
-    const double inv_alpha = 1.1239 + 1.1328 / (b - 3.4);
-    const double v_r = 0.9277 - 3.6224 / (b - 2.0);
-    for (;;) {
-        const double u = uniform_open() - 0.5;  // (−½, ½): us > 0 below
-        const double v = uniform_open();        // (0, 1): log v finite
-        const double us = 0.5 - std::abs(u);
-        const double k = std::floor((2.0 * a / us + b) * u + mean + 0.43);
-        if (us >= 0.07 && v <= v_r) return std::uint64_t(k);
-        if (k < 0.0 || (us < 0.013 && v > us)) continue;
-        const double log_hat = std::log(v * inv_alpha / (a / (us * us) + b));
-        if (log_hat <= -mean + k * log_mean - log_factorial(k)) return std::uint64_t(k);
-    }
 }
+
+}  // namespace detail
+
+std::uint64_t RandomStream::poisson(double mean) { return poisson_deviate(mean, *this); }
 
 Ziggurat::Ziggurat() {
     constexpr double r = 3.442619855899, v = 9.91256303526217e-3;

@@ -36,6 +36,7 @@
 #pragma once
 
 #include <array>
+#include <cmath>
 #include <limits>
 #include <cstdint>
 #include <string_view>
@@ -122,6 +123,39 @@ private:
     std::uint64_t buffered_block_ = ~std::uint64_t(0);
     std::array<std::uint64_t, 4> buffer_{};
 };
+
+namespace detail {
+double log_factorial(double k);
+std::uint64_t poisson_inversion(double mean, double u);
+void check_poisson_mean(double mean);  ///< throws Error unless 0 ≤ μ ≤ 2⁶², finite
+}  // namespace detail
+
+/// Poisson deviate of mean μ from any source of uniform() ∈ [0, 1) and uniform_open() ∈ (0, 1)
+/// (RandomStream::poisson's algorithm and word use: inversion below 10, PTRS above).
+template <class Source>
+std::uint64_t poisson_deviate(double mean, Source& source) {
+    detail::check_poisson_mean(mean);
+    if (mean == 0.0) return 0;
+    if (mean < 10.0) return detail::poisson_inversion(mean, source.uniform());
+    // PTRS (Hörmann 1993, §3, with his constants): a transformed-rejection proposal from a
+    // hat over the inverse CDF, a squeeze for fast acceptance, and the exact test otherwise.
+    // ln μ and 1/α only for the exact test (the squeeze takes ~85% of draws without them).
+    const double root = std::sqrt(mean);
+    const double b = 0.931 + 2.53 * root;
+    const double a = -0.059 + 0.02483 * b;
+    const double v_r = 0.9277 - 3.6224 / (b - 2.0);
+    for (;;) {
+        const double u = source.uniform_open() - 0.5;  // (−½, ½): us > 0 below
+        const double v = source.uniform_open();        // (0, 1): log v finite
+        const double us = 0.5 - std::abs(u);
+        const double k = std::floor((2.0 * a / us + b) * u + mean + 0.43);
+        if (us >= 0.07 && v <= v_r) return std::uint64_t(k);
+        if (k < 0.0 || (us < 0.013 && v > us)) continue;
+        const double inv_alpha = 1.1239 + 1.1328 / (b - 3.4);
+        const double log_hat = std::log(v * inv_alpha / (a / (us * us) + b));
+        if (log_hat <= -mean + k * std::log(mean) - detail::log_factorial(k)) return std::uint64_t(k);
+    }
+}
 
 /// Standard normal deviates by the ziggurat (Marsaglia & Tsang 2000; 128 layers, R =
 /// 3.442619855899, layer area V = 9.91256303526217e-3), one 64-bit word per deviate: 7 bits

@@ -263,22 +263,13 @@ void add_noise(ImageArray& image, const Tile& window, long field_nx, const Scene
     in_bands(ny, options.threads, [&](long first, long last) {
         if (first >= last) return;
         CorrelatedNoise background(kernel, options.seed, window.x0 - 1, nx);
+        const PhotonNoise photon(options.seed);
         for (long j = first; j < last; ++j) {
             const long row = window.y0 - 1 + j;  // field 0-based
             double* pixels = &image(j, 0);
             // Photon noise (and the sky level) first: it follows the noise-free signal.
             for (long i = 0; i < nx; ++i) pixels[i] += options.sky;
-            if (photons)
-                for (long i = 0; i < nx; ++i) {
-                    const double s = pixels[i];
-                    if (!(s > 0.0 && s >= photon_signal)) continue;
-                    const long col = window.x0 - 1 + i;
-                    static constexpr PurposeHash purpose("photon");
-                    RandomStream photon(options.seed,
-                                        std::uint64_t(row) * std::uint64_t(field_nx) + std::uint64_t(col),
-                                        purpose);
-                    pixels[i] = double(photon.poisson(s * options.gain)) / options.gain;
-                }
+            if (photons) photon.row(row, window.x0 - 1, nx, options.gain, photon_signal, pixels);
             if (!(sigma > 0.0)) continue;
             // The background's local σ: the scale map's, keyed by the field pixel.
             const float* n = background.row(row);
