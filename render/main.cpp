@@ -228,16 +228,16 @@ int run(int argc, const char* const argv[]) {
     // Read the objects; positions from ra/dec through the field's WCS.
     const auto t_read = clock::now();
     JsonlReader reader(s.input, {ObjectRecord::schema});
-    std::vector<ObjectRecord> records;
-    ObjectRecord r;
-    while (reader.next_record(r)) {
+    std::vector<long> lines;
+    std::vector<ObjectRecord> records = reader.read_all<ObjectRecord>(o.threads, &lines);
+    for (std::size_t k = 0; k < records.size(); ++k) {
+        ObjectRecord& r = records[k];
         const PixelPosition p = field.wcs.sky_to_pixel(r.ra, r.dec);
         r.x = p.x;
         r.y = p.y;
         if (!r.has_shape() && !kernels.star)
             throw Error("object " + r.id + " is a point source: give --psf", reader.name(),
-                        reader.line(), "kind");
-        records.push_back(r);
+                        lines[k], "kind");
     }
 
     // Prepare (lens, convolve, size the stamps) in parallel; paint; noise.

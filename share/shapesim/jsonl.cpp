@@ -85,39 +85,49 @@ JsonlReader::JsonlReader(std::istream& in, std::string name, std::vector<std::st
 
 JsonlReader::~JsonlReader() = default;
 
-bool JsonlReader::next(Json& record) {
+bool JsonlReader::next_line(std::string& text) {
     // Skip blank lines; every line, blank or not, counts for the line number.
     do {
-        if (!std::getline(*in_, text_)) {
+        if (!std::getline(*in_, text)) {
             if (in_->bad()) throw Error(std::string("read failed: ") + std::strerror(errno), name_);
             return false;
         }
         ++line_;
-    } while (is_blank(text_));
+    } while (is_blank(text));
+    return true;
+}
 
+Json JsonlReader::parse_line(const std::string& text, long line) const {
+    Json record;
     try {
-        record = Json::parse(text_);
+        record = Json::parse(text);
     } catch (const nlohmann::json::exception& e) {
-        throw Error(parse_message(e), name_, line_);
+        throw Error(parse_message(e), name_, line);
     }
     if (!record.is_object())
-        throw Error("expected a JSON object, got " + describe(record), name_, line_);
+        throw Error("expected a JSON object, got " + describe(record), name_, line);
 
     // The schema gate: a program refuses the wrong stream on its first line.
     const auto schema = record.find("schema");
     if (schema == record.end())
         throw Error("missing" + (schemas_.empty() ? "" : " (expected " + join(schemas_) + ")"),
-                    name_, line_, "schema");
+                    name_, line, "schema");
     if (!schema->is_string())
-        throw Error("expected a string, got " + describe(*schema), name_, line_, "schema");
+        throw Error("expected a string, got " + describe(*schema), name_, line, "schema");
     if (!schemas_.empty()) {
         const std::string& s = schema->get_ref<const std::string&>();
         bool ok = false;
         for (const auto& accepted : schemas_) ok = ok || s == accepted;
         if (!ok)
-            throw Error("expected " + join(schemas_) + ", got \"" + s + "\"", name_, line_,
+            throw Error("expected " + join(schemas_) + ", got \"" + s + "\"", name_, line,
                         "schema");
     }
+    return record;
+}
+
+bool JsonlReader::next(Json& record) {
+    if (!next_line(text_)) return false;
+    record = parse_line(text_, line_);
     return true;
 }
 

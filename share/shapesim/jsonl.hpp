@@ -19,6 +19,7 @@
 #pragma once
 
 #include "shapesim/error.hpp"
+#include "shapesim/parallel.hpp"
 
 #include <nlohmann/json.hpp>
 
@@ -65,6 +66,35 @@ public:
         return true;
     }
 
+    /// Every remaining record converted by `Record::from_json`, parsed on `threads` threads
+    /// (lines are read in order, each parsed alone; the error of the first bad line in line
+    /// order is thrown, as next_record would). `lines`, when given, gets each record's line.
+    template <class Record>
+    std::vector<Record> read_all(int threads, std::vector<long>* lines = nullptr) {
+        std::vector<std::string> texts;
+        std::vector<long> at;
+        std::string text;
+        while (next_line(text)) {
+            texts.push_back(std::move(text));
+            at.push_back(line_);
+        }
+        std::vector<Record> records(texts.size());
+        std::vector<std::optional<Error>> errors(texts.size());
+        parallel_for(texts.size(), threads, [&](std::size_t k, int) {
+            try {
+                records[k] = Record::from_json(parse_line(texts[k], at[k]));
+            } catch (const Error& e) {
+                errors[k] = e.at(name_, at[k]);
+            } catch (const std::exception& e) {
+                errors[k] = Error(e.what(), name_, at[k]);
+            }
+        });
+        for (auto& error : errors)
+            if (error) throw *error;
+        if (lines) *lines = std::move(at);
+        return records;
+    }
+
     /// `e` placed at the current record (file and line; its field is kept).
     Error locate(const Error& e) const { return e.at(name_, line_); }
     /// File name for messages ("-" for stdin).
@@ -73,6 +103,9 @@ public:
     long line() const { return line_; }
 
 private:
+    bool next_line(std::string& text);  ///< the next non-blank line; false at the end
+    Json parse_line(const std::string& text, long line) const;  ///< parsed, schema checked
+
     std::unique_ptr<std::istream> owned_;
     std::istream* in_;
     std::string name_;

@@ -153,6 +153,42 @@ void BM_SceneHdf(benchmark::State& state) {
 }
 BENCHMARK(BM_SceneHdf)->Unit(benchmark::kMillisecond)->Iterations(2);
 
+// BM_SceneHdfAccuracy/k  the HDF scene of BM_SceneHdf noise-free, stamps cut where every pixel
+//                        left out is ≤ 10^−k of its model's central value (the peak-relative
+//                        truncation), prepared and painted on one thread, against the same
+//                        scene at 10^−12:
+//                        max_err_rel_peak   max |image − reference| / the brightest centre
+//                        flux_err_rel       Σ|image − reference| / Σ reference
+//                        mean_side          mean stamp side, pixels
+void BM_SceneHdfAccuracy(benchmark::State& state) {
+    const FieldGeometry f = square(4096, 0.0398);
+    const auto objects = field_objects(f, 700.0, 10, false);
+    SceneKernels k;
+    k.galaxy = k.star = bench_psf(10, 1.2);
+    SceneOptions o;
+    o.noise_free = true;
+    o.truncation = 1e-12;
+    const Tile window{1, 1, 4096, 4096};
+    static const ImageArray reference = paint(prepare_all(objects, k, o, 0.0398), window, o);
+    o.truncation = std::pow(10.0, -double(state.range(0)));
+    ImageArray image;
+    std::vector<PreparedObject> prepared;
+    for (auto _ : state) {
+        prepared = prepare_all(objects, k, o, 0.0398);
+        image = paint(prepared, window, o);
+        benchmark::DoNotOptimize(image.data());
+    }
+    double side = 0.0, peak = 0.0;
+    for (const auto& p : prepared) {
+        side += p.window.nx;
+        peak = std::max(peak, truncation_threshold(p.model, o) / o.truncation);
+    }
+    state.counters["max_err_rel_peak"] = (image - reference).abs().maxCoeff() / peak;
+    state.counters["flux_err_rel"] = (image - reference).abs().sum() / reference.sum();
+    state.counters["mean_side"] = side / double(prepared.size());
+}
+BENCHMARK(BM_SceneHdfAccuracy)->DenseRange(3, 6, 1)->Unit(benchmark::kMillisecond)->Iterations(2);
+
 }  // namespace
 
 namespace {

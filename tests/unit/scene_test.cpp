@@ -149,6 +149,27 @@ TEST(Scene, TruncationCostsAtMostTheStatedFractionOfTheNoise) {
     EXPECT_LE(total, 70 * o.truncation * o.noise_rms);
 }
 
+// Noise-free, the truncation is a fraction of each model's central value (its peak pixel's
+// worth): at 1e-3 … 1e-6, no pixel an object leaves out of its stamp exceeds that fraction of
+// its own centre value, against the object rendered on a whole 301² stamp.
+TEST(Scene, NoiseFreeTruncationIsAFractionOfThePeak) {
+    for (const double truncation : {1e-3, 1e-4, 1e-5, 1e-6}) {
+        SceneOptions o;
+        o.noise_free = true;
+        o.truncation = truncation;
+        double worst = 0.0;
+        for (const PreparedObject& p : crowded(o)) {
+            ImageArray one = ImageArray::Zero(150, 200), mine = ImageArray::Zero(150, 200);
+            add_to_image(p.model, one, PixelWindow{int(std::floor(p.model.x)) - 150,
+                                                   int(std::floor(p.model.y)) - 150, 301, 301});
+            if (p.drawn) add_to_image(p.model, mine, p.window);
+            worst = std::max(worst, (one - mine).abs().maxCoeff() / truncation_threshold(p.model, o));
+        }
+        report("noise_free_left_out_over_threshold_" + std::to_string(int(-std::log10(truncation))), worst);
+        EXPECT_LE(worst, 1.0) << truncation;
+    }
+}
+
 // A mosaic of 3×3 tiles equals the whole image bit for bit, with white, correlated and
 // photon noise; so do 1 and 3 threads.
 TEST(Scene, TilesAndThreadsAreBitIdentical) {
