@@ -12,7 +12,7 @@
 #include <optional>
 #include <string>
 
-#if defined(__x86_64__) && defined(__SSE4_1__)
+#if defined(__x86_64__)
 #include <immintrin.h>
 #define SHAPESIM_PHILOX_SIMD 1
 #endif
@@ -36,45 +36,7 @@ void philox_scalar(std::uint64_t key, std::uint32_t first, std::uint32_t c1, std
 }
 
 #ifdef SHAPESIM_PHILOX_SIMD
-// Four blocks at once, lane b holding block first + b: (hi, lo) = m · a per 32-bit lane.
-inline void mulhilo4(__m128i a, __m128i m, __m128i& hi, __m128i& lo) {
-    const __m128i even = _mm_mul_epu32(a, m);                     // lanes 0, 2 as 64 bits
-    const __m128i odd = _mm_mul_epu32(_mm_srli_epi64(a, 32), m);  // lanes 1, 3
-    lo = _mm_blend_epi16(even, _mm_slli_epi64(odd, 32), 0xCC);
-    hi = _mm_blend_epi16(_mm_srli_epi64(even, 32), odd, 0xCC);
-}
-
-std::size_t philox_sse(std::uint64_t key, std::uint32_t first, std::uint32_t c1,
-                       std::uint32_t c2, std::uint32_t c3, std::size_t count, std::uint32_t* out) {
-    const __m128i m0 = _mm_set1_epi32(int(kM0)), m1 = _mm_set1_epi32(int(kM1));
-    const __m128i lanes = _mm_setr_epi32(0, 1, 2, 3);
-    std::size_t b = 0;
-    for (; b + 4 <= count; b += 4) {
-        __m128i x0 = _mm_add_epi32(_mm_set1_epi32(int(first + std::uint32_t(b))), lanes);
-        __m128i x1 = _mm_set1_epi32(int(c1)), x2 = _mm_set1_epi32(int(c2)), x3 = _mm_set1_epi32(int(c3));
-        std::uint32_t k0 = std::uint32_t(key), k1 = std::uint32_t(key >> 32);
-        for (int round = 0; round < 10; ++round) {
-            if (round > 0) k0 += kW0, k1 += kW1;
-            __m128i hi0, lo0, hi1, lo1;
-            mulhilo4(x0, m0, hi0, lo0);
-            mulhilo4(x2, m1, hi1, lo1);
-            x0 = _mm_xor_si128(_mm_xor_si128(hi1, x1), _mm_set1_epi32(int(k0)));
-            x1 = lo1;
-            x2 = _mm_xor_si128(_mm_xor_si128(hi0, x3), _mm_set1_epi32(int(k1)));
-            x3 = lo0;
-        }
-        // Lanes are blocks, registers words: transpose to block-major.
-        const __m128i t0 = _mm_unpacklo_epi32(x0, x1), t1 = _mm_unpacklo_epi32(x2, x3);
-        const __m128i t2 = _mm_unpackhi_epi32(x0, x1), t3 = _mm_unpackhi_epi32(x2, x3);
-        __m128i* o = reinterpret_cast<__m128i*>(out + 4 * b);
-        _mm_storeu_si128(o + 0, _mm_unpacklo_epi64(t0, t1));
-        _mm_storeu_si128(o + 1, _mm_unpackhi_epi64(t0, t1));
-        _mm_storeu_si128(o + 2, _mm_unpacklo_epi64(t2, t3));
-        _mm_storeu_si128(o + 3, _mm_unpackhi_epi64(t2, t3));
-    }
-    return b;
-}
-
+// Eight blocks at once, lane b holding block first + b: (hi, lo) = m · a per 32-bit lane.
 __attribute__((target("avx2"))) inline void mulhilo8(__m256i a, __m256i m, __m256i& hi, __m256i& lo) {
     const __m256i even = _mm256_mul_epu32(a, m);
     const __m256i odd = _mm256_mul_epu32(_mm256_srli_epi64(a, 32), m);
@@ -104,8 +66,8 @@ __attribute__((target("avx2"))) std::size_t philox_avx2(std::uint64_t key, std::
             x2 = _mm256_xor_si256(_mm256_xor_si256(hi0, x3), _mm256_set1_epi32(int(k1)));
             x3 = lo0;
         }
-        // Per 128-bit half as in philox_sse: the low half holds blocks b … b + 3, the high
-        // half b + 4 … b + 7.
+        // Lanes are blocks, registers words: transpose to block-major, per 128-bit half (the
+        // low half holds blocks b … b + 3, the high half b + 4 … b + 7).
         const __m256i t0 = _mm256_unpacklo_epi32(x0, x1), t1 = _mm256_unpacklo_epi32(x2, x3);
         const __m256i t2 = _mm256_unpackhi_epi32(x0, x1), t3 = _mm256_unpackhi_epi32(x2, x3);
         const __m256i s0 = _mm256_unpacklo_epi64(t0, t1), s1 = _mm256_unpackhi_epi64(t0, t1);
@@ -119,12 +81,12 @@ __attribute__((target("avx2"))) std::size_t philox_avx2(std::uint64_t key, std::
     return b;
 }
 
-// AVX2 when the CPU has it, unless SHAPESIM_SIMD=sse asks for the baseline (the program test
-// comparing the two: the same bits either way).
+// AVX2 when the CPU has it, unless SHAPESIM_SIMD=none asks for the scalar code (the program
+// test comparing the two: the same bits either way).
 bool have_avx2() {
     static const bool yes = [] {
         const char* asked = std::getenv("SHAPESIM_SIMD");
-        if (asked && std::string(asked) == "sse") return false;
+        if (asked && std::string(asked) == "none") return false;
         __builtin_cpu_init();
         return __builtin_cpu_supports("avx2") != 0;
     }();
@@ -138,8 +100,7 @@ void philox4x32_blocks(std::uint64_t key, std::uint32_t first, std::uint32_t c1,
                        std::uint32_t c2, std::uint32_t c3, std::size_t count, std::uint32_t* out) {
     std::size_t done = 0;
 #ifdef SHAPESIM_PHILOX_SIMD
-    done = have_avx2() ? philox_avx2(key, first, c1, c2, c3, count, out)
-                     : philox_sse(key, first, c1, c2, c3, count, out);
+    if (have_avx2()) done = philox_avx2(key, first, c1, c2, c3, count, out);
 #endif
     philox_scalar(key, first + std::uint32_t(done), c1, c2, c3, count - done, out + 4 * done);
 }

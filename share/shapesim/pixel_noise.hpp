@@ -10,9 +10,10 @@
 //   word    = (C + 64) mod 4 of the block
 // The word's low 7 bits pick the layer, bit 7 the sign, the top 24 bits the abscissa, times the
 // layer's width in single precision (the noise is written as 32-bit floats). 97.3% of words
-// decide alone; the rest (the wedge and tail tests, Ziggurat::finish) draw from RandomStream(seed, (R + 64)·2³² + C + 64, "white noise retry"). Blocks are
-// computed four (SSE4.1) or eight (AVX2, when the CPU has it) at a time, integer arithmetic
-// only, so every machine gives the same bits.
+// decide alone; the rest (the wedge and tail tests, Ziggurat::finish) draw from RandomStream(seed, (R + 64)·2³² + C + 64, "white noise retry"). With AVX2 (when
+// the CPU has it) blocks are computed eight at a time and words turned into deviates eight at
+// a time; otherwise one at a time (Random123's own code). Integer arithmetic and one rounded
+// single-precision multiply per deviate, so every machine gives the same bits.
 //
 // Correlated noise (CorrelatedNoise): white noise convolved with a kernel k (noise.hpp;
 // Σk² = 1): n(p) = Σ_d k(d) w(p − d), summed directly in single precision over the taps in a
