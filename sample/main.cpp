@@ -63,7 +63,10 @@ int run(int argc, const char* const argv[]) {
          "print the field's grid of W x H pixel tiles, one 'IX IY X0 Y0 X1 Y1' line each (the\n"
          "--tile arguments; IX, IY from 0), and exit; no MODEL needed")
         ("margin", po::value(&s.margin)->default_value(0.5)->notifier(in_range("margin", 0.0, 3600.0)),
-         "arcsec added to every object's reach for the tile test (PSF wings)");
+         "arcsec added to every object's reach for the tile test (PSF wings)")
+        ("cell", po::value(&o.cell)->default_value(4096)->notifier(in_range<long>("cell", 1, 1L << 30)),
+         "sky cells of this many pixels a side key the draws: a tile reads only the cells it\n"
+         "reaches (a field of one cell draws as before cells; another size, another sky)");
     options.group("Galaxies").add_options()
         ("density", po::value(&o.density)->default_value(700.0)
              ->notifier(in_range("density", 0.0, 1e8)), "galaxies per arcmin^2 (Poisson; default: the model's real field, else 700)")
@@ -167,7 +170,8 @@ int run(int argc, const char* const argv[]) {
     log.info(summary.galaxies, " galaxies and ", summary.stars, " stars over ",
              field.area_arcmin2(), " arcmin^2 (", o.density, " per arcmin^2; ", field.nx, " x ", field.ny, " pixels); ",
              summary.galaxies_out, " galaxies and ", summary.stars_out, " stars written",
-             tile ? " (in the tile)" : "", "; ", summary.redraws, " perturbations redrawn; ",
+             tile ? " (in the tile)" : "", " from ", summary.cells_read, " of ", summary.cells, " sky cells; ",
+             summary.redraws, " perturbations redrawn; ",
              log.elapsed(), " s");
     log.info("largest share of one parent among the galaxies written: ", parents.summary());
     return 0;

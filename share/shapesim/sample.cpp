@@ -67,6 +67,7 @@ void SampleOptions::validate() const {
     if (!std::isfinite(mag_limit)) throw Error("must be finite", "", 0, "mag_limit");
     if (!std::isfinite(zero_point)) throw Error("must be finite", "", 0, "zero_point");
     if (!(margin >= 0.0 && std::isfinite(margin))) throw Error("must be ≥ 0", "", 0, "margin");
+    if (cell < 1) throw Error("must be ≥ 1 pixel", "", 0, "cell");
     draw.validate();
     // The star counts matter only when there are stars to draw.
     if (stars.density > 0.0 || (star_count && *star_count > 0)) stars.validate();
@@ -97,18 +98,11 @@ namespace {
 constexpr double degree = 3.14159265358979323846 / 180.0;
 
 // A uniform position over the field's pixel area.
-PixelPosition uniform_position(RandomStream& r, const FieldGeometry& field) {
-    PixelPosition p;
-    p.x = 0.5 + double(field.nx) * r.uniform();
-    p.y = 0.5 + double(field.ny) * r.uniform();
-    return p;
-}
-
-// A record of object `prefix``k` of `kind` at pixel position `p` of the field.
-ObjectRecord placed(const char* prefix, std::uint64_t k, const char* kind, const PixelPosition& p,
+// A record of object `id` of `kind` at pixel position `p` of the field.
+ObjectRecord placed(std::string id, const char* kind, const PixelPosition& p,
                     const FieldGeometry& field) {
     ObjectRecord o;
-    o.id = prefix + std::to_string(k);
+    o.id = std::move(id);
     o.kind = kind;
     const SkyPosition sky = field.wcs.pixel_to_sky(p.x, p.y);
     o.ra = sky.ra;
@@ -116,6 +110,80 @@ ObjectRecord placed(const char* prefix, std::uint64_t k, const char* kind, const
     o.x = p.x;
     o.y = p.y;
     return o;
+}
+
+// The field's sky cells: cell × cell field pixels from (0.5, 0.5), the last column and row
+// taking what is left; cell c = cy · columns + cx covers [x_lo, x_lo + width) × [y_lo, …).
+struct Cells {
+    long columns = 1, rows = 1, side = 1;
+    const FieldGeometry* field = nullptr;
+    Cells(const FieldGeometry& f, long cell)
+        : columns((f.nx + cell - 1) / cell), rows((f.ny + cell - 1) / cell), side(cell), field(&f) {}
+    std::uint64_t count() const { return std::uint64_t(columns * rows); }
+    double x_lo(std::uint64_t c) const { return 0.5 + double(long(c % std::uint64_t(columns)) * side); }
+    double y_lo(std::uint64_t c) const { return 0.5 + double(long(c / std::uint64_t(columns)) * side); }
+    double width(std::uint64_t c) const {
+        const long x = long(c % std::uint64_t(columns)) * side;
+        return double(std::min(side, field->nx - x));
+    }
+    double height(std::uint64_t c) const {
+        const long y = long(c / std::uint64_t(columns)) * side;
+        return double(std::min(side, field->ny - y));
+    }
+    double area_arcmin2(std::uint64_t c) const {  // as FieldGeometry::area_arcmin2
+        return width(c) * height(c) * field->pixel_scale * field->pixel_scale / 3600.0;
+    }
+    /// Whether any point of cell c lies within `radius` pixels of the tile.
+    bool reaches(std::uint64_t c, const Tile& tile, double radius) const {
+        const double x0 = x_lo(c), y0 = y_lo(c), x1 = x0 + width(c), y1 = y0 + height(c);
+        const double dx = std::max({double(tile.x0) - 0.5 - x1, 0.0, x0 - double(tile.x1) - 0.5});
+        const double dy = std::max({double(tile.y0) - 0.5 - y1, 0.0, y0 - double(tile.y1) - 0.5});
+        return dx * dx + dy * dy <= radius * radius;
+    }
+    /// A uniform position in cell c (over the whole field when it is the only cell).
+    PixelPosition position(std::uint64_t c, RandomStream& r) const {
+        PixelPosition p;
+        p.x = x_lo(c) + width(c) * r.uniform();
+        p.y = y_lo(c) + height(c) * r.uniform();
+        return p;
+    }
+};
+
+// Object k of cell c: its stream key and its id ("g17" in cell 0, "g3.17" in cell 3).
+std::uint64_t object_key(std::uint64_t cell, std::uint64_t k) { return (cell << 32) | k; }
+std::string object_id(const char* prefix, std::uint64_t cell, std::uint64_t k) {
+    return prefix + (cell == 0 ? std::to_string(k) : std::to_string(cell) + "." + std::to_string(k));
+}
+
+// Each cell's number of objects: Poisson(density × its area) from RandomStream(seed, cell,
+// `purpose`), or an exact total shared out in proportion to the cells' areas (largest
+// remainders, ties to the lower cell).
+std::vector<std::uint64_t> cell_counts(const Cells& cells, std::uint64_t seed, double density,
+                                       const std::optional<std::uint64_t>& total,
+                                       const char* purpose) {
+    const std::uint64_t n = cells.count();
+    std::vector<std::uint64_t> counts(n, 0);
+    if (!total) {
+        for (std::uint64_t c = 0; c < n; ++c) {
+            RandomStream r(seed, c, purpose);
+            counts[c] = r.poisson(density * cells.area_arcmin2(c));
+        }
+        return counts;
+    }
+    double area = 0.0;
+    for (std::uint64_t c = 0; c < n; ++c) area += cells.area_arcmin2(c);
+    std::vector<std::pair<double, std::uint64_t>> remainders;
+    std::uint64_t given = 0;
+    for (std::uint64_t c = 0; c < n; ++c) {
+        const double share = double(*total) * cells.area_arcmin2(c) / area;
+        counts[c] = std::uint64_t(std::floor(share));
+        given += counts[c];
+        remainders.push_back({share - std::floor(share), c});
+    }
+    std::stable_sort(remainders.begin(), remainders.end(),
+                     [](const auto& a, const auto& b) { return a.first > b.first; });
+    for (std::size_t i = 0; given < *total; ++i, ++given) ++counts[remainders[i % n].second];
+    return counts;
 }
 
 }  // namespace
@@ -126,19 +194,16 @@ SampleSummary sample_field(const Morphology& morphology, const FieldGeometry& fi
     options.validate();
     require(field.nx > 0 && field.ny > 0 && field.pixel_scale > 0.0, "the field is empty");
     SampleSummary summary;
-    const double area = field.area_arcmin2();
     const double scale = field.pixel_scale;
 
     // Galaxies.
     const std::vector<double> parents = parent_table(morphology, options.mag_limit);
     DrawOptions draw = options.draw;
     draw.by_magnitude = magnitude_order(morphology, options.mag_limit);
-    if (options.count) {
-        summary.galaxies = *options.count;
-    } else {
-        RandomStream r(options.seed, 0, "galaxy count");
-        summary.galaxies = r.poisson(options.density * area);
-    }
+    const Cells cells(field, options.cell);
+    const std::vector<std::uint64_t> galaxies =
+        cell_counts(cells, options.seed, options.density, options.count, "galaxy count");
+    for (const std::uint64_t n : galaxies) summary.galaxies += n;
     // No galaxy reaches further than the widest parent, perturbed, at the top order: a tile
     // skips the shape draw of objects beyond that.
     // A shape moved to another magnitude is scaled by 10^{−0.4 s (m − m_parent)}, m within
@@ -161,9 +226,14 @@ SampleSummary sample_field(const Morphology& morphology, const FieldGeometry& fi
     }
     const double reach_bound =
         model_reach((beta_max + morphology.lambda.beta) / scale, morphology.n_max) + options.margin;
-    for (std::uint64_t k = 0; k < summary.galaxies; ++k) {
+    summary.cells = cells.count();
+    for (std::uint64_t cell = 0; cell < cells.count(); ++cell) {
+      if (tile && !cells.reaches(cell, *tile, reach_bound)) continue;  // a tile reads its cells
+      ++summary.cells_read;
+      for (std::uint64_t j = 0; j < galaxies[cell]; ++j) {
+        const std::uint64_t k = object_key(cell, j);
         RandomStream where(options.seed, k, "galaxy position");
-        const PixelPosition p = uniform_position(where, field);
+        const PixelPosition p = cells.position(cell, where);
         if (tile && !tile->reaches(p.x, p.y, reach_bound)) continue;
         RandomStream stream(options.seed, k, "galaxy");
         const DrawnGalaxy g =
@@ -172,7 +242,7 @@ SampleSummary sample_field(const Morphology& morphology, const FieldGeometry& fi
         const double reach = model_reach(g.model.beta_pix, g.model.n_max) + options.margin;
         if (tile && !tile->reaches(p.x, p.y, reach)) continue;
         summary.redraws += std::uint64_t(g.redraws);
-        ObjectRecord o = placed("g", k, "galaxy", p, field);
+        ObjectRecord o = placed(object_id("g", cell, j), "galaxy", p, field);
         o.mag = g.mag;
         o.flux = g.flux;
         o.beta = g.beta;
@@ -190,26 +260,28 @@ SampleSummary sample_field(const Morphology& morphology, const FieldGeometry& fi
         o.extra["reach"] = reach;
         emit(o);
         ++summary.galaxies_out;
+      }
     }
 
     // Stars: the PSF at a magnitude from the star counts.
-    if (options.star_count) {
-        summary.stars = *options.star_count;
-    } else {
-        RandomStream r(options.seed, 0, "star count");
-        summary.stars = r.poisson(options.stars.density * area);
-    }
-    for (std::uint64_t k = 0; k < summary.stars; ++k) {
-        RandomStream where(options.seed, k, "star position");
-        const PixelPosition p = uniform_position(where, field);
-        if (tile && !tile->reaches(p.x, p.y, options.margin)) continue;
-        RandomStream stream(options.seed, k, "star");
-        ObjectRecord o = placed("s", k, "star", p, field);
-        o.mag = options.stars.magnitude(stream.uniform());
-        o.flux = std::pow(10.0, -0.4 * (*o.mag - options.zero_point));
-        o.extra["reach"] = options.margin;
-        emit(o);
-        ++summary.stars_out;
+    const std::vector<std::uint64_t> stars =
+        cell_counts(cells, options.seed, options.stars.density, options.star_count, "star count");
+    for (const std::uint64_t n : stars) summary.stars += n;
+    for (std::uint64_t cell = 0; cell < cells.count(); ++cell) {
+        if (tile && !cells.reaches(cell, *tile, options.margin)) continue;
+        for (std::uint64_t j = 0; j < stars[cell]; ++j) {
+            const std::uint64_t k = object_key(cell, j);
+            RandomStream where(options.seed, k, "star position");
+            const PixelPosition p = cells.position(cell, where);
+            if (tile && !tile->reaches(p.x, p.y, options.margin)) continue;
+            RandomStream stream(options.seed, k, "star");
+            ObjectRecord o = placed(object_id("s", cell, j), "star", p, field);
+            o.mag = options.stars.magnitude(stream.uniform());
+            o.flux = std::pow(10.0, -0.4 * (*o.mag - options.zero_point));
+            o.extra["reach"] = options.margin;
+            emit(o);
+            ++summary.stars_out;
+        }
     }
     return summary;
 }

@@ -3,10 +3,16 @@
 // a magnitude distribution, uniform positions, every draw from the counter-based stream of
 // (seed, object number, purpose) — so any object's record is the same whatever the tiling.
 //
-// Object k (k = 0 … N−1) is galaxy "g<k>": its position from RandomStream(seed, k,
-// "galaxy position"), its shape from RandomStream(seed, k, "galaxy"). Star k is "s<k>", from
-// "star position" and "star". N = Poisson(density × area) from RandomStream(seed, 0,
-// "galaxy count") (likewise "star count"), unless a count is given.
+// Sky cells (issue 16): the field is cut into cells of `cell` × `cell` pixels (4096 by default,
+// 2.7′ at the HDF's scale; the last column and row of cells take what is left), and every draw
+// is keyed by its cell, so a tile reads only the cells it reaches and a square degree costs
+// each tile its own neighbourhood, not the whole field. Cell c (row by row from the field's
+// first pixel) holds N_c = Poisson(density × its area) galaxies from RandomStream(seed, c,
+// "galaxy count") (likewise "star count"), or its share of an exact count (in proportion to
+// area, largest remainders). Its galaxy k has the key K = c · 2³² + k: its position (uniform in
+// the cell) from RandomStream(seed, K, "galaxy position"), its shape from RandomStream(seed, K,
+// "galaxy"); it is "g<k>" in cell 0 and "g<c>.<k>" elsewhere (stars "s…", from "star
+// position" and "star"). A field of one cell draws exactly what it drew before cells.
 //
 // Tiles: a window of the field's pixels. An object belongs to a tile when the circle of its
 // reach — model_reach(β_pix, n_max) plus `margin` pixels (for the PSF) — meets the window;
@@ -53,6 +59,7 @@ struct SampleOptions {
     double mag_limit = 29.0;           ///< nothing fainter
     double zero_point = 0.0;           ///< of the output fluxes
     double margin = 0.0;               ///< pixels added to every reach (PSF, …)
+    long cell = 4096;                  ///< sky cells of cell × cell pixels key the draws
     /// Shapes conditional on magnitude (morphology.hpp; `by_magnitude` is filled here).
     /// With draw.counts (conditional_counts), conditional draws take their magnitudes from
     /// those fitted counts; without, from a parent's magnitude, perturbed.
@@ -81,6 +88,7 @@ struct SampleSummary {
     std::uint64_t galaxies = 0, stars = 0;      ///< drawn over the whole field
     std::uint64_t galaxies_out = 0, stars_out = 0;  ///< emitted (in the tile)
     std::uint64_t redraws = 0;                  ///< perturbations refused and redrawn
+    std::uint64_t cells = 0, cells_read = 0;    ///< sky cells, and those whose draws were read
 };
 
 /// Clones at the bright end (issue 14 §3): among the galaxies brighter than each limit, the

@@ -81,6 +81,67 @@ TEST(Sample, TilesUnionIsTheWholeFieldRecordForRecord) {
     EXPECT_GT(emitted, whole.size());  // objects near the tile edges are in more than one
 }
 
+// Sky cells of 128 pixels on a 600 × 450 field (5 × 4 cells, the last column and row narrower):
+// a 3×3 tiling gives the whole field record for record; a small tile reads only the cells
+// within the widest reach of it; every object lies in its cell; each cell's count is Poisson
+// about density × its own area (the total's χ² over the 20 cells) and an exact count is shared
+// out in proportion to area; a field of one cell draws what the default cell does.
+TEST(Sample, SkyCellsKeyTheDraws) {
+    const Morphology m = test_morphology();
+    const FieldGeometry f = test_field(600, 450);
+    SampleOptions o;
+    o.seed = 12;
+    o.zero_point = 25.0;
+    o.density = 3000.0;
+    o.stars.density = 200.0;
+    o.margin = 3.0;
+    o.cell = 128;
+    const auto whole = draw(m, f, o, std::nullopt);
+    std::map<std::string, std::string> merged;
+    for (const Tile& t : tile_grid(600, 450, 200, 150))
+        for (const auto& [id, text] : draw(m, f, o, t)) {
+            ASSERT_TRUE(whole.count(id)) << id;
+            EXPECT_EQ(text, whole.at(id)) << id;
+            merged[id] = text;
+        }
+    EXPECT_EQ(merged, whole);
+    // Objects in their cells, counts per cell.
+    std::map<std::string, long> per_cell;
+    for (const auto& [id, text] : whole) {
+        const Json r = Json::parse(text);
+        const double x = r["x"], y = r["y"];
+        const long cell = long((y - 0.5) / 128) * 5 + long((x - 0.5) / 128);
+        const auto dot = id.find('.');
+        const long named = dot == std::string::npos ? 0 : std::stol(id.substr(1, dot - 1));
+        EXPECT_EQ(cell, named) << id;
+        if (id[0] == 'g') ++per_cell[std::to_string(cell)];
+    }
+    double chi2 = 0.0;
+    for (long c = 0; c < 20; ++c) {
+        const double w = c % 5 == 4 ? 600 - 512 : 128, h = c / 5 == 3 ? 450 - 384 : 128;
+        const double expect = 3000.0 * w * h * 0.04 * 0.04 / 3600.0;
+        const double d = double(per_cell[std::to_string(c)]) - expect;
+        chi2 += d * d / expect;
+    }
+    EXPECT_LT(chi2, 45.3);  // χ²₂₀ at p = 0.001
+    const SampleSummary small = sample_field(m, f, o, Tile{300, 200, 310, 210}, [](const ObjectRecord&) {});
+    EXPECT_EQ(small.cells, 20u);
+    EXPECT_LE(small.cells_read, 9u);
+    EXPECT_GE(small.cells_read, 1u);
+    o.count = 1001;
+    o.star_count = 7;
+    const SampleSummary exact = sample_field(m, f, o, std::nullopt, [](const ObjectRecord&) {});
+    EXPECT_EQ(exact.galaxies, 1001u);
+    EXPECT_EQ(exact.stars, 7u);
+    // One cell: the same draw whatever the cell's size beyond the field.
+    SampleOptions one = o, wider = o;
+    one.cell = 600;
+    wider.cell = 4096;
+    EXPECT_EQ(draw(m, f, one, std::nullopt), draw(m, f, wider, std::nullopt));
+    o.cell = 0;
+    EXPECT_THROW(sample_field(m, f, o, std::nullopt, [](const ObjectRecord&) {}), Error);
+}
+
 // Counts: Poisson about density × area by default, exact with `count`; no galaxy fainter than
 // the limit, and each record's flux matches its magnitude and its coefficients.
 TEST(Sample, CountsMagnitudesAndFluxes) {
