@@ -188,21 +188,38 @@ Grid gaussian(const Grid& in, double sigma) {
     return separable_filter(in, w, -radius);
 }
 
-// I rotated by 180° about (xc, yc): bilinear, zero outside.
-Grid rotate180(const Grid& in, double xc, double yc) {
+// Pixel (j, i) of I rotated by 180° about (xc, yc): bilinear, zero outside.
+double rotated180(const Grid& in, double xc, double yc, long j, long i) {
     const long ny = in.rows(), nx = in.cols();
-    Grid out = Grid::Zero(ny, nx);
-    auto at = [&](long j, long i) { return (i < 0 || j < 0 || i >= nx || j >= ny) ? 0.0 : in(j, i); };
-    for (long j = 0; j < ny; ++j)
-        for (long i = 0; i < nx; ++i) {
-            const double x = 2.0 * xc - double(i), y = 2.0 * yc - double(j);
-            const double x0 = std::floor(x), y0 = std::floor(y);
-            const double fx = x - x0, fy = y - y0;
-            const long i0 = long(x0), j0 = long(y0);
-            out(j, i) = (1 - fy) * ((1 - fx) * at(j0, i0) + fx * at(j0, i0 + 1)) +
-                        fy * ((1 - fx) * at(j0 + 1, i0) + fx * at(j0 + 1, i0 + 1));
-        }
-    return out;
+    auto at = [&](long b, long a) { return (a < 0 || b < 0 || a >= nx || b >= ny) ? 0.0 : in(b, a); };
+    const double x = 2.0 * xc - double(i), y = 2.0 * yc - double(j);
+    const double x0 = std::floor(x), y0 = std::floor(y);
+    const double fx = x - x0, fy = y - y0;
+    const long i0 = long(x0), j0 = long(y0);
+    return (1 - fy) * ((1 - fx) * at(j0, i0) + fx * at(j0, i0 + 1)) +
+           fy * ((1 - fx) * at(j0 + 1, i0) + fx * at(j0 + 1, i0 + 1));
+}
+
+// std::round (half away from zero), exactly, without the library call: x − trunc(x) is exact.
+long round_half_away(double x) {
+    const double t = std::trunc(x);
+    const double f = x - t;
+    return long(t) + (f >= 0.5 ? 1 : (f <= -0.5 ? -1 : 0));
+}
+
+// A window of a stamp: columns x0 … x0 + nx − 1, rows y0 … y0 + ny − 1.
+struct Window {
+    long x0 = 0, y0 = 0, nx = 0, ny = 0;
+};
+
+// The pixels a circle of radius r about (x, y) can reach, with 3 pixels to spare, clipped to the
+// nx × ny stamp (the whole stamp when r is not a finite positive radius).
+Window aperture_box(double x, double y, double r, long nx, long ny) {
+    if (!(r > 0.0) || !(r < double(nx + ny))) return {0, 0, nx, ny};
+    const long half = long(std::ceil(r)) + 3;
+    const long x0 = std::clamp(long(std::floor(x)) - half, 0L, nx), x1 = std::clamp(long(std::floor(x)) + half + 1, 0L, nx);
+    const long y0 = std::clamp(long(std::floor(y)) - half, 0L, ny), y1 = std::clamp(long(std::floor(y)) + half + 1, 0L, ny);
+    return {x0, y0, x1 - x0, y1 - y0};
 }
 
 }  // namespace
@@ -308,21 +325,29 @@ Morphometry measure_morphometry(const ImageArray& image, const LabelArray& label
             left_stamp = true;
             return 100.0;
         }
-        Grid img = z, rot = rotate180(z, xc, yc), unmasked(ny, nx);
-        for (long j = 0; j < ny; ++j)
-            for (long i = 0; i < nx; ++i) {
+        // Only the box of pixels the aperture can touch (its radius and 3 pixels, clipped to
+        // the stamp, as sep clips the circle's own box): each of its pixels takes the same
+        // values as in the whole stamp, and the sums run over the same pixels in the same
+        // order, so the asymmetry is the same number, at the cost of the aperture alone.
+        const Window box = aperture_box(xc, yc, r_asym, nx, ny);
+        Grid img = z.block(box.y0, box.x0, box.ny, box.nx), rot(box.ny, box.nx), unmasked(box.ny, box.nx);
+        for (long b = 0; b < box.ny; ++b)
+            for (long a = 0; a < box.nx; ++a) {
+                const long j = box.y0 + b, i = box.x0 + a;
+                rot(b, a) = rotated180(z, xc, yc, j, i);
                 // The mask rotated by nearest neighbour (half away from zero), then OR.
                 const double x = 2.0 * xc - double(i), y = 2.0 * yc - double(j);
-                const long ri = long(std::round(x)), rj = long(std::round(y));
+                const long ri = round_half_away(x), rj = round_half_away(y);
                 const bool mirror = ri >= 0 && rj >= 0 && ri < nx && rj < ny && masked(rj, ri);
                 const bool sym = masked(j, i) || mirror;
-                if (sym) img(j, i) = rot(j, i) = 0.0;
-                unmasked(j, i) = sym ? 0.0 : 1.0;
+                if (sym) img(b, a) = rot(b, a) = 0.0;
+                unmasked(b, a) = sym ? 0.0 : 1.0;
             }
         const Grid absolute = img.abs(), difference = (rot - img).abs();
-        const double s_abs = Apertures(absolute).circle(xc, yc, r_asym);
-        const double d = Apertures(difference).circle(xc, yc, r_asym);
-        const double area = Apertures(unmasked).circle(xc, yc, r_asym);
+        const double bx = xc - double(box.x0), by = yc - double(box.y0);  // exact
+        const double s_abs = Apertures(absolute).circle(bx, by, r_asym);
+        const double d = Apertures(difference).circle(bx, by, r_asym);
+        const double area = Apertures(unmasked).circle(bx, by, r_asym);
         if (!(s_abs > 0.0)) return nan;
         return (d - area * sky_asymmetry) / s_abs;
     };
