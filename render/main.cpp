@@ -13,7 +13,6 @@
 #include "shapesim/geometry.hpp"
 #include "shapesim/jsonl.hpp"
 #include "shapesim/polar.hpp"
-#include "shapesim/parallel.hpp"
 #include "shapesim/psf.hpp"
 #include "shapesim/records.hpp"
 #include "shapesim/scene.hpp"
@@ -242,27 +241,11 @@ int run(int argc, const char* const argv[]) {
 
     // Prepare (lens, convolve, size the stamps) in parallel; paint; noise.
     const auto t_prepare = clock::now();
-    std::vector<PreparedObject> prepared(records.size());
-    std::vector<std::string> errors(records.size());
-    std::vector<ConvolveWorkspace> workspaces(std::size_t(std::max(1, o.threads)));
-    parallel_for(records.size(), o.threads, [&](std::size_t k, int t) {
-        try {
-            prepared[k] = prepare_object(records[k], field.pixel_scale, kernels, o,
-                                         &workspaces[std::size_t(t)]);
-            prepared[k].index = k;
-        } catch (const std::exception& e) {
-            errors[k] = e.what();
-        }
-    });
-    for (std::size_t k = 0; k < records.size(); ++k)
-        if (!errors[k].empty()) throw Error("object " + records[k].id + ": " + errors[k], reader.name());
-    // Only what reaches the window.
     std::vector<PreparedObject> in_window;
-    for (auto& p : prepared) {
-        const PixelWindow& w = p.window;
-        if (p.drawn && w.column0 + w.nx > window.x0 - 1 && w.column0 < window.x1 &&
-            w.row0 + w.ny > window.y0 - 1 && w.row0 < window.y1)
-            in_window.push_back(std::move(p));
+    try {
+        in_window = prepare_scene(records, field.pixel_scale, kernels, o, window);
+    } catch (const Error& e) {
+        throw e.at(reader.name());
     }
     const auto t_paint = clock::now();
     o.clip_negative = !s.keep_negative;

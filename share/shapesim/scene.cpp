@@ -3,6 +3,7 @@
 #include "shapesim/basis1d.hpp"
 #include "shapesim/convolve.hpp"
 #include "shapesim/error.hpp"
+#include "shapesim/parallel.hpp"
 #include "shapesim/pixel_noise.hpp"
 #include "shapesim/polar.hpp"
 #include "shapesim/rng.hpp"
@@ -180,6 +181,33 @@ PreparedObject prepare_object(const ObjectRecord& record, double field_pixel_sca
     p.window = PixelWindow{int(i0 - 1), int(j0 - 1), int(i1 - i0 + 1), int(j1 - j0 + 1)};
     p.model = std::move(model);
     return p;
+}
+
+std::vector<PreparedObject> prepare_scene(const std::vector<ObjectRecord>& records,
+                                          double field_pixel_scale, const SceneKernels& kernels,
+                                          const SceneOptions& options, const Tile& window) {
+    std::vector<PreparedObject> prepared(records.size());
+    std::vector<std::string> errors(records.size());
+    std::vector<ConvolveWorkspace> workspaces(std::size_t(std::max(1, options.threads)));
+    parallel_for(records.size(), options.threads, [&](std::size_t k, int t) {
+        try {
+            prepared[k] = prepare_object(records[k], field_pixel_scale, kernels, options,
+                                         &workspaces[std::size_t(t)]);
+            prepared[k].index = k;
+        } catch (const std::exception& e) {
+            errors[k] = e.what();
+        }
+    });
+    for (std::size_t k = 0; k < records.size(); ++k)
+        if (!errors[k].empty()) throw Error("object " + records[k].id + ": " + errors[k]);
+    std::vector<PreparedObject> in_window;
+    for (auto& p : prepared) {
+        const PixelWindow& w = p.window;
+        if (p.drawn && w.column0 + w.nx > window.x0 - 1 && w.column0 < window.x1 &&
+            w.row0 + w.ny > window.y0 - 1 && w.row0 < window.y1)
+            in_window.push_back(std::move(p));
+    }
+    return in_window;
 }
 
 ImageArray paint(const std::vector<PreparedObject>& objects, const Tile& window,

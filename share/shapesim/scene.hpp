@@ -121,6 +121,13 @@ PreparedObject prepare_object(const ObjectRecord& record, double field_pixel_sca
                               const SceneKernels& kernels, const SceneOptions& options,
                               ConvolveWorkspace* workspace = nullptr);
 
+/// Every record prepared (on options.threads threads), keeping those drawn whose stamps reach
+/// `window`, in input order; each one's `index` is its record's. Error naming the first object
+/// (in input order) that failed.
+std::vector<PreparedObject> prepare_scene(const std::vector<ObjectRecord>& records,
+                                          double field_pixel_scale, const SceneKernels& kernels,
+                                          const SceneOptions& options, const Tile& window);
+
 /// What clip_negative removed from one galaxy's stamp (whole, wherever the window is).
 struct ClippedLight {
     double flux = 0.0;     ///< the negative light set to zero (≥ 0, image units)

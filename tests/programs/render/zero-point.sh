@@ -23,5 +23,5 @@ rows[0]["mag"] += 0.5
 sys.stdout.write("".join(json.dumps(r) + "\n" for r in rows))' >mixed.jsonl
 "$BIN/shapesim-render" -q --like "$HDF_IMAGE" --noise-rms 2e-5 --seed 3 -o mixed.fits <mixed.jsonl ||
   fail "render of mixed zero points failed"
-python3 "$tools/fitsdata.py" mixed.fits header | grep -q '^MAGZERO=' && fail "MAGZERO written for disagreeing objects"
+python3 "$tools/fitsdata.py" mixed.fits header | grep '^MAGZERO=' >/dev/null && fail "MAGZERO written for disagreeing objects"
 exit 0
