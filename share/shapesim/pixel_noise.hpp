@@ -15,8 +15,8 @@
 // a time; otherwise one at a time (Random123's own code). Integer arithmetic and one rounded
 // single-precision multiply per deviate, so every machine gives the same bits.
 //
-// Correlated noise (CorrelatedNoise): white noise convolved with a kernel k (noise.hpp;
-// Σk² = 1): n(p) = Σ_d k(d) w(p − d), summed directly in single precision over the taps in a
+// Correlated noise (CorrelatedNoise): white noise through a kernel k (noise.hpp; Σk² = 1):
+// n(p) = Σ_d k(d) w(p + d) (the same law as the convolution: ξ is symmetric), summed directly in single precision over the taps in a
 // fixed order, pairing k(d) with k(−d) when they are equal (every kernel noise.hpp builds is
 // point-symmetric), so the cost is about (2K + 1)²/2 multiplies and (2K + 1)² adds per pixel,
 // eight pixels at a time. Each pixel's sum runs over the same white values in the same order

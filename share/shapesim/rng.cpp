@@ -76,13 +76,12 @@ double log_factorial(double k) {
 namespace {
 // 1/k for the inversion's steps: a multiply instead of a division on the loop's critical path.
 struct Reciprocals {
-    double value[64];
-    Reciprocals() {
-        value[0] = 0.0;
+    double value[64] = {};
+    constexpr Reciprocals() {
         for (int k = 1; k < 64; ++k) value[k] = 1.0 / k;
     }
 };
-const Reciprocals reciprocals;
+constexpr Reciprocals reciprocals{};  // constant-initialised: no static-order hazard
 }  // namespace
 
 // Inversion: walk the CDF from 0 with one uniform (μ < 10, so e^{−μ} > 4.5e-5).

@@ -130,6 +130,7 @@ struct Cells {
         const long y = long(c / std::uint64_t(columns)) * side;
         return double(std::min(side, field->ny - y));
     }
+    std::uint64_t pixels(std::uint64_t c) const { return std::uint64_t(width(c) * height(c)); }
     double area_arcmin2(std::uint64_t c) const {  // as FieldGeometry::area_arcmin2
         return width(c) * height(c) * field->pixel_scale * field->pixel_scale / 3600.0;
     }
@@ -162,27 +163,33 @@ std::vector<std::uint64_t> cell_counts(const Cells& cells, std::uint64_t seed, d
                                        const std::optional<std::uint64_t>& total,
                                        const char* purpose) {
     const std::uint64_t n = cells.count();
+    require(n < (std::uint64_t(1) << 32), "more than 2^32 sky cells: give a larger --cell");
     std::vector<std::uint64_t> counts(n, 0);
     if (!total) {
         for (std::uint64_t c = 0; c < n; ++c) {
             RandomStream r(seed, c, purpose);
             counts[c] = r.poisson(density * cells.area_arcmin2(c));
+            require(counts[c] < (std::uint64_t(1) << 32), "more than 2^32 objects in a sky cell");
         }
         return counts;
     }
-    double area = 0.0;
-    for (std::uint64_t c = 0; c < n; ++c) area += cells.area_arcmin2(c);
-    std::vector<std::pair<double, std::uint64_t>> remainders;
+    // In whole pixels, so the shares are exact: cell c gets ⌊T · p_c / P⌋ and the remainders
+    // T · p_c mod P decide who gets the rest.
+    unsigned __int128 pixels = 0;
+    for (std::uint64_t c = 0; c < n; ++c) pixels += cells.pixels(c);
+    std::vector<std::pair<unsigned __int128, std::uint64_t>> remainders;
     std::uint64_t given = 0;
     for (std::uint64_t c = 0; c < n; ++c) {
-        const double share = double(*total) * cells.area_arcmin2(c) / area;
-        counts[c] = std::uint64_t(std::floor(share));
+        const unsigned __int128 product = (unsigned __int128)(*total) * cells.pixels(c);
+        counts[c] = std::uint64_t(product / pixels);
         given += counts[c];
-        remainders.push_back({share - std::floor(share), c});
+        remainders.push_back({product % pixels, c});
     }
     std::stable_sort(remainders.begin(), remainders.end(),
                      [](const auto& a, const auto& b) { return a.first > b.first; });
-    for (std::size_t i = 0; given < *total; ++i, ++given) ++counts[remainders[i % n].second];
+    for (std::size_t i = 0; given < *total; ++i, ++given) ++counts[remainders[i].second];
+    for (const std::uint64_t count : counts)
+        require(count < (std::uint64_t(1) << 32), "more than 2^32 objects in a sky cell");
     return counts;
 }
 
