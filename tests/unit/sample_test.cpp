@@ -39,6 +39,17 @@ FieldGeometry test_field(int nx, int ny) {
     return f;
 }
 
+// 3000 galaxies and 200 stars per arcmin², zero point 25, a 3-pixel margin.
+SampleOptions crowded_options(std::uint64_t seed) {
+    SampleOptions o;
+    o.seed = seed;
+    o.zero_point = 25.0;
+    o.density = 3000.0;
+    o.stars.density = 200.0;
+    o.margin = 3.0;
+    return o;
+}
+
 std::map<std::string, std::string> draw(const Morphology& m, const FieldGeometry& f,
                                         const SampleOptions& o, const std::optional<Tile>& tile) {
     std::map<std::string, std::string> out;
@@ -53,12 +64,7 @@ std::map<std::string, std::string> draw(const Morphology& m, const FieldGeometry
 TEST(Sample, TilesUnionIsTheWholeFieldRecordForRecord) {
     const Morphology m = test_morphology();
     const FieldGeometry f = test_field(600, 450);
-    SampleOptions o;
-    o.seed = 11;
-    o.zero_point = 25.0;
-    o.density = 3000.0;
-    o.stars.density = 200.0;
-    o.margin = 3.0;
+    const SampleOptions o = crowded_options(11);
     const auto whole = draw(m, f, o, std::nullopt);
     ASSERT_GT(whole.size(), 100u);
     EXPECT_EQ(draw(m, f, o, std::nullopt), whole);
@@ -89,12 +95,7 @@ TEST(Sample, TilesUnionIsTheWholeFieldRecordForRecord) {
 TEST(Sample, SkyCellsKeyTheDraws) {
     const Morphology m = test_morphology();
     const FieldGeometry f = test_field(600, 450);
-    SampleOptions o;
-    o.seed = 12;
-    o.zero_point = 25.0;
-    o.density = 3000.0;
-    o.stars.density = 200.0;
-    o.margin = 3.0;
+    SampleOptions o = crowded_options(12);
     o.cell = 128;
     const auto whole = draw(m, f, o, std::nullopt);
     std::map<std::string, std::string> merged;
