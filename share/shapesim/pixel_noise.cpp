@@ -229,6 +229,9 @@ private:
 
 void PhotonNoise::row(long row, long first, long count, double gain, double least,
                       double* pixels) const {
+    require(row >= 0 && first >= 0 && row + WhiteNoise::margin < (1L << 32) &&
+                first + count + WhiteNoise::margin <= (1L << 32),
+            "photon noise: pixel outside the keyed range");
     auto bright = [&](long i) { return pixels[i] > 0.0 && pixels[i] >= least; };
     constexpr std::uint64_t purpose = fnv1a_64("photon noise");
     const std::uint64_t row_key = std::uint64_t(row + WhiteNoise::margin) << 32;
@@ -240,9 +243,6 @@ void PhotonNoise::row(long row, long first, long count, double gain, double leas
         }
         long i1 = i0 + 1;
         while (i1 < count && bright(i1)) ++i1;
-        require(row >= 0 && first >= 0 && row + WhiteNoise::margin < (1L << 32) &&
-                    first + count + WhiteNoise::margin <= (1L << 32),
-                "photon noise: pixel outside the keyed range");
         const std::uint64_t q0 = std::uint64_t(first + i0 + WhiteNoise::margin);
         words_.resize(4 * std::size_t(i1 - i0));
         philox4x32_blocks(seed_, std::uint32_t(q0), std::uint32_t(row + WhiteNoise::margin),
@@ -328,20 +328,17 @@ CorrelatedNoise::CorrelatedNoise(const NoiseKernel& kernel, std::uint64_t seed, 
     out_.assign(std::size_t(nx), 0.0f);
 }
 
-const float* CorrelatedNoise::white(long row) {
+float* CorrelatedNoise::white(long row) {
     const long width = 2 * radius_ + 1;
     return ring_.data() + std::size_t(((row % width) + width) % width) * std::size_t(nx_ + 2 * radius_);
 }
 
 const float* CorrelatedNoise::row(long row) {
-    const long K = radius_, width = 2 * K + 1, span = nx_ + 2 * K;
+    const long K = radius_;
     require(!started_ || row >= last_row_, "correlated noise: rows must not decrease");
     // White rows row − K … row + K must be in the ring; draw the ones not drawn yet.
     const long from = started_ ? std::max(row - K, last_row_ + K + 1) : row - K;
-    for (long r = from; r <= row + K; ++r) {
-        float* slot = ring_.data() + std::size_t(((r % width) + width) % width) * std::size_t(span);
-        white_.row(r, first_ - K, span, slot);
-    }
+    for (long r = from; r <= row + K; ++r) white_.row(r, first_ - K, nx_ + 2 * K, white(r));
     last_row_ = row;
     started_ = true;
     for (std::size_t t = 0; t < taps_.size(); ++t) {

@@ -82,7 +82,7 @@ private:
         int dx, dy;       ///< k(dx, dy) multiplies w(p − d)
         bool paired;      ///< also w(p + d): k(−d) = k(d)
     };
-    const float* white(long row);  ///< white row `row`, columns first − K … first + nx + K − 1
+    float* white(long row);  ///< ring slot of white row `row` (columns first − K … first + nx + K − 1)
 
     WhiteNoise white_;
     int radius_;

@@ -173,13 +173,6 @@ public:
         if (x < x_[layer + 1]) return sign * x;  // wholly under the curve
         return sign * slow(layer, x, more());
     }
-    /// The deviate when the word decides alone (97.3%), else NaN: call operator() then.
-    double fast(std::uint64_t word) const {
-        const int layer = int(word & 127);
-        const double x = double(word >> 11) * 0x1.0p-53 * x_[layer];
-        if (x < x_[layer + 1]) return (word & 128) ? -x : x;
-        return std::numeric_limits<double>::quiet_NaN();
-    }
     /// x_i, the layers' edges: x_0 the base layer's width V/f(R), x_1 = R, x_128 = 0 (for
     /// other word layouts, as pixel_noise.hpp's single-precision one).
     double edge(int i) const { return x_[i]; }

@@ -17,9 +17,8 @@
 // Tiles: the image is a window of the field (pixels x0…x1, y0…y1). Each object's stamp is
 // always rendered whole (the same matrix products whatever the window) and its overlap with
 // the window added, objects in input order: a tile's pixels equal the whole image's bit for
-// bit. Noise is keyed by the field pixel (word C of RandomStream(seed, row, "background
-// noise") through the ziggurat, its rare retries keyed by the pixel; photon noise from
-// RandomStream(seed, pixel index, "photon")), so it is tile-invariant too. Threads split the window into bands of rows; each band adds the same
+// bit. Noise is keyed by the field pixel (pixel_noise.hpp: WhiteNoise, PhotonNoise), so it is
+// tile-invariant too. Threads split the window into bands of rows; each band adds the same
 // objects in the same order, so the result does not depend on the thread count.
 //
 // Noise (add_noise):
@@ -40,6 +39,7 @@
 #include "shapesim/model.hpp"
 #include "shapesim/moments.hpp"
 #include "shapesim/noise.hpp"
+#include "shapesim/pixel_noise.hpp"
 #include "shapesim/records.hpp"
 #include "shapesim/render.hpp"
 #include "shapesim/sample.hpp"
@@ -110,7 +110,7 @@ double stamp_radius(const CartesianModel& model, double threshold);
 ImageArray noise_scale_from_weight(const ImageArray& weight);
 
 /// Widest noise kernel add_noise draws (its margin stream's keys).
-constexpr int max_noise_kernel_radius = 64;  // = WhiteNoise::margin (pixel_noise.hpp)
+constexpr int max_noise_kernel_radius = int(WhiteNoise::margin);
 
 /// The scene's truncation threshold for a model: truncation × noise rms, or × the model's
 /// value at its centre (one pixel's worth) when the image is noise-free or noiseless.
