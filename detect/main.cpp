@@ -7,6 +7,7 @@
 #include "shapesim/app/options.hpp"
 #include "shapesim/app/provenance.hpp"
 #include "shapesim/app/run_main.hpp"
+#include "shapesim/bands.hpp"
 #include "shapesim/detect.hpp"
 #include "shapesim/error.hpp"
 #include "shapesim/fits_io.hpp"
@@ -35,11 +36,17 @@ const char* const description =
     "\n"
     "Example (the shipped HDF-N data, AB zero point 22.08):\n"
     "  shapesim-detect hdfn_f814w_v2.fits --weight hdfn_f814w_v2_weight.fits \\\n"
-    "      --zero-point 22.08 --stamps stamps.fits --stars stars.jsonl > sources.jsonl";
+    "      --zero-point 22.08 --stamps stamps.fits --stars stars.jsonl > sources.jsonl\n"
+    "\n"
+    "Several bands (dual-image mode): detect on IMAGE, measure every band of --bands in the\n"
+    "same apertures (forced FLUX_AUTO) and cut its stamps in the same boxes, for\n"
+    "shapesim-decompose's joint fit:\n"
+    "  shapesim-detect detection_sci.fits --weight detection_wht.fits --pixel-scale 0.06 \\\n"
+    "      --bands xdf.bands.jsonl --stamps stamps.fits > sources.jsonl";
 
 struct Settings {
     app::DetectionSettings detection;
-    std::string stamps, stars, segmentation, noise_model;
+    std::string stamps, stars, segmentation, noise_model, bands;
     StampOptions stamp;
     SkyNoiseOptions noise;
 };
@@ -50,6 +57,10 @@ void declare(app::ProgramOptions& options, Settings& s) {
     options.group("Stars").add_options()
         ("stars", po::value(&s.stars)->value_name("FILE"),
          "write the stars' records here (default: drop them)");
+    options.group("Bands").add_options()
+        ("bands", po::value(&s.bands)->value_name("FILE"),
+         "shapesim.band/1 lines (band, image, weight, zero_point, gain): measure each band in "
+         "the detection's apertures and cut its stamps (<id>.<band>) in the same boxes");
     options.group("Output").add_options()
         ("stamps", po::value(&s.stamps)->value_name("FILE"),
          "write postage stamps (image, weight, mask per object) to this FITS file")
@@ -98,7 +109,11 @@ int run(int argc, const char* const argv[]) {
     for (const std::string* path : {&s.stamps, &s.stars, &s.segmentation, &s.noise_model})
         if (!path->empty()) app::check_writable(*path);
 
+    std::vector<BandRecord> band_list;
+    if (!s.bands.empty()) band_list = BandRecord::read_all(s.bands);
     app::DetectionRun detected = s.detection.run(options, log);
+    const std::vector<BandField> bands =
+        measure_bands(band_list, detected.field, s.detection.detection);
     s.stamp.gain = s.detection.detection.gain;  // source photon noise in the stamps' weights
     SourceContext& context = detected.context;
     context.stamps = s.stamps;
@@ -138,12 +153,15 @@ int run(int argc, const char* const argv[]) {
                 cut_stamp(field, object, std::to_string(object.label), s.stamp));
             write_stamp(*stamps, cut->stamp);
         }
-        const Json record = source_record(object, core, star, cut.get(), context).to_json();
+        SourceRecord record = source_record(object, core, star, cut.get(), context);
+        if (!bands.empty())
+            add_bands(record, bands, std::size_t(object.label - 1), object, cut.get(),
+                      stamps.get(), s.stamps, s.stamp);
         if (is_star) {
             ++n_stars;
-            if (stars_out) stars_out->write(record);
+            if (stars_out) stars_out->write(record.to_json());
         } else {
-            out.write(record);
+            out.write(record.to_json());
         }
         log.verbose("object ", object.label, " at (", object.x, ", ", object.y,
                     ") stellarity ", star);

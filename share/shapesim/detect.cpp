@@ -374,9 +374,12 @@ ApertureFlux circular_aperture_flux(const DetectionResult& result, int label, do
 // ---------------------------------------------------------------------------------------------
 // Detection
 
-DetectionResult detect_sources(const ImageArray& image, const ImageArray* inverse_variance,
-                               const DetectionOptions& options) {
-    options.validate();
+namespace {
+
+// Steps 1–3 of the header: bad pixels, background subtracted, the noise map (objects,
+// segmentation and the correlated-noise factor left to the caller).
+DetectionResult noise_field(const ImageArray& image, const ImageArray* inverse_variance,
+                            const DetectionOptions& options) {
     const Eigen::Index ny = image.rows(), nx = image.cols();
     require(nx > 0 && ny > 0, "image is empty");
     if (inverse_variance && (inverse_variance->rows() != ny || inverse_variance->cols() != nx)) {
@@ -491,10 +494,58 @@ DetectionResult detect_sources(const ImageArray& image, const ImageArray* invers
                         "give a weight map");
     }
 
-    // libsep reads the noise array at masked pixels too: give it finite values there.
+    return result;
+}
+
+// libsep reads the noise array at masked pixels too: give it finite values there.
+ImageArray sep_noise(const DetectionResult& result) {
     ImageArray sep_sigma = result.sigma;
-    for (std::size_t k = 0; k < n; ++k)
+    for (std::size_t k = 0; k < result.bad.size(); ++k)
         if (result.bad[k]) sep_sigma.data()[k] = std::numeric_limits<float>::max();
+    return sep_sigma;
+}
+
+// An AUTO aperture in libsep's 0-based pixels: the ellipse r·(a, b) at θ (radians).
+struct AutoAperture {
+    int label = 0;
+    double x0 = 0.0, y0 = 0.0, a = 0.0, b = 0.0, theta = 0.0, radius = 0.0;
+};
+
+// FLUX_AUTO in `ap` on `result`'s image, neighbours' pixels mirrored out; the error from σ
+// times the correlated-noise factor, plus Poisson with GAIN.
+ApertureFlux auto_flux(const DetectionResult& result, const ImageArray& sep_sigma,
+                       const AutoAperture& ap, const DetectionOptions& options) {
+    const double theta = ap.theta, a_ap = ap.a, b_ap = ap.b, radius = ap.radius;
+    const double x0 = ap.x0, y0 = ap.y0;
+    const Cutout c = corrected_cutout(
+        result.image, &sep_sigma, result.bad.data(), &result.segmentation, ap.label, x0, y0,
+        radius * std::hypot(a_ap * std::cos(theta), b_ap * std::sin(theta)),
+        radius * std::hypot(a_ap * std::sin(theta), b_ap * std::cos(theta)));
+    const sep_image ci = sep_view(c.image, &c.sigma, nullptr, nullptr);
+    double sum = 0.0, error = 0.0, area = 0.0;
+    short flag = 0;
+    check_sep(sep_sum_ellipse(&ci, x0 - c.i0, y0 - c.j0, a_ap, b_ap, theta, radius, 0, 0, 0,
+                              &sum, &error, &area, &flag),
+              "AUTO flux of object " + std::to_string(ap.label));
+    ApertureFlux out;
+    out.flux = sum;
+    out.error = error * result.noise_correlation;
+    if (options.gain > 0.0 && sum > 0.0)
+        out.error = std::sqrt(out.error * out.error + sum / options.gain);
+    out.truncated = c.truncated;
+    out.masked = c.masked;
+    return out;
+}
+
+}  // namespace
+
+DetectionResult detect_sources(const ImageArray& image, const ImageArray* inverse_variance,
+                               const DetectionOptions& options) {
+    options.validate();
+    DetectionResult result = noise_field(image, inverse_variance, options);
+    const Eigen::Index ny = image.rows(), nx = image.cols();
+    const std::size_t n = std::size_t(nx) * std::size_t(ny);
+    const ImageArray sep_sigma = sep_noise(result);
 
     // Extraction; the pixel stack grows when a large image needs it.
     std::unique_ptr<sep_catalog, CatalogDeleter> catalog;
@@ -612,24 +663,51 @@ DetectionResult detect_sources(const ImageArray& image, const ImageArray* invers
         if (!(kron > 0.0) || !std::isfinite(kron)) kron = 0.0;
         d.kron_radius = kron;
         const double radius = std::max(options.kron_factor * kron, options.kron_min_radius);
-        const Cutout c = corrected_cutout(result.image, &sep_sigma, result.bad.data(),
-                                          &result.segmentation, d.label, x0, y0, half_x(radius),
-                                          half_y(radius));
-        const sep_image ci = sep_view(c.image, &c.sigma, nullptr, nullptr);
-        double sum = 0.0, error = 0.0, area = 0.0;
-        flag = 0;
-        check_sep(sep_sum_ellipse(&ci, x0 - c.i0, y0 - c.j0, a_ap, b_ap, theta, radius, 0, 0, 0,
-                                  &sum, &error, &area, &flag),
-                  "AUTO flux of object " + std::to_string(d.label));
-        d.flux_auto = sum;
-        d.flux_auto_err = error * result.noise_correlation;
-        if (options.gain > 0.0 && sum > 0.0)
-            d.flux_auto_err = std::sqrt(d.flux_auto_err * d.flux_auto_err + sum / options.gain);
-        if (c.truncated) d.flags.push_back("aperture_truncated");
-        if (c.masked) d.flags.push_back("aperture_masked");
+        const ApertureFlux automatic =
+            auto_flux(result, sep_sigma, {d.label, x0, y0, a_ap, b_ap, theta, radius}, options);
+        d.flux_auto = automatic.flux;
+        d.flux_auto_err = automatic.error;
+        if (automatic.truncated) d.flags.push_back("aperture_truncated");
+        if (automatic.masked) d.flags.push_back("aperture_masked");
         result.objects.push_back(std::move(d));
     }
     return result;
+}
+
+
+DetectionResult band_field(const ImageArray& image, const ImageArray* inverse_variance,
+                           const DetectionOptions& options, const DetectionResult& detection) {
+    options.validate();
+    if (image.rows() != detection.image.rows() || image.cols() != detection.image.cols()) {
+        std::ostringstream s;
+        s << "the band image is " << image.cols() << "×" << image.rows()
+          << " pixels but the detection image " << detection.image.cols() << "×"
+          << detection.image.rows();
+        throw Error(s.str());
+    }
+    DetectionResult result = noise_field(image, inverse_variance, options);
+    result.segmentation = detection.segmentation;
+    result.noise_correlation = correlated_noise_factor(result);
+    return result;
+}
+
+std::vector<ApertureFlux> forced_auto_fluxes(const DetectionResult& band,
+                                             const std::vector<Detection>& objects,
+                                             const DetectionOptions& options) {
+    const ImageArray sep_sigma = sep_noise(band);
+    std::vector<ApertureFlux> out;
+    out.reserve(objects.size());
+    for (const Detection& d : objects) {
+        const AutoAperture ap{d.label,
+                              d.x - 1.0,
+                              d.y - 1.0,
+                              std::max(d.a, 0.5),
+                              std::max(d.b, 0.5),
+                              d.theta * pi / 180.0,
+                              std::max(options.kron_factor * d.kron_radius, options.kron_min_radius)};
+        out.push_back(auto_flux(band, sep_sigma, ap, options));
+    }
+    return out;
 }
 
 }  // namespace shapesim

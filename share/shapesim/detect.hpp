@@ -170,7 +170,7 @@ constexpr double kBadPixelValue = 1e30;
 DetectionResult detect_sources(const ImageArray& image, const ImageArray* inverse_variance,
                                const DetectionOptions& options);
 
-/// Flux in a circular aperture.
+/// Flux in an aperture.
 struct ApertureFlux {
     double flux = 0.0, error = 0.0;  ///< image units; error from the σ map (0 without one)
     bool truncated = false;          ///< the aperture runs off the image
@@ -186,5 +186,22 @@ ApertureFlux circular_aperture_flux(const ImageArray& image, const ImageArray* s
 /// The same on a detection's background-subtracted image, σ map and segmentation.
 ApertureFlux circular_aperture_flux(const DetectionResult& result, int label, double x,
                                     double y, double radius);
+
+// Dual-image mode (SExtractor's `sex detection.fits,band.fits`): detect once, on a detection
+// image, and measure every band of the same pixel grid in the detection's apertures, so that
+// colours compare like with like.
+
+/// Another band's field on the detection's pixel grid: steps 1–3 on `image` (its own bad
+/// pixels, background, rescaled noise map) with `detection`'s segmentation, and its own
+/// correlated-noise factor measured on the sky that segmentation leaves. `objects` is empty:
+/// they are the detection's. Error when the sizes differ.
+DetectionResult band_field(const ImageArray& image, const ImageArray* inverse_variance,
+                           const DetectionOptions& options, const DetectionResult& detection);
+/// FLUX_AUTO of each of `objects` (detected elsewhere) on `band`: each detection's own ellipse
+/// and Kron radius, neighbours mirrored out by the detection's segmentation, errors from the
+/// band's noise (and `options.gain`).
+std::vector<ApertureFlux> forced_auto_fluxes(const DetectionResult& band,
+                                             const std::vector<Detection>& objects,
+                                             const DetectionOptions& options);
 
 }  // namespace shapesim

@@ -151,9 +151,46 @@ double model_flux(const ShapeletModel& model) {
 const Names source_fields = {"id",  "x", "y", "ra",    "dec",  "flux",       "flux_err",
                              "mag", "a", "b", "theta", "fwhm", "stellarity", "flags"};
 const Names shapelet_fields = {"id",    "x",    "y",   "beta",  "pixel_scale", "n_max",
-                               "chi2r", "flux", "mag", "flags", "coeffs"};
-const Names object_fields = {"id",   "kind",        "ra",   "dec",   "x",      "y",     "mag",
-                             "flux", "pixel_scale", "beta", "n_max", "parent", "flags", "coeffs"};
+                               "chi2r", "flux", "mag", "flags", "coeffs",      "bands"};
+const Names object_fields = {"id",   "kind",        "ra",   "dec",   "x",      "y",
+                             "mag",  "flux",        "pixel_scale",   "beta",   "n_max",
+                             "parent", "flags",     "coeffs",        "bands"};
+const Names band_fields = {"band", "image", "weight", "weight_type", "zero_point", "gain", "psf"};
+const Names band_coefficient_fields = {"band", "flux", "flux_err", "mag", "chi2r", "coeffs"};
+
+// `bands` of a multi-band record of order n_max: unique names, each its coefficients.
+std::vector<BandCoefficients> read_bands(const Json& j, int n_max) {
+    std::vector<BandCoefficients> bands;
+    if (!j.contains("bands") || j.at("bands").is_null()) return bands;
+    const Json& list = required_array(j, "bands");
+    for (std::size_t k = 0; k < list.size(); ++k) {
+        const std::string field = "bands[" + std::to_string(k) + "]";
+        bands.push_back(BandCoefficients::from_json(list[k], n_max, field));
+        for (std::size_t other = 0; other + 1 < bands.size(); ++other)
+            if (bands[other].band == bands.back().band)
+                throw Error("band \"" + bands.back().band + "\" appears twice", {}, 0, field);
+    }
+    return bands;
+}
+
+// Each band's coefficients as check_shape() checks the record's own.
+void check_bands(double beta, double pixel_scale, int n_max,
+                 const std::vector<BandCoefficients>& bands) {
+    for (std::size_t k = 0; k < bands.size(); ++k) {
+        try {
+            check_shape(beta, pixel_scale, n_max, bands[k].coeffs);
+        } catch (const Error& e) {
+            throw Error(e.message(), {}, 0, "bands[" + std::to_string(k) + "]." + e.field());
+        }
+    }
+}
+
+void put_bands(Json& j, const std::vector<BandCoefficients>& bands) {
+    if (bands.empty()) return;
+    Json list = Json::array();
+    for (const BandCoefficients& b : bands) list.push_back(b.to_json());
+    j["bands"] = std::move(list);
+}
 const Names morph_fields = {"id", "x",       "y", "mag",   "fwhm", "a",    "b",   "theta", "e1",
                             "e2", "r_petro", "c", "a_sym", "s",    "gini", "m20", "flags"};
 const Names convolution_fields = {"galaxy_id", "psf", "hdu",  "x",     "y",
@@ -238,6 +275,7 @@ ShapeletRecord ShapeletRecord::from_json(const Json& j) {
     r.mag = optional_double(j, "mag");
     r.flags = optional_strings(j, "flags");
     r.extra = extra_fields(j, shapelet_fields);
+    r.bands = read_bands(j, r.n_max);
     r.validate();
     return r;
 }
@@ -247,6 +285,7 @@ void ShapeletRecord::validate() const {
     check_finite("x", x);
     check_finite("y", y);
     check_shape(beta, pixel_scale, n_max, coeffs);
+    check_bands(beta, pixel_scale, n_max, bands);
     check_non_negative("chi2r", chi2r);
 }
 
@@ -266,6 +305,7 @@ Json ShapeletRecord::to_json() const {
     j["flags"] = flags;
     put_extra(j, extra, shapelet_fields);
     j["coeffs"] = write_coeffs(coeffs);
+    put_bands(j, bands);
     return j;
 }
 
@@ -314,6 +354,7 @@ ObjectRecord ObjectRecord::from_json(const Json& j) {
     r.parent = optional_string(j, "parent");
     r.flags = optional_strings(j, "flags");
     r.extra = extra_fields(j, object_fields);
+    r.bands = read_bands(j, r.n_max);
     r.validate();
     return r;
 }
@@ -327,6 +368,7 @@ void ObjectRecord::validate() const {
     check_finite("flux", flux);
     if (kind == "galaxy" && !has_shape()) throw Error("a galaxy needs its shape", {}, 0, "coeffs");
     if (has_shape()) check_shape(beta, pixel_scale, n_max, coeffs);
+    if (has_shape()) check_bands(beta, pixel_scale, n_max, bands);
 }
 
 Json ObjectRecord::to_json() const {
@@ -350,6 +392,7 @@ Json ObjectRecord::to_json() const {
     j["flags"] = flags;
     put_extra(j, extra, object_fields);
     if (has_shape()) j["coeffs"] = write_coeffs(coeffs);
+    put_bands(j, bands);
     return j;
 }
 
@@ -358,6 +401,110 @@ ShapeletModel ObjectRecord::to_model(double x_pix, double y_pix) const {
     ShapeletModel model(x_pix, y_pix, beta / pixel_scale, n_max);
     model.coeffs = coeffs;
     return model;
+}
+
+ObjectRecord ObjectRecord::in_band(const std::string& name) const {
+    for (const BandCoefficients& b : bands) {
+        if (b.band != name) continue;
+        ObjectRecord r = *this;
+        r.bands.clear();
+        if (has_shape()) r.coeffs = b.coeffs;
+        r.flux = b.flux.value_or(0.0);
+        r.mag = b.mag;
+        return r;
+    }
+    throw Error("object " + id + " has no band \"" + name + "\"", {}, 0, "bands");
+}
+
+// ------------------------------------------------------------------------------ BandRecord
+
+BandRecord BandRecord::from_json(const Json& j) {
+    check_schema(j, schema);
+    BandRecord r;
+    r.band = required_string(j, "band");
+    r.image = required_string(j, "image");
+    if (auto w = optional_string(j, "weight")) r.weight = *w;
+    if (auto t = optional_string(j, "weight_type")) r.weight_type = *t;
+    r.zero_point = optional_double(j, "zero_point");
+    r.gain = optional_double(j, "gain");
+    if (auto p = optional_string(j, "psf")) r.psf = *p;
+    r.extra = extra_fields(j, band_fields);
+    r.validate();
+    return r;
+}
+
+void BandRecord::validate() const {
+    if (band.empty()) throw Error("must not be empty", {}, 0, "band");
+    if (image.empty()) throw Error("must not be empty", {}, 0, "image");
+    if (weight_type != "weight" && weight_type != "rms" && weight_type != "variance")
+        throw Error("must be \"weight\", \"rms\" or \"variance\", got \"" + weight_type + "\"",
+                    {}, 0, "weight_type");
+    if (zero_point) check_finite("zero_point", *zero_point);
+    check_non_negative("gain", gain);
+    if (gain) check_finite("gain", *gain);
+}
+
+Json BandRecord::to_json() const {
+    validate();
+    Json j;
+    j["schema"] = schema;
+    j["band"] = band;
+    j["image"] = image;
+    if (!weight.empty()) j["weight"] = weight;
+    j["weight_type"] = weight_type;
+    put(j, "zero_point", zero_point);
+    put(j, "gain", gain);
+    if (!psf.empty()) j["psf"] = psf;
+    put_extra(j, extra, band_fields);
+    return j;
+}
+
+std::vector<BandRecord> BandRecord::read_all(const std::string& path) {
+    JsonlReader reader(path, {schema});
+    std::vector<BandRecord> bands;
+    BandRecord r;
+    while (reader.next_record(r)) {
+        for (const BandRecord& other : bands)
+            if (other.band == r.band)
+                throw Error("band \"" + r.band + "\" appears twice", reader.name(), reader.line(),
+                            "band");
+        bands.push_back(r);
+    }
+    if (bands.empty()) throw Error("no band in the file", reader.name(), 0);
+    return bands;
+}
+
+BandCoefficients BandCoefficients::from_json(const Json& j, int n_max, const std::string& field) {
+    try {
+        if (!j.is_object()) throw Error("expected an object, got " + j.dump(), {}, 0, "");
+        BandCoefficients b;
+        b.band = required_string(j, "band");
+        if (b.band.empty()) throw Error("must not be empty", {}, 0, "band");
+        b.coeffs = read_coeffs(j, n_max);
+        b.flux = optional_double(j, "flux");
+        b.flux_err = optional_double(j, "flux_err");
+        b.mag = optional_double(j, "mag");
+        b.chi2r = optional_double(j, "chi2r");
+        check_non_negative("flux_err", b.flux_err);
+        check_non_negative("chi2r", b.chi2r);
+        b.extra = extra_fields(j, band_coefficient_fields);
+        return b;
+    } catch (const Error& e) {
+        throw Error(e.message(), e.file(), e.line(),
+                    field + (e.field().empty() ? "" : ".") + e.field());
+    }
+}
+
+Json BandCoefficients::to_json() const {
+    Json j;
+    j["band"] = band;
+    put(j, "flux", flux);
+    put(j, "flux_err", flux_err);
+    put(j, "mag", mag);
+    put(j, "chi2r", chi2r);
+    put_extra(j, extra, band_coefficient_fields);
+    j["coeffs"] = write_coeffs(coeffs);
+    return j;
 }
 
 // ----------------------------------------------------------------------------- MorphRecord

@@ -4,7 +4,13 @@
 //   ShapeletRecord  shapesim.shapelet/1  decompose  a shapelet model (galaxies and the PSF)
 //   ObjectRecord    shapesim.object/1    sample     a simulated object placed on the sky
 //   MorphRecord     shapesim.morph/1     measure    morphology diagnostics
+//   BandRecord      shapesim.band/1      the user  one band of a multi-band field (issue 17)
 //   ReferenceConvolutionRecord           the exact convolution fixtures (tests/data/reference)
+//
+// Multi-band models (issue 17): a shapelet or object record may carry `bands`, a list of
+// BandCoefficients, one per band, all at the record's centre, β and n_max; the record's own
+// coefficients, flux and mag are those of its reference band (`band`), so a one-band program
+// reads a multi-band record as the reference band's model.
 //
 // Conventions (DESIGN §2): x, y are FITS pixel coordinates (first pixel centred at (1, 1));
 // ra, dec, theta in degrees (theta counter-clockwise from +x); a, b, fwhm in pixels; beta in
@@ -31,6 +37,40 @@ namespace shapesim {
 /// Largest n_max a record may declare (guards allocation against a corrupt line; the
 /// stress tests go past 100).
 constexpr int record_n_max_limit = 1000;
+
+/// One band of a multi-band field (`shapesim.band/1`): a line of the bands file that
+/// shapesim-detect --bands and shapesim-decompose read. The images are on the detection
+/// image's pixel grid.
+struct BandRecord {
+    static constexpr const char* schema = "shapesim.band/1";
+    std::string band;                    ///< its name (e.g. "f814w"), unique in the file
+    std::string image;                   ///< science image (path)
+    std::string weight;                  ///< noise map (path; empty: none)
+    std::string weight_type = "weight";  ///< "weight", "rms" or "variance"
+    std::optional<double> zero_point;    ///< AB magnitude of one image unit
+    std::optional<double> gain;          ///< e⁻ per image unit (source photon noise)
+    std::string psf;                     ///< the band's PSF record (path; empty: none)
+    Json extra = Json::object();
+
+    static BandRecord from_json(const Json& record);
+    Json to_json() const;
+    void validate() const;
+    /// Every record of the bands file `path`; Error (file and line) on a bad or repeated band,
+    /// or an empty file.
+    static std::vector<BandRecord> read_all(const std::string& path);
+};
+
+/// One band of a multi-band model: its coefficients at the record's centre, β and n_max.
+struct BandCoefficients {
+    std::string band;
+    std::vector<Complex> coeffs;     ///< packed a_{n,m}, size polar_count(n_max)
+    std::optional<double> flux, flux_err, mag, chi2r;
+    Json extra = Json::object();     ///< e.g. coeff_errors, zero_point
+
+    /// Read element `field` (for messages, e.g. "bands[2]") of a record of order `n_max`.
+    static BandCoefficients from_json(const Json& j, int n_max, const std::string& field);
+    Json to_json() const;
+};
 
 /// A detection (`shapesim.source/1`, from shapesim-detect).
 struct SourceRecord {
@@ -68,6 +108,7 @@ struct ShapeletRecord {
     std::optional<double> mag;
     std::vector<std::string> flags;
     Json extra = Json::object();
+    std::vector<BandCoefficients> bands;  ///< multi-band: every band (the reference's too)
 
     static ShapeletRecord from_json(const Json& record);
     Json to_json() const;
@@ -100,6 +141,7 @@ struct ObjectRecord {
     std::optional<std::string> parent;  ///< id of the real galaxy it was drawn from
     std::vector<std::string> flags;
     Json extra = Json::object();
+    std::vector<BandCoefficients> bands;  ///< multi-band: every band (fluxes in its units)
 
     static ObjectRecord from_json(const Json& record);
     Json to_json() const;
@@ -108,6 +150,9 @@ struct ObjectRecord {
     bool has_shape() const { return !coeffs.empty(); }
     /// The shape as a model centred at (`x`, `y`) (FITS pixels), beta_pix = beta/pixel_scale.
     ShapeletModel to_model(double x, double y) const;
+    /// This record as seen in band `name`: coefficients, flux and mag of that band (stars and
+    /// galaxies alike); `bands` emptied. Error when the record has no such band.
+    ObjectRecord in_band(const std::string& name) const;
 };
 
 /// Morphology of one object (`shapesim.morph/1`, from shapesim-measure). Statistics that

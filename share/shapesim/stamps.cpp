@@ -33,96 +33,26 @@ int odd_side(double side) {
     return std::max(3, whole % 2 == 1 ? whole : whole + 1);
 }
 
-}  // namespace
-
-int stamp_side(const Detection& object, const StampOptions& options) {
-    return odd_side(options.size_factor * object.a + options.size_offset);
-}
-
-int extent_side(const Detection& object, const StampOptions& options) {
-    const int paper = stamp_side(object, options);
-    double side = paper;
-    // The segment's bounding box as seen from the central pixel (a record without one, all
-    // zero, has no extent to add).
-    if (object.xmax > object.xmin || object.ymax > object.ymin) {
-        const long ic = std::lround(object.x), jc = std::lround(object.y);
-        const long reach = std::max({ic - object.xmin, object.xmax - ic, jc - object.ymin,
-                                     object.ymax - jc, 0L});
-        side = std::max(side, 2.0 * double(reach + options.sky_margin) + 1.0);
-    }
-    const double kron = options.kron_factor * object.kron_radius * object.a;
-    if (std::isfinite(kron)) side = std::max(side, 2.0 * kron + 1.0);
-    return std::max(paper, std::min(odd_side(side), options.max_side));
-}
-
-CutStamp cut_stamp(const DetectionResult& field, const Detection& object, const std::string& id,
-                   const StampOptions& options) {
-    options.validate();
+// Whether the pixel or one of its 8 neighbours belongs to an object (sky pixels are those that
+// do not: a segment took its neighbours' upward noise peaks).
+bool touches_object(const DetectionResult& field, int row, int column) {
     const int nx = int(field.image.cols()), ny = int(field.image.rows());
-    const int ic = int(std::lround(object.x)) - 1, jc = int(std::lround(object.y)) - 1;
+    for (int dj = -1; dj <= 1; ++dj)
+        for (int di = -1; di <= 1; ++di) {
+            const int r = row + dj, c = column + di;
+            if (r >= 0 && c >= 0 && r < ny && c < nx && field.segmentation(r, c) != 0)
+                return true;
+        }
+    return false;
+}
+
+// The stamp of pixels [i0, i1] × [j0, j1] (0-based), its weights renormalised locally and the
+// source's photon noise added (see the header); `out` carries what the box choice found.
+CutStamp in_box(const DetectionResult& field, const Detection& object, const std::string& id,
+                int i0, int i1, int j0, int j1, const StampOptions& options, CutStamp out) {
+    const int nx = int(field.image.cols()), ny = int(field.image.rows());
     const int depth = options.border_width;
-    // Pixels owned by no object and not touching one.
-    const auto near_object = [&](int row, int column) {
-        for (int dj = -1; dj <= 1; ++dj)
-            for (int di = -1; di <= 1; ++di) {
-                const int r = row + dj, c = column + di;
-                if (r >= 0 && c >= 0 && r < ny && c < nx && field.segmentation(r, c) != 0)
-                    return true;
-            }
-        return false;
-    };
-
-    CutStamp out;
-    int side = extent_side(object, options);
-    int i0 = 0, i1 = -1, j0 = 0, j1 = -1;
-    for (;;) {
-        const int half = side / 2;
-        const int a0 = std::max(0, ic - half), a1 = std::min(nx - 1, ic + half);
-        const int b0 = std::max(0, jc - half), b1 = std::min(ny - 1, jc + half);
-        if (a0 > a1 || b0 > b1) throw Error("object " + id + " lies outside the image");
-        const bool same = a0 == i0 && a1 == i1 && b0 == j0 && b1 == j1;
-        i0 = a0, i1 = a1, j0 = b0, j1 = b1;
-        if (same) {  // the image's edges stop the growth
-            out.border_not_sky = true;
-            break;
-        }
-        // Is the border ring sky? Not where the object's own segment reaches it, nor where
-        // its free pixels are brighter than their noise allows (wings beyond the isophote).
-        bool own = false;
-        double sum = 0.0;
-        long n = 0;
-        const auto visit = [&](int row, int column) {
-            if (field.segmentation(row, column) == object.label) own = true;
-            if (own || field.is_bad(row, column) || !std::isfinite(field.sigma(row, column)) ||
-                near_object(row, column))
-                return;
-            sum += field.image(row, column) / field.sigma(row, column);
-            ++n;
-        };
-        // The ring's sides the image's edge has not cut: an object running off the image
-        // owns the pixels along that edge however large its stamp.
-        const bool left = i0 == ic - half, right = i1 == ic + half;
-        const bool bottom = j0 == jc - half, top = j1 == jc + half;
-        for (int row = j0; row <= j1 && !own; ++row)
-            for (int column = i0; column <= i1; ++column)
-                if ((left && column < i0 + depth) || (right && column > i1 - depth) ||
-                    (bottom && row < j0 + depth) || (top && row > j1 - depth))
-                    visit(row, column);
-        const bool sky = !own && (n == 0 || sum / std::sqrt(double(n)) <=
-                                               options.border_sigmas * field.noise_correlation);
-        if (sky || side >= options.max_side) {
-            out.border_not_sky = !sky;
-            break;
-        }
-        side = std::min(odd_side(1.25 * side), options.max_side);
-        ++out.grown;
-    }
-
-    // Clipped where it matters: within the paper's 3a + 5 about the centre. Sky margin and
-    // growth cut by the edge only cost fit pixels (a segment or aperture running off the image
-    // is flagged by detection itself).
-    const int core = stamp_side(object, options) / 2;
-    out.clipped = ic - core < 0 || ic + core > nx - 1 || jc - core < 0 || jc + core > ny - 1;
+    const auto near_object = [&](int row, int column) { return touches_object(field, row, column); };
     Stamp& stamp = out.stamp;
     stamp.id = id;
     stamp.x0 = i0 + 1;
@@ -213,6 +143,114 @@ CutStamp cut_stamp(const DetectionResult& field, const Detection& object, const 
             }
     }
     return out;
+}
+
+}  // namespace
+
+int stamp_side(const Detection& object, const StampOptions& options) {
+    return odd_side(options.size_factor * object.a + options.size_offset);
+}
+
+int extent_side(const Detection& object, const StampOptions& options) {
+    const int paper = stamp_side(object, options);
+    double side = paper;
+    // The segment's bounding box as seen from the central pixel (a record without one, all
+    // zero, has no extent to add).
+    if (object.xmax > object.xmin || object.ymax > object.ymin) {
+        const long ic = std::lround(object.x), jc = std::lround(object.y);
+        const long reach = std::max({ic - object.xmin, object.xmax - ic, jc - object.ymin,
+                                     object.ymax - jc, 0L});
+        side = std::max(side, 2.0 * double(reach + options.sky_margin) + 1.0);
+    }
+    const double kron = options.kron_factor * object.kron_radius * object.a;
+    if (std::isfinite(kron)) side = std::max(side, 2.0 * kron + 1.0);
+    return std::max(paper, std::min(odd_side(side), options.max_side));
+}
+
+namespace {
+
+// Clipped where it matters: within the paper's 3a + 5 about the centre. Sky margin and growth
+// cut by the edge only cost fit pixels (a segment or aperture running off the image is flagged
+// by detection itself).
+bool core_clipped(const DetectionResult& field, const Detection& object,
+                  const StampOptions& options) {
+    const int nx = int(field.image.cols()), ny = int(field.image.rows());
+    const int ic = int(std::lround(object.x)) - 1, jc = int(std::lround(object.y)) - 1;
+    const int core = stamp_side(object, options) / 2;
+    return ic - core < 0 || ic + core > nx - 1 || jc - core < 0 || jc + core > ny - 1;
+}
+
+}  // namespace
+
+CutStamp cut_stamp(const DetectionResult& field, const Detection& object, const std::string& id,
+                   const StampOptions& options) {
+    options.validate();
+    const int nx = int(field.image.cols()), ny = int(field.image.rows());
+    const int ic = int(std::lround(object.x)) - 1, jc = int(std::lround(object.y)) - 1;
+    const int depth = options.border_width;
+    const auto near_object = [&](int row, int column) { return touches_object(field, row, column); };
+
+    CutStamp out;
+    int side = extent_side(object, options);
+    int i0 = 0, i1 = -1, j0 = 0, j1 = -1;
+    for (;;) {
+        const int half = side / 2;
+        const int a0 = std::max(0, ic - half), a1 = std::min(nx - 1, ic + half);
+        const int b0 = std::max(0, jc - half), b1 = std::min(ny - 1, jc + half);
+        if (a0 > a1 || b0 > b1) throw Error("object " + id + " lies outside the image");
+        const bool same = a0 == i0 && a1 == i1 && b0 == j0 && b1 == j1;
+        i0 = a0, i1 = a1, j0 = b0, j1 = b1;
+        if (same) {  // the image's edges stop the growth
+            out.border_not_sky = true;
+            break;
+        }
+        // Is the border ring sky? Not where the object's own segment reaches it, nor where
+        // its free pixels are brighter than their noise allows (wings beyond the isophote).
+        bool own = false;
+        double sum = 0.0;
+        long n = 0;
+        const auto visit = [&](int row, int column) {
+            if (field.segmentation(row, column) == object.label) own = true;
+            if (own || field.is_bad(row, column) || !std::isfinite(field.sigma(row, column)) ||
+                near_object(row, column))
+                return;
+            sum += field.image(row, column) / field.sigma(row, column);
+            ++n;
+        };
+        // The ring's sides the image's edge has not cut: an object running off the image
+        // owns the pixels along that edge however large its stamp.
+        const bool left = i0 == ic - half, right = i1 == ic + half;
+        const bool bottom = j0 == jc - half, top = j1 == jc + half;
+        for (int row = j0; row <= j1 && !own; ++row)
+            for (int column = i0; column <= i1; ++column)
+                if ((left && column < i0 + depth) || (right && column > i1 - depth) ||
+                    (bottom && row < j0 + depth) || (top && row > j1 - depth))
+                    visit(row, column);
+        const bool sky = !own && (n == 0 || sum / std::sqrt(double(n)) <=
+                                               options.border_sigmas * field.noise_correlation);
+        if (sky || side >= options.max_side) {
+            out.border_not_sky = !sky;
+            break;
+        }
+        side = std::min(odd_side(1.25 * side), options.max_side);
+        ++out.grown;
+    }
+
+    out.clipped = core_clipped(field, object, options);
+    return in_box(field, object, id, i0, i1, j0, j1, options, out);
+}
+
+CutStamp cut_band_stamp(const DetectionResult& band, const Detection& object,
+                        const std::string& id, const Stamp& box, const StampOptions& options) {
+    options.validate();
+    const int i0 = box.x0 - 1, j0 = box.y0 - 1;
+    const int i1 = i0 + int(box.image.cols()) - 1, j1 = j0 + int(box.image.rows()) - 1;
+    if (i0 < 0 || j0 < 0 || i1 >= band.image.cols() || j1 >= band.image.rows() || i1 < i0 ||
+        j1 < j0)
+        throw Error("the stamp of object " + id + " does not fit the band's image");
+    CutStamp out;
+    out.clipped = core_clipped(band, object, options);
+    return in_box(band, object, id, i0, i1, j0, j1, options, out);
 }
 
 }  // namespace shapesim

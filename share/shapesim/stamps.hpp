@@ -78,4 +78,11 @@ int extent_side(const Detection& object, const StampOptions& options);
 CutStamp cut_stamp(const DetectionResult& field, const Detection& object, const std::string& id,
                    const StampOptions& options);
 
+/// `object`'s stamp on another band of the same pixel grid (`band` from band_field()), in the
+/// pixels of its detection stamp `box` (origin and size; a joint fit needs the same pixels in
+/// every band), with the band's own local noise renormalisation and photon noise
+/// (`options.gain`: the band's). Error when the box does not fit the band's image.
+CutStamp cut_band_stamp(const DetectionResult& band, const Detection& object,
+                        const std::string& id, const Stamp& box, const StampOptions& options);
+
 }  // namespace shapesim

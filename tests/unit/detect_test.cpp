@@ -1352,3 +1352,73 @@ TEST(DetectOdd, ZeroFilledBorderIsBadNotFatal) {
     for (const Detection& d : r.objects) EXPECT_GT(d.x, 60.0);  // nothing in the border
     EXPECT_THROW(detect_sources(ImageArray::Zero(64, 64), nullptr, DetectionOptions{}), Error);
 }
+
+// ------------------------------------------------------------------ dual-image mode (issue 17)
+
+// The detection image measured as its own band: the same noise, the same fluxes, the same
+// stamps, bit for bit where the arithmetic is the same.
+TEST(DualImage, TheDetectionImageAsABandGivesItsOwnMeasurements) {
+    const std::vector<Blob> blobs{{40.2, 40.4, 4000.0, 2.5}, {70.6, 61.1, 900.0, 1.8},
+                                  {20.3, 75.7, 2500.0, 3.1}};
+    const ImageArray image = blobs_image(96, 96, blobs) + white_noise(96, 96, 1.0, 71);
+    const ImageArray weight = ImageArray::Constant(96, 96, 0.25);  // ×4 off: rescaled
+    const DetectionOptions options;
+    const DetectionResult detection = detect_sources(image, &weight, options);
+    ASSERT_GE(detection.objects.size(), 3u);
+    const DetectionResult band = band_field(image, &weight, options, detection);
+    EXPECT_TRUE(band.objects.empty());
+    EXPECT_EQ(band.weight_scale, detection.weight_scale);
+    EXPECT_EQ(band.noise_correlation, detection.noise_correlation);
+    EXPECT_TRUE((band.image == detection.image).all());
+    EXPECT_TRUE((band.sigma == detection.sigma).all());
+    const std::vector<ApertureFlux> forced = forced_auto_fluxes(band, detection.objects, options);
+    ASSERT_EQ(forced.size(), detection.objects.size());
+    for (std::size_t k = 0; k < forced.size(); ++k) {
+        const Detection& d = detection.objects[k];
+        // The aperture rebuilt from the record's FITS position and θ in degrees.
+        EXPECT_NEAR(forced[k].flux, d.flux_auto, 1e-9 * std::abs(d.flux_auto) + 1e-9);
+        EXPECT_NEAR(forced[k].error, d.flux_auto_err, 1e-9 * d.flux_auto_err);
+        const CutStamp cut = cut_stamp(detection, d, "A", StampOptions{});
+        const CutStamp same = cut_band_stamp(band, d, "A.b", cut.stamp, StampOptions{});
+        EXPECT_EQ(same.stamp.x0, cut.stamp.x0);
+        EXPECT_EQ(same.stamp.y0, cut.stamp.y0);
+        EXPECT_TRUE((same.stamp.image == cut.stamp.image).all());
+        EXPECT_TRUE((same.stamp.weight == cut.stamp.weight).all());
+        EXPECT_TRUE((same.stamp.mask == cut.stamp.mask).all());
+        EXPECT_EQ(same.clipped, cut.clipped);
+        EXPECT_EQ(same.stamp.id, "A.b");
+    }
+}
+
+// A band twice as bright with four times the noise: twice the flux in the same apertures, its
+// own noise level (the weight rescaled to it), and a stamp of the same pixels.
+TEST(DualImage, ABandKeepsItsOwnFluxAndNoise) {
+    const std::vector<Blob> blobs{{40.2, 40.4, 4000.0, 2.5}, {70.6, 61.1, 1500.0, 1.8}};
+    const ImageArray clean = blobs_image(96, 96, blobs);
+    const ImageArray image = clean + white_noise(96, 96, 1.0, 72);
+    const DetectionOptions options;
+    const DetectionResult detection = detect_sources(image, nullptr, options);
+    const ImageArray red = 2.0 * clean + white_noise(96, 96, 4.0, 73);
+    const ImageArray red_weight = ImageArray::Constant(96, 96, 1.0);  // wrong by ×16
+    const DetectionResult band = band_field(red, &red_weight, options, detection);
+    EXPECT_NEAR(std::sqrt(1.0 / band.weight_scale), 4.0, 0.3);
+    EXPECT_NEAR(band.noise_correlation, 1.0, 0.15);
+    const std::vector<ApertureFlux> forced = forced_auto_fluxes(band, detection.objects, options);
+    for (std::size_t k = 0; k < forced.size(); ++k) {
+        const Detection& d = detection.objects[k];
+        const double truth = 2.0 * ellipse_sum(clean, d.x, d.y, std::max(d.a, 0.5),
+                                                std::max(d.b, 0.5), d.theta, auto_radius(d));
+        EXPECT_NEAR(forced[k].flux, truth, 4.0 * forced[k].error) << k;
+        EXPECT_NEAR(forced[k].error / d.flux_auto_err, 4.0, 0.6) << k;
+        const CutStamp cut = cut_stamp(detection, d, "A", StampOptions{});
+        const CutStamp other = cut_band_stamp(band, d, "A.red", cut.stamp, StampOptions{});
+        EXPECT_EQ(other.stamp.image.rows(), cut.stamp.image.rows());
+        EXPECT_EQ(other.stamp.image.cols(), cut.stamp.image.cols());
+        EXPECT_NEAR(other.noise_rms, 4.0, 0.6);
+    }
+    const ImageArray small = ImageArray::Zero(90, 96);
+    EXPECT_THROW(band_field(small, nullptr, options, detection), Error);
+    Stamp outside = cut_stamp(detection, detection.objects[0], "A", StampOptions{}).stamp;
+    outside.x0 = 90;
+    EXPECT_THROW(cut_band_stamp(band, detection.objects[0], "A", outside, StampOptions{}), Error);
+}

@@ -7,6 +7,8 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <cstdio>
+#include <fstream>
 #include <map>
 #include <sstream>
 
@@ -306,4 +308,115 @@ TEST(Records, NanIsRefusedWhenWrittenNamingFileLineField) {
     r.mag.reset();
     r.x = INFINITY;
     EXPECT_THROW(r.to_json(), Error);  // validate() catches required fields first
+}
+
+// Multi-band records (issue 17): `bands` round-trips after the coefficients, each band's
+// coefficients are checked as the record's own, and errors name the band's path.
+TEST(ShapeletRecord, BandsRoundTripAndNameTheirErrors) {
+    Json j = m03();
+    j["bands"] = Json::parse(
+        R"([{"band": "f435w", "flux": 1.5, "mag": 27.1, "coeff_errors": [[0.1, 0.0]],
+             "coeffs": [[0.5, 0.0], [0.1, -0.2], [-0.1, 0.0], [0.0, 0.05]]},
+            {"band": "f814w", "flux": 4.3, "flux_err": 0.2,
+             "coeffs": [[1.2028, 0.0], [0.447, -0.37], [-0.42, 0.0], [-0.13, -0.09]]}])");
+    const ShapeletRecord r = ShapeletRecord::from_json(j);
+    ASSERT_EQ(r.bands.size(), 2u);
+    EXPECT_EQ(r.bands[0].band, "f435w");
+    EXPECT_EQ(r.bands[0].coeffs[1], Complex(0.1, -0.2));
+    EXPECT_EQ(*r.bands[1].flux_err, 0.2);
+    EXPECT_TRUE(r.bands[0].extra.contains("coeff_errors"));
+    const Json back = r.to_json();
+    EXPECT_EQ(unordered(back), unordered(j));
+    // Written last, after the record's own coefficients.
+    std::vector<std::string> keys;
+    for (const auto& item : back.items()) keys.push_back(item.key());
+    EXPECT_EQ(keys.back(), "bands");
+    EXPECT_EQ(keys[keys.size() - 2], "coeffs");
+
+    Json bad = j;
+    bad["bands"][1]["coeffs"][2][1] = 0.5;
+    EXPECT_EQ(error_of(bad), "bands[1].coeffs[2]: a_{2,0} must be real, got im = 0.5");
+    bad = j;
+    bad["bands"][0]["coeffs"].erase(0);
+    EXPECT_EQ(error_of(bad), "bands[0].coeffs: expected 4 [re, im] pairs for n_max 2, got 3");
+    bad = j;
+    bad["bands"][1]["band"] = "f435w";
+    EXPECT_EQ(error_of(bad), "bands[1]: band \"f435w\" appears twice");
+    bad = j;
+    bad["bands"][0].erase("band");
+    EXPECT_EQ(error_of(bad), "bands[0].band: missing");
+    bad = j;
+    bad["bands"][0]["flux_err"] = -1.0;
+    EXPECT_EQ(error_of(bad), "bands[0].flux_err: must be >= 0, got -1");
+    bad = j;
+    bad["bands"] = Json::object();
+    EXPECT_EQ(error_of(bad), "bands: expected an array, got object");
+}
+
+TEST(ObjectRecord, InBandTakesThatBandsShapeAndFlux) {
+    ObjectRecord o;
+    o.id = "g1";
+    o.flux = 4.0;
+    o.mag = 24.0;
+    o.beta = 0.1;
+    o.pixel_scale = 0.06;
+    o.n_max = 0;
+    o.coeffs = {Complex(1.0, 0.0)};
+    BandCoefficients b;
+    b.band = "f160w";
+    b.coeffs = {Complex(3.0, 0.0)};
+    b.flux = 12.0;
+    b.mag = 23.0;
+    o.bands = {b};
+    const ObjectRecord red = o.in_band("f160w");
+    EXPECT_EQ(red.coeffs[0], Complex(3.0, 0.0));
+    EXPECT_EQ(red.flux, 12.0);
+    EXPECT_EQ(*red.mag, 23.0);
+    EXPECT_TRUE(red.bands.empty());
+    EXPECT_EQ(red.beta, o.beta);
+    EXPECT_THROW(o.in_band("f435w"), Error);
+    const ObjectRecord back = ObjectRecord::from_json(o.to_json());
+    ASSERT_EQ(back.bands.size(), 1u);
+    EXPECT_EQ(back.bands[0].coeffs[0], Complex(3.0, 0.0));
+}
+
+TEST(BandRecord, ReadsTheBandsFileAndRefusesRepeats) {
+    const std::string path = ::testing::TempDir() + "bands_test.jsonl";
+    {
+        std::ofstream f(path);
+        f << R"({"schema": "shapesim.band/1", "band": "f435w", "image": "b.fits", "weight": "bw.fits", "zero_point": 25.684})"
+          << "\n"
+          << R"({"schema": "shapesim.band/1", "band": "f814w", "image": "i.fits", "gain": 50800, "psf": "psf.jsonl"})"
+          << "\n";
+    }
+    const std::vector<BandRecord> bands = BandRecord::read_all(path);
+    ASSERT_EQ(bands.size(), 2u);
+    EXPECT_EQ(bands[0].weight, "bw.fits");
+    EXPECT_EQ(bands[0].weight_type, "weight");
+    EXPECT_EQ(*bands[0].zero_point, 25.684);
+    EXPECT_EQ(*bands[1].gain, 50800.0);
+    EXPECT_EQ(bands[1].psf, "psf.jsonl");
+    EXPECT_TRUE(bands[1].weight.empty());
+    EXPECT_EQ(BandRecord::from_json(bands[0].to_json()).to_json(), bands[0].to_json());
+    {
+        std::ofstream f(path, std::ios::app);
+        f << R"({"schema": "shapesim.band/1", "band": "f435w", "image": "c.fits"})" << "\n";
+    }
+    try {
+        BandRecord::read_all(path);
+        ADD_FAILURE() << "a repeated band was accepted";
+    } catch (const Error& e) {
+        EXPECT_NE(std::string(e.what()).find(":3: band: band \"f435w\" appears twice"),
+                  std::string::npos)
+            << e.what();
+    }
+    {
+        std::ofstream f(path);
+        f << R"({"schema": "shapesim.band/1", "band": "x", "image": "c.fits", "weight_type": "sigma"})"
+          << "\n";
+    }
+    EXPECT_THROW(BandRecord::read_all(path), Error);
+    { std::ofstream f(path); }
+    EXPECT_THROW(BandRecord::read_all(path), Error);
+    std::remove(path.c_str());
 }
