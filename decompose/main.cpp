@@ -6,6 +6,7 @@
 #include "shapesim/app/provenance.hpp"
 #include "shapesim/app/progress.hpp"
 #include "shapesim/app/run_main.hpp"
+#include "shapesim/bands.hpp"
 #include "shapesim/decompose.hpp"
 #include "shapesim/error.hpp"
 #include "shapesim/fits_io.hpp"
@@ -39,6 +40,10 @@ const char* const description =
     "PSF mode: with --psf-image, model an (oversampled) PSF image at the pixel scale of\n"
     "--like (or --pixel-scale) and write one shapesim.shapelet/1 record of unit flux.\n"
     "\n"
+    "Several bands: records of shapesim-detect --bands are fitted in every band at once\n"
+    "(one centre, beta and n_max; each band its coefficients), the first band (or\n"
+    "--reference-band) the record's own model, every band in its \"bands\" list.\n"
+    "\n"
     "Examples (after shapesim-detect ... --stamps stamps.fits > sources.jsonl):\n"
     "  shapesim-decompose --stamps stamps.fits -j 2 < sources.jsonl > shapelets.jsonl\n"
     "  shapesim-decompose --psf-image wfpc2_f814w_tinytim_psf.fits --like hdf.fits \\\n"
@@ -46,7 +51,9 @@ const char* const description =
 
 struct Settings {
     std::string stamps, models, ids, stars;
-    std::string psf_image, psf;
+    std::string psf_image, psf, reference_band;
+    std::vector<std::string> band_psfs;
+    bool no_bands = false;
     double psf_pixel_scale = 0.0, pixel_scale = 0.0, psf_residual = 0.01;
     std::vector<double> psf_box;
     int psf_stamp = 41, psf_n_max_cap = 20;
@@ -72,6 +79,13 @@ void declare(app::ProgramOptions& options, Settings& s) {
          "fit each galaxy's intrinsic model through this PSF (a record of the PSF mode below; "
          "forward modelling): the records are marked \"frame\": \"intrinsic\" and "
          "shapesim-render convolves them with its --psf");
+    options.group("Bands").add_options()
+        ("reference-band", po::value(&s.reference_band)->value_name("NAME"),
+         "the band whose model is the record's own (default: the record's first band)")
+        ("band-psf", po::value(&s.band_psfs)->value_name("NAME=FILE")->composing(),
+         "fit band NAME through this PSF record instead of --psf (repeatable)")
+        ("no-bands", po::bool_switch(&s.no_bands),
+         "fit only the detection image's stamp, even when records carry bands");
     options.group("Optimiser").add_options()
         ("n-max-cap", po::value(&f.n_max_cap)->default_value(15)
              ->notifier(in_range("n-max-cap", 0, 100)), "highest n_max")
@@ -143,6 +157,9 @@ struct Job {
     double noise_correlation = 1.0;
     long line = 0;
     std::optional<CartesianModel> psf;  // --psf at this record's pixel scale
+    std::vector<SourceBand> bands;      // a joint fit: the reference band first
+    std::vector<Stamp> band_stamps;     // in the same order
+    std::vector<std::optional<CartesianModel>> band_psf;
 };
 
 struct Outcome {
@@ -190,6 +207,44 @@ int run_psf(const Settings& s, const app::ProgramOptions& options, const app::Lo
     return 0;
 }
 
+// A joint fit's stamps, the reference band first, each in the detection stamp's box, and each
+// band's PSF (--band-psf, else --psf) at the record's pixel scale.
+void read_band_stamps(Job& job, const Settings& s, const std::string& record_file,
+                      std::map<std::string, std::unique_ptr<FitsReader>>& stamp_files,
+                      bool psf_given, const std::map<std::string, ShapeletModel>& band_psfs) {
+    if (job.bands.empty()) return;
+    if (!s.reference_band.empty()) {
+        const auto ref = std::find_if(job.bands.begin(), job.bands.end(), [&](const SourceBand& b) {
+            return b.band == s.reference_band;
+        });
+        if (ref == job.bands.end())
+            throw Error("no band " + s.reference_band + " (--reference-band) in the record", "", 0,
+                        "bands");
+        std::rotate(job.bands.begin(), ref, ref + 1);
+    }
+    for (const SourceBand& b : job.bands) {
+        if (b.stamp_hdu.empty())
+            throw Error("band " + b.band + " has no stamp (shapesim-detect --bands without "
+                        "--stamps?)", "", 0, "bands");
+        const std::string file = !s.stamps.empty() ? s.stamps
+                                 : b.stamp_file.empty() ? record_file : b.stamp_file;
+        auto& fits = stamp_files[file];
+        if (!fits) fits = std::make_unique<FitsReader>(file);
+        job.band_stamps.push_back(read_stamp(*fits, b.stamp_hdu));
+        const Stamp& stamp = job.band_stamps.back();
+        if (stamp.x0 != job.stamp.x0 || stamp.y0 != job.stamp.y0 ||
+            stamp.image.rows() != job.stamp.image.rows() ||
+            stamp.image.cols() != job.stamp.image.cols())
+            throw Error("band " + b.band + "'s stamp " + b.stamp_hdu +
+                        " is not in the detection stamp's box", "", 0, "bands");
+        const auto own = band_psfs.find(b.band);
+        if (own != band_psfs.end())
+            job.band_psf.push_back(to_cartesian(dilate(own->second, 1.0 / job.pixel_scale)));
+        else
+            job.band_psf.push_back(psf_given ? job.psf : std::nullopt);
+    }
+}
+
 int run(int argc, const char* const argv[]) {
     app::ProgramOptions options("shapesim-decompose", "[OPTION]...", description,
                                 app::Common::quiet | app::Common::verbose | app::Common::threads |
@@ -225,6 +280,13 @@ int run(int argc, const char* const argv[]) {
     std::optional<ShapeletModel> psf_arcsec;
     if (!s.psf.empty()) psf_arcsec = read_psf_model(s.psf, 1.0);
     std::map<double, CartesianModel> psfs;  // by pixel scale
+    std::map<std::string, ShapeletModel> band_psfs;  // --band-psf, arcsec
+    for (const std::string& item : s.band_psfs) {
+        const auto eq = item.find('=');
+        if (eq == std::string::npos || eq == 0 || eq + 1 == item.size())
+            throw po::error("--band-psf wants NAME=FILE, got \"" + item + "\"");
+        band_psfs[item.substr(0, eq)] = read_psf_model(item.substr(eq + 1), 1.0);
+    }
     SourceRecord source;
     // Field errors from the record's extra fields, placed at the reader's file and line.
     const auto placed = [&](const auto& read) {
@@ -277,6 +339,13 @@ int run(int argc, const char* const argv[]) {
                                .first;
             job.psf = at_scale->second;
         }
+        if (!s.no_bands) {
+            job.bands = placed([&] { return source_bands(source); });
+            placed([&] {
+                read_band_stamps(job, s, file, stamp_files, psf_arcsec.has_value(), band_psfs);
+                return 0;
+            });
+        }
         job.source = source;
         jobs.push_back(std::move(job));
     }
@@ -296,11 +365,29 @@ int run(int argc, const char* const argv[]) {
             const double x = job.source.x - (job.stamp.x0 - 1);
             const double y = job.source.y - (job.stamp.y0 - 1);
             const double beta = std::max(job.source.a.value_or(1.0), 0.5);
-            out.decomposition = decompose(job.stamp.image, job.stamp.weight, &mask, x, y,
-                                          beta, fit);
-            out.record = shapelet_record(job.source, *out.decomposition, job.stamp,
-                                         job.pixel_scale, job.zero_point,
-                                         job.psf ? &*job.psf : nullptr);
+            if (job.bands.empty()) {
+                out.decomposition = decompose(job.stamp.image, job.stamp.weight, &mask, x, y,
+                                              beta, fit);
+                out.record = shapelet_record(job.source, *out.decomposition, job.stamp,
+                                             job.pixel_scale, job.zero_point,
+                                             job.psf ? &*job.psf : nullptr);
+            } else {
+                std::vector<BandStamp> bands(job.bands.size());
+                std::vector<BandLabel> labels;
+                std::vector<MaskArray> masks(job.bands.size());
+                for (std::size_t b = 0; b < bands.size(); ++b) {
+                    masks[b] = (job.band_stamps[b].mask != 0.0).cast<std::uint8_t>();
+                    bands[b] = {&job.band_stamps[b].image, &job.band_stamps[b].weight, &masks[b],
+                                job.band_psf[b], job.bands[b].noise_correlation,
+                                job.bands[b].noise_rms > 0.0 ? 1.0 / job.bands[b].noise_rms : 1.0};
+                    labels.push_back({job.bands[b].band, job.bands[b].zero_point});
+                }
+                out.decomposition = decompose_bands(bands, x, y, beta, fit);
+                const auto& psf = job.band_psf.front();
+                out.record = shapelet_record(job.source, *out.decomposition, job.stamp,
+                                             job.pixel_scale, job.bands.front().zero_point,
+                                             psf ? &*psf : nullptr, labels);
+            }
             const ShapeletModel& m = out.decomposition->fit.model;
             if (near_bright_star(out.record->x, out.record->y,
                                  m.beta_pix * std::sqrt(m.n_max + 1.0), job.source.flux,

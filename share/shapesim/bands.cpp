@@ -3,6 +3,7 @@
 #include "shapesim/error.hpp"
 #include "shapesim/fits_io.hpp"
 
+#include <algorithm>
 #include <cmath>
 #include <memory>
 
@@ -36,6 +37,35 @@ std::vector<BandField> measure_bands(const std::vector<BandRecord>& bands,
         }
         b.auto_flux = forced_auto_fluxes(b.field, detection.objects, b.options);
         out.push_back(std::move(b));
+    }
+    return out;
+}
+
+std::vector<SourceBand> source_bands(const SourceRecord& record) {
+    std::vector<SourceBand> out;
+    if (!record.extra.contains("bands")) return out;
+    const Json& list = required_array(record.extra, "bands");
+    for (std::size_t k = 0; k < list.size(); ++k) {
+        const std::string field = "bands[" + std::to_string(k) + "]";
+        try {
+            const Json& e = list[k];
+            if (!e.is_object()) throw Error("expected an object, got " + e.dump(), {}, 0, "");
+            SourceBand b;
+            b.band = required_string(e, "band");
+            if (b.band.empty()) throw Error("must not be empty", {}, 0, "band");
+            if (auto f = optional_string(e, "stamp_file")) b.stamp_file = *f;
+            if (auto h = optional_string(e, "stamp_hdu")) b.stamp_hdu = *h;
+            b.zero_point = optional_double(e, "zero_point");
+            if (auto F = optional_double(e, "noise_correlation")) b.noise_correlation = std::max(1.0, *F);
+            if (auto r = optional_double(e, "noise_rms")) b.noise_rms = *r;
+            for (const SourceBand& other : out)
+                if (other.band == b.band)
+                    throw Error("band \"" + b.band + "\" appears twice", {}, 0, "band");
+            out.push_back(std::move(b));
+        } catch (const Error& e) {
+            throw Error(e.message(), e.file(), e.line(),
+                        field + (e.field().empty() ? "" : ".") + e.field());
+        }
     }
     return out;
 }

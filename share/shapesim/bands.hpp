@@ -14,6 +14,7 @@
 #include "shapesim/records.hpp"
 #include "shapesim/stamps.hpp"
 
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -48,6 +49,19 @@ Json band_source_entry(const BandField& band, std::size_t k, const CutStamp* cut
 void add_bands(SourceRecord& record, const std::vector<BandField>& bands, std::size_t k,
                const Detection& object, const CutStamp* cut, FitsWriter* stamps, const std::string& stamps_file,
                const StampOptions& options);
+
+/// One band of a source record (the `bands` list shapesim-detect --bands writes), as
+/// shapesim-decompose reads it.
+struct SourceBand {
+    std::string band;
+    std::string stamp_file, stamp_hdu;  ///< empty when no stamp was cut
+    std::optional<double> zero_point;
+    double noise_correlation = 1.0;
+    double noise_rms = 0.0;             ///< the stamp's pixel σ (0: unknown)
+};
+/// The record's bands (empty when it has none); Error naming the field (e.g.
+/// "bands[2].stamp_hdu") on a malformed entry or a repeated band.
+std::vector<SourceBand> source_bands(const SourceRecord& record);
 
 /// The HDU name of a band's stamp of object `id`: "<id>.<band>".
 std::string band_stamp_hdu(const std::string& id, const std::string& band);

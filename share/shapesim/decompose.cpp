@@ -69,21 +69,132 @@ namespace {
 
 constexpr double infinite = std::numeric_limits<double>::infinity();
 
-// One order's search state: fits at (x, y, β), scored by the effective χ²_r.
+// One fit of every band at a common centre, β and n_max; χ² their sum. bands[0] is the
+// reference band (one band: the plain fit).
+struct JointFit {
+    std::vector<ShapeletFit> bands;
+    double chi2 = 0.0;
+    const ShapeletModel& model() const { return bands.front().model; }
+};
+
+// The bands of a joint fit with their per-band options (PSF, noise correlation).
+class JointProblem {
+public:
+    JointProblem(const std::vector<BandStamp>& bands, const DecomposeOptions& options)
+        : bands_(bands) {
+        for (const BandStamp& b : bands) {
+            DecomposeOptions o = options;
+            if (b.psf) o.psf = *b.psf;
+            o.noise_correlation = b.noise_correlation;
+            options_.push_back(std::move(o));
+        }
+    }
+    std::size_t size() const { return bands_.size(); }
+    const DecomposeOptions& options(std::size_t b) const { return options_[b]; }
+    const BandStamp& band(std::size_t b) const { return bands_[b]; }
+
+    JointFit fit(double x, double y, double beta, int n_max) const {
+        JointFit out;
+        out.bands.reserve(size());
+        for (std::size_t b = 0; b < size(); ++b) {
+            out.bands.push_back(fit_model(*bands_[b].image, *bands_[b].weight, bands_[b].mask, x,
+                                          y, beta, n_max, options_[b]));
+            out.chi2 += out.bands.back().chi2;
+        }
+        return out;
+    }
+    // The elliptical lowest order's shape in every band, each its own amplitude.
+    JointFit fit_shape(double x, double y, const ShapeletModel& shape) const {
+        JointFit out;
+        for (std::size_t b = 0; b < size(); ++b) {
+            const auto& psf = options_[b].psf;
+            out.bands.push_back(fit_shape_amplitude(*bands_[b].image, *bands_[b].weight,
+                                                    bands_[b].mask, x, y, shape,
+                                                    psf ? &*psf : nullptr));
+            out.chi2 += out.bands.back().chi2;
+        }
+        return out;
+    }
+    // Σ_b (pixels_b − p·F_b²), at least 1 (effective_dof() for one band).
+    double dof(const JointFit& f) const {
+        const double p = double(real_count(f.model().n_max));
+        double sum = 0.0;
+        for (std::size_t b = 0; b < size(); ++b) {
+            const double F = options_[b].noise_correlation;
+            sum += double(f.bands[b].pixels_used) - p * F * F;
+        }
+        return std::max(1.0, sum);
+    }
+    // The elliptical lowest order's: three parameters besides β (amplitude and shear).
+    double elliptical_dof(const JointFit& f) const {
+        double sum = 0.0;
+        for (std::size_t b = 0; b < size(); ++b) {
+            const double F = options_[b].noise_correlation;
+            sum += double(f.bands[b].pixels_used) - 3.0 * (F * F);
+        }
+        return std::max(1.0, sum);
+    }
+    double chi2r(const JointFit& f) const { return f.chi2 / dof(f); }
+    // within_target() over the joint degrees of freedom.
+    bool within_target(double chi2r, double dof, const DecomposeOptions& o) const {
+        return chi2r <= o.chi2_target + o.chi2_sigmas * std::sqrt(2.0 / dof);
+    }
+    // The χ² the noise takes up in every band from order `from` to `to`: noise_uptake() for
+    // one band; for several, Σ F_b²·Δp + order_sigmas·√(2Δp Σ F_b⁴).
+    double uptake(int from, int to, const DecomposeOptions& o) const {
+        if (size() == 1) return noise_uptake(from, to, options_[0]);
+        const double extra = double(real_count(to) - real_count(from));
+        double f2 = 0.0, f4 = 0.0;
+        for (const DecomposeOptions& b : options_) {
+            const double F2 = b.noise_correlation * b.noise_correlation;
+            f2 += F2;
+            f4 += F2 * F2;
+        }
+        return f2 * extra + o.order_sigmas * std::sqrt(2.0 * extra * f4);
+    }
+    // The χ² two more parameters (the shear) would take up from noise in every band:
+    // F²·(2 + order_sigmas·2) for one band.
+    double shear_uptake(const DecomposeOptions& o) const {
+        double f2 = 0.0, f4 = 0.0;
+        for (const DecomposeOptions& b : options_) {
+            const double F2 = b.noise_correlation * b.noise_correlation;
+            f2 += F2;
+            f4 += F2 * F2;
+        }
+        if (size() == 1) return f2 * (2.0 + o.order_sigmas * 2.0);
+        return 2.0 * f2 + o.order_sigmas * 2.0 * std::sqrt(f4);
+    }
+    // The model whose centroid recentring follows: the reference band's alone, or the bands'
+    // coefficients summed, each weighted by 1/σ of its stamp's noise (a χ²-like stack, as a
+    // detection image is).
+    ShapeletModel centroid_model(const JointFit& f) const {
+        if (size() == 1) return f.model();
+        ShapeletModel stack = f.model();
+        for (Complex& c : stack.coeffs) c = 0.0;
+        for (std::size_t b = 0; b < size(); ++b)
+            for (std::size_t k = 0; k < stack.coeffs.size(); ++k)
+                stack.coeffs[k] += bands_[b].signal_weight * f.bands[b].model.coeffs[k];
+        return stack;
+    }
+
+private:
+    const std::vector<BandStamp>& bands_;
+    std::vector<DecomposeOptions> options_;
+};
+
+// One order's search state: joint fits at (x, y, β), scored by the effective χ²_r.
 class OrderSearch {
 public:
-    OrderSearch(const ImageArray& image, const ImageArray& weight, const MaskArray* mask,
-                int n_max, const DecomposeOptions& options, long& fits)
-        : image_(image), weight_(weight), mask_(mask), n_max_(n_max), options_(options),
-          fits_(fits) {}
+    OrderSearch(const JointProblem& problem, int n_max, const DecomposeOptions& options,
+                long& fits)
+        : problem_(problem), n_max_(n_max), options_(options), fits_(fits) {}
 
     // χ²_r at (x, y, β); +∞ when the fit is impossible (too few pixels, rank-deficient).
     double score(double x, double y, double beta) {
-        ++fits_;
+        fits_ += long(problem_.size());
         try {
-            ShapeletFit fit =
-                fit_model(image_, weight_, mask_, x, y, beta, n_max_, options_);
-            const double chi2r = effective_chi2r(fit, options_.noise_correlation);
+            JointFit fit = problem_.fit(x, y, beta, n_max_);
+            const double chi2r = problem_.chi2r(fit);
             if (!std::isfinite(chi2r)) return infinite;
             if (chi2r < best_chi2r_) {
                 best_chi2r_ = chi2r;
@@ -139,25 +250,23 @@ public:
         return fc < fd ? std::exp(c) : std::exp(d);
     }
 
-    const std::optional<ShapeletFit>& best() const { return best_; }
+    const std::optional<JointFit>& best() const { return best_; }
     double best_chi2r() const { return best_chi2r_; }
     void forget() {
         best_.reset();
         best_chi2r_ = infinite;
     }
-    void keep(ShapeletFit fit, double chi2r) {
+    void keep(JointFit fit, double chi2r) {
         best_ = std::move(fit);
         best_chi2r_ = chi2r;
     }
 
 private:
-    const ImageArray& image_;
-    const ImageArray& weight_;
-    const MaskArray* mask_;
+    const JointProblem& problem_;
     int n_max_;
     const DecomposeOptions& options_;
     long& fits_;
-    std::optional<ShapeletFit> best_;
+    std::optional<JointFit> best_;
     double best_chi2r_ = infinite;
 };
 
@@ -174,17 +283,17 @@ ShapeletModel elliptical_gaussian(double beta_pix, double g1, double g2) {
 namespace {
 
 // The elliptical lowest order (see decompose.hpp): the sheared Gaussian of least χ² at the
-// round fit's centre, (g1, g2, ln β) by Nelder–Mead (optimize.hpp) from the round fit's β.
+// round fit's centre, (g1, g2, ln β) by Nelder–Mead (optimize.hpp) from the round fit's β;
+// in several bands one shape, each band its own amplitude.
 struct EllipticalFit {
-    ShapeletFit fit;
+    JointFit fit;
     double g1 = 0.0, g2 = 0.0;
 };
-std::optional<EllipticalFit> fit_elliptical(const ImageArray& image, const ImageArray& weight,
-                                            const MaskArray* mask, const ShapeletFit& round,
+std::optional<EllipticalFit> fit_elliptical(const JointProblem& problem, const JointFit& round,
                                             double reach, const DecomposeOptions& options,
                                             long& fits) {
     const double theta_min = options.theta_min;
-    const double x = round.model.x, y = round.model.y;
+    const double x = round.model().x, y = round.model().y;
     std::optional<EllipticalFit> best;
     const auto chi2 = [&](const std::array<double, 3>& v) {
         const double g = std::hypot(v[0], v[1]), beta = std::exp(v[2]);
@@ -192,11 +301,9 @@ std::optional<EllipticalFit> fit_elliptical(const ImageArray& image, const Image
         if (!(g < 0.9) || beta * std::sqrt((1.0 - g) / (1.0 + g)) < theta_min ||
             beta * std::sqrt((1.0 + g) / (1.0 - g)) > reach)
             return infinite;
-        ++fits;
+        fits += long(problem.size());
         try {
-            const ShapeletModel shape = elliptical_gaussian(beta, v[0], v[1]);
-            ShapeletFit fit = fit_shape_amplitude(image, weight, mask, x, y, shape,
-                                                  options.psf ? &*options.psf : nullptr);
+            JointFit fit = problem.fit_shape(x, y, elliptical_gaussian(beta, v[0], v[1]));
             const double value = fit.chi2;
             if (!std::isfinite(value)) return infinite;
             if (!best || value < best->fit.chi2) best = EllipticalFit{std::move(fit), v[0], v[1]};
@@ -210,7 +317,7 @@ std::optional<EllipticalFit> fit_elliptical(const ImageArray& image, const Image
     search.xatol = 1e-3;
     search.fatol = 1e-3;  // in χ²
     search.max_calls = 200;
-    nelder_mead<3>(chi2, {0.0, 0.0, std::log(round.model.beta_pix)}, search);
+    nelder_mead<3>(chi2, {0.0, 0.0, std::log(round.model().beta_pix)}, search);
     return best;
 }
 
@@ -218,16 +325,34 @@ std::optional<EllipticalFit> fit_elliptical(const ImageArray& image, const Image
 
 Decomposition decompose(const ImageArray& image, const ImageArray& weight, const MaskArray* mask,
                         double x, double y, double beta_start, const DecomposeOptions& options) {
+    BandStamp band;
+    band.image = &image;
+    band.weight = &weight;
+    band.mask = mask;
+    band.noise_correlation = options.noise_correlation;
+    return decompose_bands({band}, x, y, beta_start, options);
+}
+
+Decomposition decompose_bands(const std::vector<BandStamp>& bands, double x, double y,
+                              double beta_start, const DecomposeOptions& options) {
     options.validate();
+    require(!bands.empty(), "no band to fit");
+    const ImageArray& image = *bands.front().image;
     const double nx = double(image.cols()), ny = double(image.rows());
     require(nx > 0 && ny > 0, "stamp is empty");
+    for (const BandStamp& b : bands) {
+        require(b.image && b.weight, "a band has no image or weight");
+        require(b.image->rows() == image.rows() && b.image->cols() == image.cols(),
+                "the bands' stamps differ in size");
+    }
     require(std::isfinite(x) && std::isfinite(y) && x >= 0.5 && x <= nx + 0.5 && y >= 0.5 &&
                 y <= ny + 0.5,
             "start centre lies outside the stamp");
     require(beta_start > 0.0 && std::isfinite(beta_start), "start β must be > 0");
+    const JointProblem problem(bands, options);
 
     Decomposition out;
-    ShapeletFit kept;
+    JointFit kept;
     bool have_kept = false;
     double kept_chi2r = infinite;
     double beta = beta_start;
@@ -243,15 +368,15 @@ Decomposition decompose(const ImageArray& image, const ImageArray& weight, const
             out.stop = "stamp_small";
             break;
         }
-        OrderSearch search(image, weight, mask, n, options, out.fits);
+        OrderSearch search(problem, n, options, out.fits);
         beta = search.best_beta(x, y, lo, hi);
         // Recentre on the model's own centroid; after a large move, search β again. The
         // iteration can wander at a galaxy's own top order (the centroid of a fit that is
         // just short of the data moves off it): the best (χ²_r) position seen is kept.
-        std::optional<ShapeletFit> best_seen = search.best();
+        std::optional<JointFit> best_seen = search.best();
         double best_seen_chi2r = search.best_chi2r();
         for (int iteration = 0; iteration < options.centre_iterations && search.best(); ++iteration) {
-            const Moments m = moments(search.best()->model);
+            const Moments m = moments(problem.centroid_model(*search.best()));
             if (!std::isfinite(m.x) || !std::isfinite(m.y)) break;
             // Stay within a few pixels of the detection: a centroid dragged further is a fit
             // to a neighbour's or the noise's light.
@@ -274,10 +399,10 @@ Decomposition decompose(const ImageArray& image, const ImageArray& weight, const
         }
         // The detection's centre as a second start: the previous order's centre may already
         // have wandered.
-        if (best_seen && std::hypot(best_seen->model.x - x_start,
-                                    best_seen->model.y - y_start) > options.centre_tolerance) {
+        if (best_seen && std::hypot(best_seen->model().x - x_start,
+                                    best_seen->model().y - y_start) > options.centre_tolerance) {
             search.forget();
-            const double b = best_seen->model.beta_pix;
+            const double b = best_seen->model().beta_pix;
             search.best_beta(x_start, y_start, std::max(lo, b / 1.1), std::min(hi, b * 1.1),
                              false);
             if (search.best() && search.best_chi2r() < best_seen_chi2r) {
@@ -293,74 +418,77 @@ Decomposition decompose(const ImageArray& image, const ImageArray& weight, const
             break;
         }
         const double chi2r = search.best_chi2r();
-        const ShapeletFit& best = *search.best();
-        out.trials.push_back({n, best.model.beta_pix, chi2r});
-        x = best.model.x;
-        y = best.model.y;
-        beta = best.model.beta_pix;
+        const JointFit& best = *search.best();
+        out.trials.push_back({n, best.model().beta_pix, chi2r});
+        x = best.model().x;
+        y = best.model().y;
+        beta = best.model().beta_pix;
         // This order becomes the candidate when it takes up significantly more χ² than the
         // noise would over the candidate's.
-        if (!have_kept || kept.chi2 - best.chi2 > noise_uptake(kept.model.n_max, n, options)) {
+        if (!have_kept || kept.chi2 - best.chi2 > problem.uptake(kept.model().n_max, n, options)) {
             kept = best;
             have_kept = true;
             kept_chi2r = chi2r;
         }
-        if (n >= kept.model.n_max + 2) {  // two orders beyond it brought nothing significant
-            out.stop = within_target(kept, kept_chi2r, options) ? "chi2_target" : "flattened";
+        if (n >= kept.model().n_max + 2) {  // two orders beyond it brought nothing significant
+            out.stop = problem.within_target(kept_chi2r, problem.dof(kept), options)
+                           ? "chi2_target"
+                           : "flattened";
             break;
         }
         if (n == options.n_max_cap) out.stop = "n_max_cap";
     }
     if (!have_kept) throw Error("no usable fit: the stamp is too small for the lowest order");
-    if (options.elliptical && kept.model.n_max == 0 && options.n_max_cap >= elliptical_order) {
-        const double f2 = options.noise_correlation * options.noise_correlation;
+    if (options.elliptical && kept.model().n_max == 0 && options.n_max_cap >= elliptical_order) {
         const std::optional<EllipticalFit> e =
-            fit_elliptical(image, weight, mask, kept, reach, options, out.fits);
-        if (e && kept.chi2 - e->fit.chi2 > f2 * (2.0 + options.order_sigmas * 2.0)) {
+            fit_elliptical(problem, kept, reach, options, out.fits);
+        // Two more parameters (the shear) than the round Gaussian, in every band's χ².
+        if (e && kept.chi2 - e->fit.chi2 > problem.shear_uptake(options)) {
             kept = e->fit;
-            // Three parameters besides β: the amplitude and the shear.
-            kept_chi2r = kept.chi2 / std::max(1.0, double(kept.pixels_used) - 3.0 * f2);
+            kept_chi2r = kept.chi2 / problem.elliptical_dof(kept);
             out.elliptical = true;
             out.g1 = e->g1;
             out.g2 = e->g2;
         }
     }
-    out.fit = std::move(kept);
     out.chi2r = kept_chi2r;
-    out.converged = within_target(out.fit, out.chi2r, options);
+    out.converged = problem.within_target(out.chi2r, problem.dof(kept), options);
     // The cap only stopped the search if the orders it cut off were still wanted.
-    if (out.stop == "n_max_cap" && out.fit.model.n_max < options.n_max_cap)
+    if (out.stop == "n_max_cap" && kept.model().n_max < options.n_max_cap)
         out.stop = out.converged ? "chi2_target" : "flattened";
     out.bad_fit = out.chi2r > options.bad_fit_chi2r;
     // In the frame the data see: an intrinsic model through its PSF (ringing finer than the
     // PSF is not measured, and a render through a broader or matched PSF does not show it).
-    const PixelHoles holes = pixel_holes(options.psf ? convolve(to_cartesian(out.fit.model), *options.psf)
-                                                     : to_cartesian(out.fit.model));
+    // The reference band's.
+    const auto& psf = problem.options(0).psf;
+    const PixelHoles holes = pixel_holes(psf ? convolve(to_cartesian(kept.model()), *psf)
+                                             : to_cartesian(kept.model()));
     out.hole = holes.depth;
     out.negative_light = holes.negative_light;
     out.holes = !(out.hole <= options.max_hole && out.negative_light <= options.max_hole);
 
-    // β's share of the flux error, from the profile χ² at ln β ± h.
-    const double fixed = flux_error(out.fit);
-    out.flux_error = fixed;
+    // Each band's flux error: the fixed-β error, β's share from the joint profile χ² at
+    // ln β ± h, and truncation's share.
+    std::vector<double> fixed(problem.size()), errors(problem.size());
+    for (std::size_t b = 0; b < problem.size(); ++b) errors[b] = fixed[b] = flux_error(kept.bands[b]);
     constexpr double h = 0.05;
     try {
-        const ShapeletModel& m = out.fit.model;
+        const ShapeletModel& m = kept.model();
         // At β e^{±h}: the same family (an elliptical model keeps its shear).
         const auto at = [&](double beta_pix) {
-            if (!out.elliptical) return fit_model(image, weight, mask, m.x, m.y, beta_pix, m.n_max, options);
-            return fit_shape_amplitude(image, weight, mask, m.x, m.y,
-                                       elliptical_gaussian(beta_pix, out.g1, out.g2),
-                                       options.psf ? &*options.psf : nullptr);
+            if (!out.elliptical) return problem.fit(m.x, m.y, beta_pix, m.n_max);
+            return problem.fit_shape(m.x, m.y, elliptical_gaussian(beta_pix, out.g1, out.g2));
         };
-        const ShapeletFit lo = at(m.beta_pix * std::exp(-h));
-        const ShapeletFit hi = at(m.beta_pix * std::exp(h));
-        out.fits += 2;
-        const double curvature = (lo.chi2 + hi.chi2 - 2.0 * out.fit.chi2) / (h * h);
-        const double slope = (flux(hi.model) - flux(lo.model)) / (2.0 * h);
-        if (curvature > 0.0 && std::isfinite(slope)) {
-            const double f2 = options.noise_correlation * options.noise_correlation;
-            out.flux_error = std::sqrt(fixed * fixed + slope * slope * 2.0 * f2 / curvature);
+        const JointFit lo = at(m.beta_pix * std::exp(-h));
+        const JointFit hi = at(m.beta_pix * std::exp(h));
+        out.fits += 2 * long(problem.size());
+        const double curvature = (lo.chi2 + hi.chi2 - 2.0 * kept.chi2) / (h * h);
+        for (std::size_t b = 0; b < problem.size(); ++b) {
+            const double slope = (flux(hi.bands[b].model) - flux(lo.bands[b].model)) / (2.0 * h);
+            if (curvature > 0.0 && std::isfinite(slope)) {
+                const double F = problem.options(b).noise_correlation, f2 = F * F;
+                errors[b] = std::sqrt(fixed[b] * fixed[b] + slope * slope * 2.0 * f2 / curvature);
+            }
         }
     } catch (const Error&) {
         // β at a constraint edge with too few pixels beyond it: keep the fixed-β error.
@@ -369,19 +497,34 @@ Decomposition decompose(const ImageArray& image, const ImageArray& weight, const
     // the fit four orders up at the same centre and β (two more flux-carrying even orders),
     // less the noise variance those extra coefficients add to the difference (nested
     // least-squares fits: Var(F' − F) = σ'² − σ²).
+    std::vector<double> truncation(problem.size(), 0.0);
     try {
-        const ShapeletModel& m = out.fit.model;
-        const ShapeletFit up = fit_model(image, weight, mask, m.x, m.y, m.beta_pix,
-                                         m.n_max + truncation_orders, options);
-        ++out.fits;
-        const double change = flux(up.model) - flux(m);
-        const double up_error = flux_error(up);
-        out.truncation_error =
-            std::sqrt(std::max(0.0, change * change - (up_error * up_error - fixed * fixed)));
-        out.flux_error = std::hypot(out.flux_error, out.truncation_error);
+        const ShapeletModel& m = kept.model();
+        const JointFit up = problem.fit(m.x, m.y, m.beta_pix, m.n_max + truncation_orders);
+        out.fits += long(problem.size());
+        for (std::size_t b = 0; b < problem.size(); ++b) {
+            const double change = flux(up.bands[b].model) - flux(kept.bands[b].model);
+            const double up_error = flux_error(up.bands[b]);
+            truncation[b] = std::sqrt(
+                std::max(0.0, change * change - (up_error * up_error - fixed[b] * fixed[b])));
+            errors[b] = std::hypot(errors[b], truncation[b]);
+        }
     } catch (const Error&) {
         // Too few pixels for the higher order: no truncation estimate.
     }
+    out.flux_error = errors.front();
+    out.truncation_error = truncation.front();
+    if (problem.size() > 1) {
+        for (std::size_t b = 0; b < problem.size(); ++b) {
+            BandFit f;
+            f.fit = kept.bands[b];
+            f.flux_error = errors[b];
+            f.truncation_error = truncation[b];
+            f.chi2r = effective_chi2r(kept.bands[b], problem.options(b).noise_correlation);
+            out.bands.push_back(std::move(f));
+        }
+    }
+    out.fit = std::move(kept.bands.front());
     return out;
 }
 
@@ -406,6 +549,15 @@ bool has(const std::vector<std::string>& flags, const char* flag) {
     return std::find(flags.begin(), flags.end(), flag) != flags.end();
 }
 
+// [[σ_re, σ_im], …] of a fit's coefficients, in their order.
+Json coefficient_errors(const ShapeletFit& fit) {
+    ShapeletModel errors = fit.model;
+    set_real_parameters(errors, fit.errors());
+    Json list = Json::array();
+    for (const Complex& c : errors.coeffs) list.push_back(Json::array({c.real(), c.imag()}));
+    return list;
+}
+
 // Fraction of the pixels within `radius` of (x, y) (stamp FITS coordinates) that the mask
 // gives to a neighbour.
 double masked_fraction(const Stamp& stamp, double x, double y, double radius) {
@@ -423,7 +575,10 @@ double masked_fraction(const Stamp& stamp, double x, double y, double radius) {
 
 ShapeletRecord shapelet_record(const SourceRecord& source, const Decomposition& decomposition,
                                const Stamp& stamp, double pixel_scale,
-                               std::optional<double> zero_point, const CartesianModel* psf) {
+                               std::optional<double> zero_point, const CartesianModel* psf,
+                               const std::vector<BandLabel>& bands) {
+    require(bands.size() == decomposition.bands.size(),
+            "the band names do not match the joint fit's bands");
     const ShapeletFit& fit = decomposition.fit;
     ShapeletModel model = fit.model;
     model.x += stamp.x0 - 1;
@@ -458,11 +613,14 @@ ShapeletRecord shapelet_record(const SourceRecord& source, const Decomposition& 
     if (has(source.flags, "edge") || has(source.flags, "truncated")) r.flags.push_back("edge");
     // A noise detection is judged by the noise alone: truncation's share says how well the
     // flux is known, not whether the object is there.
-    const double sigma_noise = std::sqrt(std::max(
-        0.0, sigma_flux * sigma_flux -
-                 decomposition.truncation_error * decomposition.truncation_error));
-    if (!(r.flux && std::isfinite(sigma_noise) && *r.flux > 3.0 * sigma_noise))
-        r.flags.push_back("noise");
+    const auto significant = [](double flux, double error, double truncation) {
+        const double noise = std::sqrt(std::max(0.0, error * error - truncation * truncation));
+        return std::isfinite(noise) && flux > 3.0 * noise;
+    };
+    bool detected = r.flux && significant(*r.flux, sigma_flux, decomposition.truncation_error);
+    for (const BandFit& b : decomposition.bands)
+        detected = detected || significant(flux(b.fit.model), b.flux_error, b.truncation_error);
+    if (!detected) r.flags.push_back("noise");
 
     // The source's own fields first, renamed where the shapelet schema reuses the name.
     const Json src = source.to_json();
@@ -485,11 +643,23 @@ ShapeletRecord shapelet_record(const SourceRecord& source, const Decomposition& 
     for (const OrderTrial& t : decomposition.trials)
         trials.push_back(Json::array({t.n_max, t.beta_pix, t.chi2r}));
     e["trials"] = trials;
-    ShapeletModel errors = fit.model;
-    set_real_parameters(errors, fit.errors());
-    Json coeff_errors = Json::array();
-    for (const Complex& c : errors.coeffs) coeff_errors.push_back(Json::array({c.real(), c.imag()}));
-    e["coeff_errors"] = coeff_errors;
+    e["coeff_errors"] = coefficient_errors(fit);
+    for (std::size_t k = 0; k < bands.size(); ++k) {
+        const BandFit& fit_b = decomposition.bands[k];
+        BandCoefficients b;
+        b.band = bands[k].band;
+        b.coeffs = fit_b.fit.model.coeffs;
+        b.flux = flux(fit_b.fit.model);
+        b.flux_err = fit_b.flux_error;
+        if (bands[k].zero_point && *b.flux > 0.0)
+            b.mag = *bands[k].zero_point - 2.5 * std::log10(*b.flux);
+        b.chi2r = fit_b.chi2r;
+        b.extra["flux_err_truncation"] = fit_b.truncation_error;
+        b.extra["coeff_errors"] = coefficient_errors(fit_b.fit);
+        if (bands[k].zero_point) b.extra["zero_point"] = *bands[k].zero_point;
+        r.bands.push_back(std::move(b));
+    }
+    if (!bands.empty()) e["band"] = bands.front().band;
     return r;
 }
 

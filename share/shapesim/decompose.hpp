@@ -93,6 +93,14 @@ struct OrderTrial {
     double chi2r = 0.0;
 };
 
+/// One band's part of a joint fit (decompose_bands()).
+struct BandFit {
+    ShapeletFit fit;
+    double chi2r = 0.0;            ///< this band's effective χ²_r
+    double flux_error = 0.0;       ///< 1σ, with β's and truncation's shares
+    double truncation_error = 0.0;
+};
+
 /// The result of decompose().
 struct Decomposition {
     ShapeletFit fit;       ///< the fit kept (model centre, β, n_max inside)
@@ -110,6 +118,22 @@ struct Decomposition {
     double truncation_error = 0.0;  ///< truncation's share alone
     long fits = 0;         ///< linear fits performed
     std::vector<OrderTrial> trials;  ///< the best (β, χ²_r) of each order tried
+    /// decompose_bands() with several bands: every band's fit (bands[0] is `fit`); the fields
+    /// above are the joint fit's (χ²_r, stop, flags) and the reference band's (flux errors,
+    /// holes).
+    std::vector<BandFit> bands;
+};
+
+/// One band's stamp for decompose_bands(): every band's the same pixels (the detection's box).
+struct BandStamp {
+    const ImageArray* image = nullptr;
+    const ImageArray* weight = nullptr;
+    const MaskArray* mask = nullptr;
+    std::optional<CartesianModel> psf;   ///< the band's PSF (else DecomposeOptions::psf)
+    double noise_correlation = 1.0;      ///< the band's F
+    /// Its weight in the stack whose centroid recentring follows: 1/σ of its pixel noise, so
+    /// the stack is S/N-weighted like a χ² detection image.
+    double signal_weight = 1.0;
 };
 
 /// The order an elliptical lowest-order model is expanded to.
@@ -148,6 +172,17 @@ bool within_target(const ShapeletFit& fit, double chi2r, const DecomposeOptions&
 Decomposition decompose(const ImageArray& image, const ImageArray& weight, const MaskArray* mask,
                         double x, double y, double beta_start, const DecomposeOptions& options);
 
+/// The joint decomposition of several bands (issue 17): one centre, β and n_max for all,
+/// each band its own coefficients. The search is decompose()'s with χ² summed over the bands,
+/// the effective degrees of freedom Σ_b (N_b − p F_b²), an order's noise take-up
+/// Σ F_b²·Δp + order_sigmas·√(2Δp Σ F_b⁴), the centre the centroid of the bands' models
+/// summed with weights `signal_weight`; an elliptical lowest order is one sheared shape with
+/// an amplitude per band. Flux errors per band as decompose() gives them, β's share from the
+/// joint profile χ². bands[0] is the reference band: its fit is `fit`, its errors the
+/// record's. One band is exactly decompose().
+Decomposition decompose_bands(const std::vector<BandStamp>& bands, double x, double y,
+                              double beta_start, const DecomposeOptions& options);
+
 /// 1σ error of the model flux 2√π β Σ a_{n,0} from the fit's covariance.
 double flux_error(const ShapeletFit& fit);
 
@@ -170,10 +205,20 @@ double flux_error(const ShapeletFit& fit);
 /// Without a zero point (absent or null in the source record) `mag` is left out. A model fitted
 /// through `psf` (DecomposeOptions::psf) is intrinsic: "frame": "intrinsic", with the PSF's
 /// `psf_beta` (arcsec) and `psf_n_max`.
+/// A joint fit (decomposition.bands, named by `bands` in the same order) writes `bands`
+/// (BandCoefficients: coefficients, flux, flux_err, mag with the band's zero point, chi2r,
+/// coeff_errors, flux_err_truncation); the record's own fields are the reference band's
+/// (`band` names it), `zero_point` must be its zero point, and "noise" is flagged only when
+/// no band's flux reaches 3σ.
+struct BandLabel {
+    std::string band;
+    std::optional<double> zero_point;
+};
 ShapeletRecord shapelet_record(const SourceRecord& source, const Decomposition& decomposition,
                                const Stamp& stamp, double pixel_scale,
                                std::optional<double> zero_point,
-                               const CartesianModel* psf = nullptr);
+                               const CartesianModel* psf = nullptr,
+                               const std::vector<BandLabel>& bands = {});
 
 /// Whether a star brighter than the galaxy lies close enough for its wings to touch the
 /// galaxy's model: the star's circle of twice its Kron radius (kron_radius·a, or 1.5·FWHM when

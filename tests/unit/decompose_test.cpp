@@ -519,3 +519,149 @@ TEST(DecomposeElliptical, FaintElongatedGalaxyKeepsItsShape) {
     EXPECT_NEAR(e_on / elliptical, std::abs(moments(elongated).epsilon), 0.06);
     EXPECT_LE(false_positive, 3);  // 1.8% of 40 is 0.7
 }
+
+// ------------------------------------------------------------------ joint fits (issue 17)
+
+namespace {
+
+// A galaxy whose colour changes across it: in the "blue" band a galaxy-like model, in the
+// "red" band the same model with its centre (a_{0,0}) raised and its outer ring (a_{2,0})
+// lowered, i.e. a redder core, at the same centre and β.
+struct TwoBands {
+    ShapeletModel blue, red;
+};
+TwoBands two_band_galaxy(int side, unsigned seed) {
+    TwoBands g;
+    g.blue = test::centred_galaxy(4, 3.0, side, seed, 1000.0);
+    g.red = g.blue;
+    g.red.at(0, 0) *= 2.0;
+    g.red.at(2, 0) *= 0.5;
+    g.red.at(4, 0) *= 0.5;
+    return g;
+}
+
+// (red/blue within 3 px of the centre) / (red/blue beyond it), on the models' pixels.
+double colour_gradient(const ShapeletModel& blue, const ShapeletModel& red, int side) {
+    const ImageArray b = render_stamp(blue, side, side), r = render_stamp(red, side, side);
+    double b_in = 0.0, r_in = 0.0, b_out = 0.0, r_out = 0.0;
+    for (int j = 0; j < side; ++j)
+        for (int i = 0; i < side; ++i) {
+            const bool inner = std::hypot(i + 1 - blue.x, j + 1 - blue.y) < 3.0;
+            (inner ? b_in : b_out) += b(j, i);
+            (inner ? r_in : r_out) += r(j, i);
+        }
+    return (r_in / b_in) / (r_out / b_out);
+}
+
+}  // namespace
+
+// One band through decompose_bands() is decompose(), to the bit.
+TEST(DecomposeBands, OneBandIsDecompose) {
+    const int side = 41;
+    const ShapeletModel truth = test::centred_galaxy(4, 2.5, side, 5, 400.0);
+    const ImageArray image = test::noisy_stamp(truth, side, 1.0, 11, 1);
+    const ImageArray weight = ImageArray::Constant(side, side, 1.0);
+    DecomposeOptions o;
+    o.noise_correlation = 1.3;
+    const Decomposition a = decompose(image, weight, nullptr, truth.x, truth.y, 2.0, o);
+    BandStamp band;
+    band.image = &image;
+    band.weight = &weight;
+    band.noise_correlation = 1.3;
+    const Decomposition b = decompose_bands({band}, truth.x, truth.y, 2.0, o);
+    EXPECT_TRUE(b.bands.empty());
+    EXPECT_EQ(a.fit.model.coeffs, b.fit.model.coeffs);
+    EXPECT_EQ(a.fit.model.beta_pix, b.fit.model.beta_pix);
+    EXPECT_EQ(a.chi2r, b.chi2r);
+    EXPECT_EQ(a.flux_error, b.flux_error);
+    EXPECT_EQ(a.fits, b.fits);
+    EXPECT_EQ(a.stop, b.stop);
+}
+
+// Two bands of a galaxy with a colour gradient, each with its own noise: one centre and β, and
+// each band's flux and core-to-ring ratio within their errors, over several noise draws; the
+// record carries both bands with their zero points, the reference band's as its own.
+TEST(DecomposeBands, EachBandsFluxAndColourGradientAreRecovered) {
+    const int side = 41, draws = 12;
+    std::vector<double> pulls;
+    double gradient_fit = 0.0, gradient_truth = 0.0;
+    for (int k = 0; k < draws; ++k) {
+        const TwoBands g = two_band_galaxy(side, 20 + unsigned(k));
+        const double sigma_blue = 1.0, sigma_red = 3.0;
+        const ImageArray blue = test::noisy_stamp(g.blue, side, sigma_blue, 100 + k, 1);
+        const ImageArray red = test::noisy_stamp(g.red, side, sigma_red, 100 + k, 2);
+        const ImageArray w_blue = ImageArray::Constant(side, side, 1.0 / (sigma_blue * sigma_blue));
+        const ImageArray w_red = ImageArray::Constant(side, side, 1.0 / (sigma_red * sigma_red));
+        BandStamp b0, b1;
+        b0.image = &blue, b0.weight = &w_blue, b0.signal_weight = 1.0 / sigma_blue;
+        b1.image = &red, b1.weight = &w_red, b1.signal_weight = 1.0 / sigma_red;
+        const Decomposition d =
+            decompose_bands({b0, b1}, g.blue.x + 0.3, g.blue.y - 0.2, 2.0, DecomposeOptions{});
+        ASSERT_EQ(d.bands.size(), 2u);
+        EXPECT_EQ(d.bands[0].fit.model.coeffs, d.fit.model.coeffs);
+        EXPECT_EQ(d.bands[0].fit.model.beta_pix, d.bands[1].fit.model.beta_pix);
+        EXPECT_EQ(d.bands[0].fit.model.x, d.bands[1].fit.model.x);
+        EXPECT_NEAR(d.fit.model.x, g.blue.x, 0.2);
+        EXPECT_NEAR(d.fit.model.y, g.blue.y, 0.2);
+        pulls.push_back((flux(d.bands[0].fit.model) - flux(g.blue)) / d.bands[0].flux_error);
+        pulls.push_back((flux(d.bands[1].fit.model) - flux(g.red)) / d.bands[1].flux_error);
+        // The colour gradient: red over blue within 3 px of the centre against beyond it,
+        // from the models' pixels (whatever β and n_max the fit chose).
+        gradient_fit += colour_gradient(d.bands[0].fit.model, d.bands[1].fit.model, side) / draws;
+        gradient_truth += colour_gradient(g.blue, g.red, side) / draws;
+        if (k == 0) {
+            Stamp stamp;
+            stamp.image = blue;
+            stamp.weight = w_blue;
+            stamp.mask = ImageArray::Zero(side, side);
+            stamp.x0 = stamp.y0 = 1;
+            SourceRecord source;
+            source.id = "7";
+            const ShapeletRecord r =
+                shapelet_record(source, d, stamp, 0.06, 25.0, nullptr,
+                                {{"b", 25.0}, {"r", 24.0}});
+            ASSERT_EQ(r.bands.size(), 2u);
+            EXPECT_EQ(r.bands[0].coeffs, r.coeffs);
+            EXPECT_EQ(r.extra.at("band"), "b");
+            EXPECT_DOUBLE_EQ(*r.bands[1].mag, 24.0 - 2.5 * std::log10(*r.bands[1].flux));
+            EXPECT_DOUBLE_EQ(*r.bands[1].flux, flux(d.bands[1].fit.model));
+            EXPECT_EQ(r.bands[1].extra.at("coeff_errors").size(), r.coeffs.size());
+            EXPECT_EQ(ShapeletRecord::from_json(r.to_json()).to_json(), r.to_json());
+            EXPECT_THROW(shapelet_record(source, d, stamp, 0.06, 25.0, nullptr, {{"b", 25.0}}),
+                         Error);
+        }
+    }
+    const double pull_rms =
+        test::mean_rms(pulls, pulls, [](double) { return true; }).rms;
+    report("joint_flux_pull_rms", pull_rms);
+    EXPECT_LT(pull_rms, 1.6);
+    for (double p : pulls) EXPECT_LT(std::abs(p), 4.0);
+    report("joint_colour_gradient_fit", gradient_fit);
+    report("joint_colour_gradient_truth", gradient_truth);
+    EXPECT_GT(std::abs(std::log(gradient_truth)), 0.2);  // a real gradient to recover
+    EXPECT_NEAR(gradient_fit / gradient_truth, 1.0, 0.05);
+}
+
+// A band where the galaxy is absent (a dropout) fits to zero within its error and does not
+// keep the other band from its model.
+TEST(DecomposeBands, ADropoutBandFitsToZero) {
+    const int side = 41;
+    const ShapeletModel truth = test::centred_galaxy(4, 3.0, side, 9, 1000.0);
+    ShapeletModel nothing = truth;
+    for (Complex& c : nothing.coeffs) c = 0.0;
+    const ImageArray seen = test::noisy_stamp(truth, side, 1.0, 7, 1);
+    const ImageArray empty = test::noisy_stamp(nothing, side, 1.0, 7, 2);
+    const ImageArray weight = ImageArray::Constant(side, side, 1.0);
+    BandStamp a, b;
+    a.image = &seen, a.weight = &weight;
+    b.image = &empty, b.weight = &weight;
+    const Decomposition d = decompose_bands({a, b}, truth.x, truth.y, 2.0, DecomposeOptions{});
+    EXPECT_NEAR(flux(d.bands[1].fit.model), 0.0, 4.0 * d.bands[1].flux_error);
+    EXPECT_NEAR(flux(d.fit.model), 1000.0, 4.0 * d.flux_error);
+    EXPECT_GE(d.fit.model.n_max, 2);
+    const ImageArray small(side - 2, side);
+    BandStamp c = b;
+    c.image = &small;
+    EXPECT_THROW(decompose_bands({a, c}, truth.x, truth.y, 2.0, DecomposeOptions{}), Error);
+    EXPECT_THROW(decompose_bands({}, truth.x, truth.y, 2.0, DecomposeOptions{}), Error);
+}
