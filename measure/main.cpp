@@ -6,6 +6,7 @@
 #include "shapesim/app/options.hpp"
 #include "shapesim/app/progress.hpp"
 #include "shapesim/app/run_main.hpp"
+#include "shapesim/colours.hpp"
 #include "shapesim/compare.hpp"
 #include "shapesim/noise.hpp"
 #include "shapesim/error.hpp"
@@ -48,7 +49,7 @@ const char* const description =
 
 // --compare: the Table, the distances and the figures.
 struct CompareSettings {
-    std::vector<std::string> inputs, skies;
+    std::vector<std::string> inputs, skies, colours;
     std::string out = "compare", paper;
     std::string band = "I";  // the magnitudes' band, as the Table and figures label the cuts
     TableCuts cuts;
@@ -246,6 +247,9 @@ int run(int argc, const char* const argv[]) {
     options.group("Compare").add_options()
         ("compare", po::value(&compare.inputs)->value_name("NAME=FILE")->multitoken(),
          "compare measured catalogues (the first is the reference) instead of measuring")
+        ("compare-colours", po::value(&compare.colours)->value_name("NAME=FILE")->multitoken(),
+         "compare the colours of source catalogues of shapesim-detect --bands (the first is "
+         "the reference; galaxies brighter than --mag-limit): a markdown report on stdout")
         ("compare-sky", po::value(&compare.skies)->value_name("NAME=FILE")->multitoken(),
          "compare skies' noise records (shapesim-detect --noise-model; the first is the "
          "reference): a markdown table on stdout")
@@ -274,6 +278,24 @@ int run(int argc, const char* const argv[]) {
              ->notifier(in_range("bootstrap", 2, 1000000)), "bootstrap resamples for the errors");
     if (!options.parse(argc, argv)) return 0;
     const app::Log log("shapesim-measure", options.common().verbosity);
+    if (!compare.colours.empty()) {
+        if (!detection.image.empty() || !compare.inputs.empty() || !compare.skies.empty())
+            throw po::error("--compare-colours: not with an IMAGE, --compare or --compare-sky");
+        std::vector<ColourCatalogue> catalogues;
+        for (const auto& [name, path] : app::named_files(compare.colours, "compare-colours")) {
+            JsonlReader reader(path, {SourceRecord::schema});
+            try {
+                catalogues.push_back(ColourCatalogue::from_records(
+                    name, reader.read_all<SourceRecord>(options.common().threads)));
+            } catch (const Error& e) {
+                throw e.at(path, 0);
+            }
+        }
+        const double limit = options.given("mag-limit") ? mag_limit : 99.0;
+        write_colour_report(std::cout, catalogues,
+                            compare_colours(catalogues, limit, compare.cuts.resamples, 0), limit);
+        return 0;
+    }
     if (!compare.skies.empty()) {
         if (!detection.image.empty() || !compare.inputs.empty())
             throw po::error("--compare-sky: not with an IMAGE or --compare");

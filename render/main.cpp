@@ -42,7 +42,7 @@ const char* const description =
     "  shapesim-render --psf psf.jsonl --size 1 --noise-free -o clean.fits < objects.jsonl";
 
 struct Settings {
-    std::string input = "-", psf, galaxy_psf, truth, noise_like, noise_model, noise_weight;
+    std::string input = "-", psf, galaxy_psf, truth, noise_like, noise_model, noise_weight, band;
     app::FieldOptions field;
     std::vector<double> shear;
     double kappa = 0.0, exposure = 1.0;
@@ -82,6 +82,9 @@ int run(int argc, const char* const argv[]) {
     options.group("Input").add_options()
         ("input,i", po::value(&s.input)->value_name("FILE")->default_value("-"),
          "object records (default: stdin)")
+        ("band", po::value(&s.band)->value_name("NAME"),
+         "draw every object as it is in this band of its \"bands\" (multi-band records); the "
+         "noise is this band's own realisation of --seed")
         ("psf", po::value(&s.psf)->value_name("FILE"),
          "PSF shapelet record of the image (shapesim-decompose --psf-image): stars are drawn "
          "as it, galaxies convolved with it")
@@ -199,7 +202,7 @@ int run(int argc, const char* const argv[]) {
         noise_note += ", scaled by the weight map";
     }
     o.gain *= s.exposure;
-    o.seed = options.common().seed;
+    o.seed = s.band.empty() ? options.common().seed : band_seed(options.common().seed, s.band);
     o.threads = options.common().threads;
     o.validate();
     SceneKernels kernels;
@@ -231,6 +234,13 @@ int run(int argc, const char* const argv[]) {
     std::vector<ObjectRecord> records = reader.read_all<ObjectRecord>(o.threads, &lines);
     for (std::size_t k = 0; k < records.size(); ++k) {
         ObjectRecord& r = records[k];
+        if (!s.band.empty()) {
+            try {
+                r = r.in_band(s.band);
+            } catch (const Error& e) {
+                throw Error(e.message(), reader.name(), lines[k], e.field());
+            }
+        }
         const PixelPosition p = field.wcs.sky_to_pixel(r.ra, r.dec);
         r.x = p.x;
         r.y = p.y;
@@ -265,7 +275,7 @@ int run(int argc, const char* const argv[]) {
     wcs.crpix2 -= double(window.y0 - 1);
     spec.wcs = wcs;
     spec.keywords = {
-        FitsKeyword("SEED", std::to_string(o.seed), "run seed (shapesim)"),
+        FitsKeyword("SEED", std::to_string(options.common().seed), "run seed (shapesim)"),
         FitsKeyword("NOBJ", (long long)(in_window.size()), "objects drawn in this image"),
         FitsKeyword("TRUNC", o.truncation, "stamp truncation, fraction of noise rms or peak"),
         FitsKeyword("NOISERMS", o.noise_free ? 0.0 : o.noise_rms, "Gaussian background rms"),
@@ -285,6 +295,7 @@ int run(int argc, const char* const argv[]) {
         FitsKeyword("FIELDNX", (long long)field.nx, "field width, pixels"),
         FitsKeyword("FIELDNY", (long long)field.ny, "field height, pixels"),
     };
+    if (!s.band.empty()) spec.keywords.emplace_back("BAND", s.band, "band of the objects drawn");
     // The objects' own zero point (mag + 2.5 log₁₀ flux, when every object with both agrees):
     // a simulation measured without --zero-point gets its true magnitudes.
     std::optional<double> zero_point;

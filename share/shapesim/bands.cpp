@@ -9,6 +9,11 @@
 
 namespace shapesim {
 
+double inner_radius(const Detection& object, const DetectionOptions& options) {
+    const double r = std::max(options.kron_factor * object.kron_radius, options.kron_min_radius);
+    return std::max(1.5, 0.5 * r * std::sqrt(std::max(object.a, 0.5) * std::max(object.b, 0.5)));
+}
+
 std::vector<BandField> measure_bands(const std::vector<BandRecord>& bands,
                                      const DetectionResult& detection,
                                      const DetectionOptions& options) {
@@ -36,6 +41,9 @@ std::vector<BandField> measure_bands(const std::vector<BandRecord>& bands,
             throw Error("band " + spec.band + ": " + e.message(), fits.place());
         }
         b.auto_flux = forced_auto_fluxes(b.field, detection.objects, b.options);
+        for (const Detection& d : detection.objects)
+            b.inner_flux.push_back(
+                circular_aperture_flux(b.field, d.label, d.x, d.y, inner_radius(d, b.options)));
         out.push_back(std::move(b));
     }
     return out;
@@ -81,6 +89,9 @@ Json band_source_entry(const BandField& band, std::size_t k, const CutStamp* cut
     e["band"] = band.spec.band;
     e["flux"] = f.flux;
     e["flux_err"] = f.error;
+    const ApertureFlux& inner = band.inner_flux.at(k);
+    e["flux_inner"] = inner.flux;
+    e["flux_inner_err"] = inner.error;
     if (band.spec.zero_point && f.flux > 0.0)
         e["mag"] = *band.spec.zero_point - 2.5 * std::log10(f.flux);
     if (band.spec.zero_point) e["zero_point"] = *band.spec.zero_point;

@@ -25,8 +25,16 @@ struct BandField {
     BandRecord spec;
     DetectionResult field;                ///< band_field(): its noise, the detection's segments
     std::vector<ApertureFlux> auto_flux;  ///< forced FLUX_AUTO of each detection object
+    /// Forced flux in each object's inner circle (inner_radius()): with the AUTO flux, the
+    /// inner and outer colours of a colour gradient.
+    std::vector<ApertureFlux> inner_flux;
     DetectionOptions options;             ///< the detection's, with the band's gain
 };
+
+/// The inner aperture of a colour gradient: a circle of half the AUTO ellipse's geometric-mean
+/// radius, max(kron_factor·r_K, kron_min_radius)·√(ab) / 2, at least 1.5 pixels (≈ the
+/// half-light radius; the outer colour is that of the AUTO flux outside it).
+double inner_radius(const Detection& object, const DetectionOptions& options);
 
 /// Read every band's image and noise map (Error naming the file on a missing or mis-sized
 /// one) and measure it on `detection`'s grid with the detection `options` (GAIN: the band's
@@ -36,7 +44,8 @@ std::vector<BandField> measure_bands(const std::vector<BandRecord>& bands,
                                      const DetectionOptions& options);
 
 /// The `bands` entry of the source record of detection object `k` in `band`: band, flux
-/// (forced FLUX_AUTO), flux_err, mag (with a zero point and a positive flux), zero_point,
+/// (forced FLUX_AUTO), flux_err, mag (with a zero point and a positive flux), flux_inner and
+/// flux_inner_err (the inner circle), zero_point,
 /// noise_correlation, background_rms, and, with a stamp (`cut`, written to `stamps_file`),
 /// stamp_hdu, noise_rms, weight_scale, border_pixels.
 Json band_source_entry(const BandField& band, std::size_t k, const CutStamp* cut,

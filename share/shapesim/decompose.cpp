@@ -459,10 +459,12 @@ Decomposition decompose_bands(const std::vector<BandStamp>& bands, double x, dou
     out.bad_fit = out.chi2r > options.bad_fit_chi2r;
     // In the frame the data see: an intrinsic model through its PSF (ringing finer than the
     // PSF is not measured, and a render through a broader or matched PSF does not show it).
-    // The reference band's.
+    // Several bands: the S/N-weighted stack's, the model the joint fit constrains best (a
+    // faint band's own coefficients ring with its noise at the order the bright bands chose).
     const auto& psf = problem.options(0).psf;
-    const PixelHoles holes = pixel_holes(psf ? convolve(to_cartesian(kept.model()), *psf)
-                                             : to_cartesian(kept.model()));
+    const ShapeletModel judged = problem.centroid_model(kept);
+    const PixelHoles holes =
+        pixel_holes(psf ? convolve(to_cartesian(judged), *psf) : to_cartesian(judged));
     out.hole = holes.depth;
     out.negative_light = holes.negative_light;
     out.holes = !(out.hole <= options.max_hole && out.negative_light <= options.max_hole);
@@ -659,7 +661,13 @@ ShapeletRecord shapelet_record(const SourceRecord& source, const Decomposition& 
         if (bands[k].zero_point) b.extra["zero_point"] = *bands[k].zero_point;
         r.bands.push_back(std::move(b));
     }
-    if (!bands.empty()) e["band"] = bands.front().band;
+    if (!bands.empty()) {
+        e["band"] = bands.front().band;
+        // The record's magnitudes are the reference band's: so is its zero point.
+        if (e.contains("zero_point")) e["source_zero_point"] = e["zero_point"];
+        if (zero_point) e["zero_point"] = *zero_point;
+        else e.erase("zero_point");
+    }
     return r;
 }
 

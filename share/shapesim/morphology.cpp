@@ -89,7 +89,9 @@ ShapeletModel unalign(const ShapeletModel& aligned, const Alignment& how) {
 
 bool SmoothingLengths::is_delta() const {
     if (phase_deg != 0.0 || beta != 0.0 || mag != 0.0) return false;
-    return std::all_of(coefficient.begin(), coefficient.end(), [](double l) { return l == 0.0; });
+    const auto zero = [](double l) { return l == 0.0; };
+    return std::all_of(coefficient.begin(), coefficient.end(), zero) &&
+           std::all_of(colour.begin(), colour.end(), zero);
 }
 
 void SmoothOptions::validate() const {
@@ -116,6 +118,57 @@ double mean_nearest_neighbour_separation(std::vector<double> values) {
     return sum / double(values.size());
 }
 
+namespace {
+
+// Σ_{n even} Re c_{n,0}: a shape's flux over 2√π β a_{0,0}.
+double even_sum(const std::vector<Complex>& shape) {
+    double sum = 0.0;
+    int k = 0;
+    for (int n = 0; k < int(shape.size()); ++n)
+        for (int m = n % 2; m <= n && k < int(shape.size()); m += 2, ++k)
+            if (m == 0 && n % 2 == 0) sum += shape[std::size_t(k)].real();
+    return sum;
+}
+
+// A record's bands as point `p`'s band shapes (aligned as its reference shape, over the
+// reference a_{0,0}); the first record with bands sets the morphology's band list, and every
+// record must then carry the same bands in the same order.
+void add_band_shapes(Morphology& out, const ShapeletRecord& r, MorphologyPoint& p, double a00) {
+    const bool first = out.points.empty();
+    if (first) {
+        for (const BandCoefficients& b : r.bands) {
+            out.bands.push_back(b.band);
+            const auto zp = b.extra.contains("zero_point") && b.extra.at("zero_point").is_number()
+                                ? std::optional<double>(b.extra.at("zero_point").get<double>())
+                                : std::nullopt;
+            out.band_zero_points.push_back(zp);
+        }
+    }
+    bool same = r.bands.size() == out.bands.size();
+    for (std::size_t b = 0; same && b < r.bands.size(); ++b) same = r.bands[b].band == out.bands[b];
+    if (!same)
+        throw Error("record " + r.id + "'s bands differ from record " + out.points.front().id +
+                        "'s: one morphology model holds one set of bands",
+                    "", 0, "bands");
+    for (std::size_t b = 0; b < r.bands.size(); ++b) {
+        const auto& zp = out.band_zero_points[b];
+        const auto own = r.bands[b].extra.contains("zero_point") &&
+                                 r.bands[b].extra.at("zero_point").is_number()
+                             ? std::optional<double>(r.bands[b].extra.at("zero_point").get<double>())
+                             : std::nullopt;
+        if (zp != own) out.band_zero_points[b] = std::nullopt;
+        ShapeletModel model = r.to_model();
+        model.coeffs = r.bands[b].coeffs;
+        ShapeletModel aligned = rotate(model, p.alignment.rotation);
+        if (p.alignment.reflected) aligned = reflect_x(aligned);
+        std::vector<Complex> shape(aligned.coeffs.size());
+        for (std::size_t k = 0; k < shape.size(); ++k) shape[k] = aligned.coeffs[k] / a00;
+        p.band_shapes.push_back(std::move(shape));
+    }
+}
+
+}  // namespace
+
 Morphology build_morphology(const std::vector<ShapeletRecord>& records,
                             const SmoothOptions& options) {
     options.validate();
@@ -136,9 +189,12 @@ Morphology build_morphology(const std::vector<ShapeletRecord>& records,
         p.shape.resize(aligned.coeffs.size());
         for (std::size_t k = 0; k < aligned.coeffs.size(); ++k) p.shape[k] = aligned.coeffs[k] / a00;
         p.shape[0] = 1.0;
+        add_band_shapes(out, r, p, a00);
         out.n_max = std::max(out.n_max, p.n_max);
         out.points.push_back(std::move(p));
     }
+    if (!out.bands.empty() && out.points.size() != records.size())
+        throw Error("internal: band points lost", "", 0, "bands");
     SmoothingLengths& l = out.lambda;
     const double k = options.delta ? 0.0 : options.k;
     l.phase_deg = options.delta ? 0.0 : options.phase_deg;
@@ -162,6 +218,15 @@ Morphology build_morphology(const std::vector<ShapeletRecord>& records,
             if (i < p.shape.size())
                 axis.push_back(index[i].m == 0 ? p.shape[i].real() : std::abs(p.shape[i]));
         l.coefficient[i] = k * mean_nearest_neighbour_separation(axis);
+    }
+    l.colour.assign(out.bands.size(), 0.0);
+    for (std::size_t b = 0; b < out.bands.size() && !options.delta; ++b) {
+        std::vector<double> colours;
+        for (const auto& p : out.points) {
+            const double ratio = even_sum(p.band_shapes[b]) / even_sum(p.shape);
+            if (ratio > 0.0 && std::isfinite(ratio)) colours.push_back(-2.5 * std::log10(ratio));
+        }
+        l.colour[b] = k * mean_nearest_neighbour_separation(colours);
     }
     // One zero point when every record agrees.
     std::optional<double> zp;
@@ -365,7 +430,17 @@ Json Morphology::to_json() const {
     lam["beta"] = lambda.beta;
     lam["mag"] = lambda.mag;
     lam["coefficient"] = lambda.coefficient;
+    if (!bands.empty()) lam["colour"] = lambda.colour;
     doc["lambda"] = lam;
+    if (!bands.empty()) {
+        Json list = Json::array();
+        for (std::size_t b = 0; b < bands.size(); ++b) {
+            Json j = {{"band", bands[b]}};
+            if (band_zero_points[b]) j["zero_point"] = *band_zero_points[b];
+            list.push_back(std::move(j));
+        }
+        doc["bands"] = std::move(list);
+    }
     Json pts = Json::array();
     for (const auto& p : points) {
         Json shape = Json::array();
@@ -379,6 +454,15 @@ Json Morphology::to_json() const {
                        {"reflected", p.alignment.reflected},
                        {"shape", shape}});
         if (p.psf_beta > 0.0) pts.back()["psf_beta"] = p.psf_beta;
+        if (!p.band_shapes.empty()) {
+            Json list = Json::array();
+            for (const auto& band : p.band_shapes) {
+                Json pairs = Json::array();
+                for (const Complex& c : band) pairs.push_back(Json::array({c.real(), c.imag()}));
+                list.push_back(std::move(pairs));
+            }
+            pts.back()["bands"] = std::move(list);
+        }
         if (p.shape_only) pts.back()["shape_only"] = true;
     }
     doc["points"] = pts;
@@ -444,6 +528,27 @@ Morphology Morphology::from_json(const Json& doc) {
     }
     if (m.lambda.phase_deg < 0 || m.lambda.beta < 0 || m.lambda.mag < 0)
         throw Error("smoothing lengths must be ≥ 0", "", 0, "lambda");
+    if (doc.contains("bands")) {
+        const Json& list = doc.at("bands");
+        if (!list.is_array() || list.empty()) throw Error("must be a non-empty array", "", 0, "bands");
+        for (std::size_t b = 0; b < list.size(); ++b) {
+            const std::string where = "bands[" + std::to_string(b) + "]";
+            if (!list[b].is_object() || !list[b].contains("band") || !list[b].at("band").is_string())
+                throw Error("missing or not a string", "", 0, where + ".band");
+            m.bands.push_back(list[b].at("band").get<std::string>());
+            m.band_zero_points.push_back(list[b].contains("zero_point")
+                                             ? std::optional(number(list[b], "zero_point", where + "."))
+                                             : std::nullopt);
+        }
+        if (!lam.contains("colour") || !lam.at("colour").is_array() ||
+            lam.at("colour").size() != m.bands.size())
+            throw Error("must be an array of one number per band", "", 0, "lambda.colour");
+        for (const Json& v : lam.at("colour")) {
+            if (!v.is_number() || !(v.get<double>() >= 0.0) || !std::isfinite(v.get<double>()))
+                throw Error("must be finite numbers ≥ 0", "", 0, "lambda.colour");
+            m.lambda.colour.push_back(v.get<double>());
+        }
+    }
     if (!doc.contains("points") || !doc.at("points").is_array() || doc.at("points").empty())
         throw Error("must be a non-empty array", "", 0, "points");
     std::size_t i = 0;
@@ -482,6 +587,26 @@ Morphology Morphology::from_json(const Json& doc) {
             if (!std::isfinite(v.real()) || !std::isfinite(v.imag()))
                 throw Error("not finite", "", 0, where + "shape");
             p.shape.push_back(v);
+        }
+        if (!m.bands.empty()) {
+            const Json* list = pj.contains("bands") ? &pj.at("bands") : nullptr;
+            if (!list || !list->is_array() || list->size() != m.bands.size())
+                throw Error("must hold one shape per band", "", 0, where + "bands");
+            for (const Json& band : *list) {
+                if (!band.is_array() || band.size() != p.shape.size())
+                    throw Error("must hold polar_count(n_max) [re, im] pairs per band", "", 0,
+                                where + "bands");
+                std::vector<Complex> shape;
+                for (const Json& c : band) {
+                    if (!c.is_array() || c.size() != 2 || !c[0].is_number() || !c[1].is_number())
+                        throw Error("must hold [re, im] pairs of numbers", "", 0, where + "bands");
+                    const Complex v(c[0].get<double>(), c[1].get<double>());
+                    if (!std::isfinite(v.real()) || !std::isfinite(v.imag()))
+                        throw Error("not finite", "", 0, where + "bands");
+                    shape.push_back(v);
+                }
+                p.band_shapes.push_back(std::move(shape));
+            }
         }
         m.points.push_back(std::move(p));
     }
@@ -802,9 +927,24 @@ DrawnGalaxy draw_galaxy(const Morphology& morphology, const std::vector<double>&
     const double a00 = g.flux / (2.0 * std::sqrt(pi) * beta_pix * drawn.sum);
     g.rotation = stream.angle();
     g.reflected = stream.coin();
-    g.model = placed_model(drawn.shape, morphology.points[g.parent].n_max, beta_pix, a00, g.rotation,
-                           g.reflected);
+    const MorphologyPoint& shape_parent = morphology.points[g.parent];
+    g.model = placed_model(drawn.shape, shape_parent.n_max, beta_pix, a00, g.rotation, g.reflected);
     g.perturbation = drawn.norm > 0.0 ? std::sqrt(drawn.change / drawn.norm) : 0.0;
+    // Each band: the parent's, plus the reference perturbation at the parent's mean colour,
+    // times the colour perturbation (drawn last: one-band draws are unchanged).
+    const double parent_sum = even_sum(shape_parent.shape);
+    for (std::size_t b = 0; b < shape_parent.band_shapes.size(); ++b) {
+        const std::vector<Complex>& own = shape_parent.band_shapes[b];
+        const double ratio = even_sum(own) / parent_sum;
+        const double colour = l.colour.empty() ? 0.0 : l.colour[b] * stream.epanechnikov();
+        const double scale = delta ? 1.0 : std::pow(10.0, -0.4 * colour);
+        std::vector<Complex> band(own.size());
+        for (std::size_t k = 0; k < own.size(); ++k)
+            band[k] = delta ? own[k]
+                            : scale * (own[k] + (drawn.shape[k] - shape_parent.shape[k]) * ratio);
+        g.band_models.push_back(
+            placed_model(band, shape_parent.n_max, beta_pix, a00, g.rotation, g.reflected));
+    }
     return g;
 }
 

@@ -41,6 +41,17 @@
 // galaxy's shape blown up five magnitudes is no bright galaxy). The shape parent's β is
 // scaled to the drawn magnitude by the size–luminosity relation r ∝ L^s
 // (β·10^{−0.4·s·(m − m_parent)}, s = `size_slope`), then perturbed by λ_β.
+//
+// Several bands (issue 17). Models of a joint fit (shapesim-decompose on shapesim-detect
+// --bands records) carry every band's coefficients at one centre, β and n_max. A point keeps
+// them aligned as its reference shape is (the same rotation and reflection) and normalised by
+// the reference band's a_{0,0}: c_b = a_b / a_{0,0}, colours per shapelet mode, so a red bulge
+// in a blue disc stays one. A draw gives band b the parent's c_b plus the reference shape's
+// perturbation scaled by the parent's flux ratio s_b = Σ_{n even} c_{b,n,0} / Σ_{n even} c_{n,0}
+// (the perturbation carries the galaxy's mean colour, the parent's colour gradients are kept),
+// then a colour perturbation: c_b × 10^{−0.4 λ_b ε}, λ_b = k × the mean nearest-neighbour
+// separation of the points' colours −2.5 log₁₀ s_b (0 in δ mode: a δ draw copies every band).
+// The bands are placed with the same a_{0,0}, β, rotation and reflection as the reference.
 #pragma once
 
 #include "shapesim/model.hpp"
@@ -81,6 +92,9 @@ struct MorphologyPoint {
     /// |c| and arg c of `shape` (derived: Morphology::prepare() fills them for the draws).
     std::vector<double> modulus, phase;
     double hole = 0.0;  ///< hole_depth() of the shape (derived, prepare())
+    /// Multi-band: each band's aligned coefficients over the reference band's a_{0,0}, in
+    /// Morphology::bands order (empty for a one-band model).
+    std::vector<std::vector<Complex>> band_shapes;
     /// Magnitude gap to the nearest other counted point (weight > 0; derived, prepare(); ∞ when
     /// alone): conditional draws smooth its magnitude over max(λ_mag, gap), so sparse bright
     /// parents spread over the gaps between them instead of spiking at their own magnitudes.
@@ -94,6 +108,8 @@ struct SmoothingLengths {
     double mag = 0.0;
     /// Per packed polar index (n, m): of |c| for m > 0, of c for m = 0; index 0 unused (0).
     std::vector<double> coefficient;
+    /// Multi-band: each band's colour against the reference band, magnitudes.
+    std::vector<double> colour;
     bool is_delta() const;
 };
 
@@ -173,6 +189,10 @@ struct Morphology {
     std::vector<SourceField> source_fields;
     /// The shape-only fields' images (their points are `shape_only`).
     std::vector<std::string> shape_fields;
+    /// Multi-band: the bands (the first the reference, whose magnitudes `mag` are) and their
+    /// zero points (of the real images, when every record gave one).
+    std::vector<std::string> bands;
+    std::vector<std::optional<double>> band_zero_points;
     Json provenance = Json::object();    ///< input hash, options, program version
 
     Json to_json() const;
@@ -205,6 +225,9 @@ struct DrawnGalaxy {
     double perturbation = 0.0;  ///< ‖c' − c‖/‖c‖ over the shape vector
     int redraws = 0;        ///< perturbations refused (non-positive flux, β ≤ 0, too faint,
                             ///< too large)
+    /// Multi-band: each band's model (Morphology::bands order; the reference's is `model`), in
+    /// the reference band's units: band b's flux over `flux` is the drawn colour's ratio.
+    std::vector<ShapeletModel> band_models;
 };
 
 /// Cumulative parent weights for draw_galaxy(), over the points with mag ≤ `mag_limit`.

@@ -285,7 +285,7 @@ void ShapeletRecord::validate() const {
     check_finite("x", x);
     check_finite("y", y);
     check_shape(beta, pixel_scale, n_max, coeffs);
-    check_bands(beta, pixel_scale, n_max, bands);
+    check_bands(beta, pixel_scale, n_max, bands);  // a model: every band its coefficients
     check_non_negative("chi2r", chi2r);
 }
 
@@ -480,7 +480,7 @@ BandCoefficients BandCoefficients::from_json(const Json& j, int n_max, const std
         BandCoefficients b;
         b.band = required_string(j, "band");
         if (b.band.empty()) throw Error("must not be empty", {}, 0, "band");
-        b.coeffs = read_coeffs(j, n_max);
+        if (j.contains("coeffs")) b.coeffs = read_coeffs(j, n_max);  // a star's: none
         b.flux = optional_double(j, "flux");
         b.flux_err = optional_double(j, "flux_err");
         b.mag = optional_double(j, "mag");
@@ -503,7 +503,7 @@ Json BandCoefficients::to_json() const {
     put(j, "mag", mag);
     put(j, "chi2r", chi2r);
     put_extra(j, extra, band_coefficient_fields);
-    j["coeffs"] = write_coeffs(coeffs);
+    if (!coeffs.empty()) j["coeffs"] = write_coeffs(coeffs);
     return j;
 }
 

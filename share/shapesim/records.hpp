@@ -63,7 +63,7 @@ struct BandRecord {
 /// One band of a multi-band model: its coefficients at the record's centre, β and n_max.
 struct BandCoefficients {
     std::string band;
-    std::vector<Complex> coeffs;     ///< packed a_{n,m}, size polar_count(n_max)
+    std::vector<Complex> coeffs;     ///< packed a_{n,m}, size polar_count(n_max); a star's none
     std::optional<double> flux, flux_err, mag, chi2r;
     Json extra = Json::object();     ///< e.g. coeff_errors, zero_point
 

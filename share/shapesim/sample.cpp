@@ -1,6 +1,7 @@
 #include "shapesim/sample.hpp"
 
 #include "shapesim/error.hpp"
+#include "shapesim/moments.hpp"
 #include "shapesim/rng.hpp"
 
 #include <algorithm>
@@ -99,6 +100,29 @@ constexpr double degree = 3.14159265358979323846 / 180.0;
 
 // A uniform position over the field's pixel area.
 // A record of object `id` of `kind` at pixel position `p` of the field.
+// Band b of a drawn object, in units where the reference band has the simulation's zero point
+// `zero_point`: band b's is then zp_b + (zero_point − zp_ref) (zp the real images'), so the
+// drawn colours are the real ones. A galaxy's `model` gives its coefficients and flux; a star
+// (no model) has magnitude `star_mag` in every band.
+BandCoefficients band_part(const Morphology& morphology, std::size_t b, double zero_point,
+                           const ShapeletModel* model, double star_mag) {
+    double band_zero_point = zero_point;
+    const auto& zp = morphology.band_zero_points[b];
+    if (zp && morphology.zero_point) band_zero_point = *zp + (zero_point - *morphology.zero_point);
+    BandCoefficients part;
+    part.band = morphology.bands[b];
+    if (model) {
+        part.coeffs = model->coeffs;
+        part.flux = flux(*model);
+        if (*part.flux > 0.0) part.mag = band_zero_point - 2.5 * std::log10(*part.flux);
+    } else {
+        part.mag = star_mag;
+        part.flux = std::pow(10.0, -0.4 * (star_mag - band_zero_point));
+    }
+    part.extra["zero_point"] = band_zero_point;
+    return part;
+}
+
 ObjectRecord placed(std::string id, const char* kind, const PixelPosition& p,
                     const FieldGeometry& field) {
     ObjectRecord o;
@@ -265,6 +289,8 @@ SampleSummary sample_field(const Morphology& morphology, const FieldGeometry& fi
             o.extra["psf_beta"] = morphology.points[g.parent].psf_beta;
         if (g.mag_parent != g.parent) o.extra["mag_parent"] = morphology.points[g.mag_parent].id;
         o.extra["reach"] = reach;
+        for (std::size_t b = 0; b < g.band_models.size(); ++b)
+            o.bands.push_back(band_part(morphology, b, options.zero_point, &g.band_models[b], 0.0));
         emit(o);
         ++summary.galaxies_out;
       }
@@ -286,6 +312,9 @@ SampleSummary sample_field(const Morphology& morphology, const FieldGeometry& fi
             o.mag = options.stars.magnitude(stream.uniform());
             o.flux = std::pow(10.0, -0.4 * (*o.mag - options.zero_point));
             o.extra["reach"] = options.margin;
+            // Multi-band: a flat spectrum (AB colour 0); star colours are not modelled.
+            for (std::size_t b = 0; b < morphology.bands.size(); ++b)
+                o.bands.push_back(band_part(morphology, b, options.zero_point, nullptr, *o.mag));
             emit(o);
             ++summary.stars_out;
         }

@@ -311,4 +311,12 @@ void add_noise(ImageArray& image, const Tile& window, long field_nx, const Scene
     });
 }
 
+std::uint64_t band_seed(std::uint64_t seed, const std::string& band) {
+    // A SplitMix64 finaliser over seed ⊕ hash: nearby seeds and similar names land far apart.
+    std::uint64_t z = seed ^ fnv1a_64(band);
+    z = (z ^ (z >> 30)) * 0xbf58476d1ce4e5b9ULL;
+    z = (z ^ (z >> 27)) * 0x94d049bb133111ebULL;
+    return z ^ (z >> 31);
+}
+
 }  // namespace shapesim

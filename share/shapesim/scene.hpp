@@ -109,6 +109,11 @@ double stamp_radius(const CartesianModel& model, double threshold);
 /// Error when no pixel is good.
 ImageArray noise_scale_from_weight(const ImageArray& weight);
 
+/// The noise seed of band `band` of a multi-band run: the run seed mixed with the band's
+/// name (fnv1a_64), so each band draws its own realisation from one --seed (a one-band run
+/// uses the seed itself).
+std::uint64_t band_seed(std::uint64_t seed, const std::string& band);
+
 /// Widest noise kernel add_noise draws (its margin stream's keys).
 constexpr int max_noise_kernel_radius = int(WhiteNoise::margin);
 
