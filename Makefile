@@ -10,6 +10,8 @@
 #   make stress          orders past 100, extreme beta, NaN-riddled and 8192² inputs
 #   make fuzz            libFuzzer on the record readers and the FITS path (clang, build-fuzz/)
 #   make corpus-matrix   every program on the bad-input corpus into tests/corpus/matrix.md
+#   make colour          the multi-colour simulation of the shipped ten-band XDF cutout into
+#                        out/colour/ (pipelines/colour.mk; OUT=, SEED=, AREA=, MAG_LIMIT=)
 #   make slurm-test      a 4-tile survey through a one-node Slurm cluster = make -j (root; CI)
 #   make install PREFIX=/usr/local
 #   make WERROR=1        warnings are errors (CI)
@@ -57,7 +59,7 @@ include detect/module.mk decompose/module.mk smooth/module.mk sample/module.mk
 include render/module.mk measure/module.mk
 include tests/module.mk
 
-.PHONY: all deps test unit-test program-test bench stress install clean reproduce slurm-test
+.PHONY: all deps test unit-test program-test bench stress install clean reproduce colour slurm-test
 all: $(PROGRAMS:%=$(BIN)/%)
 
 # Every first target installs what is missing (as root) or prints the apt line.
@@ -96,6 +98,10 @@ FORCE:
 # The paper end to end (pipelines/reproduce.mk); make variables (OUT, SEED, AREA, THREADS) pass on.
 reproduce: deps all examples
 	$(MAKE) --no-print-directory -f pipelines/reproduce.mk BIN=$(BIN) EXAMPLES=$(BUILD)/examples
+
+# The XDF's nine bands end to end (pipelines/colour.mk); OUT, SEED, AREA, MAG_LIMIT pass on.
+colour: deps all examples
+	$(MAKE) --no-print-directory -f pipelines/colour.mk BIN=$(BIN) EXAMPLES=$(BUILD)/examples
 
 # A 4-tile survey on a throw-away one-node Slurm cluster equals make -j (CI; root; installs Slurm).
 slurm-test: all

@@ -250,12 +250,12 @@ ImageArray FitsReader::read_image() {
     fits_get_img_type(impl_->f, &bitpix, &status);
     check(status, impl_->place);
     const LONGLONG pixel_bytes = LONGLONG(size.nx) * size.ny * (std::abs(bitpix) / 8);
-    struct stat file_status {};
-    if (!compressed && ::stat(impl_->file.c_str(), &file_status) == 0 &&
-        S_ISREG(file_status.st_mode) && data_start + pixel_bytes > LONGLONG(file_status.st_size))
+    // The size cfitsio sees: a gzipped file is read into memory, uncompressed.
+    const LONGLONG file_size = impl_->f->Fptr->logfilesize;
+    if (!compressed && data_start + pixel_bytes > file_size)
         throw Error("truncated: the header declares " + std::to_string(pixel_bytes) +
                         " bytes of pixels, the file holds " +
-                        std::to_string(std::max<LONGLONG>(0, file_status.st_size - data_start)),
+                        std::to_string(std::max<LONGLONG>(0, file_size - data_start)),
                     impl_->place);
     ImageArray image(size.ny, size.nx);
     // FITS stores x fastest, rows of constant y one after another: the ImageArray layout.

@@ -234,8 +234,9 @@ TEST(DecomposeRecord, ShiftsToTheParentAndCarriesTheSource) {
     r.validate();
 }
 
-// A brighter star flags a galaxy whose reach meets twice the star's Kron radius; a fainter or
-// farther one does not; the FWHM stands in for a missing Kron radius.
+// A brighter star flags a galaxy whose reach meets twice the star's Kron radius (or its
+// isophote's, when larger); a fainter or farther one does not; the FWHM stands in for a
+// missing Kron radius.
 TEST(DecomposeRecord, NearBrightStar) {
     SourceRecord star;
     star.x = 100.0;
@@ -253,6 +254,14 @@ TEST(DecomposeRecord, NearBrightStar) {
     fwhm_only.fwhm = 4.0;  // radius 6 px again
     EXPECT_TRUE(near_bright_star(112.0, 100.0, 0.5, 10.0, {fwhm_only}));
     EXPECT_FALSE(near_bright_star(113.0, 100.0, 0.5, 10.0, {fwhm_only}));
+    // A bright star's isophote reaches past its Kron radius: radius √(iso_area/π) = 20 px.
+    SourceRecord halo = star;
+    halo.extra["iso_area"] = 400.0 * M_PI;
+    EXPECT_TRUE(near_bright_star(100.0, 143.0, 3.5, 10.0, {halo}));   // 43 < 3.5 + 40
+    EXPECT_FALSE(near_bright_star(100.0, 144.0, 3.5, 10.0, {halo}));  // 44 > 43.5
+    halo.extra["iso_area"] = 4.0;  // smaller than the Kron radius: the Kron radius stands
+    EXPECT_TRUE(near_bright_star(100.0, 115.0, 3.5, 10.0, {halo}));
+    EXPECT_FALSE(near_bright_star(100.0, 116.0, 3.5, 10.0, {halo}));
 }
 
 // =============================================================================================

@@ -721,3 +721,130 @@ TEST(MorphologyConditional, ShapeOnlyPointsShapeButDoNotCount) {
     doc["points"][1]["weight"] = 1.0;
     EXPECT_THROW(Morphology::from_json(doc), Error);
 }
+
+// ------------------------------------------------------------------ several bands (issue 17)
+
+namespace {
+
+// Records of a joint fit: reference band "i" (the record's own model), band "b" with a bluer
+// outer ring (a_{2,0} raised) and half the light, band "z" a redder core; zero points 25, 26,
+// 24.
+std::vector<ShapeletRecord> band_records(int count) {
+    std::vector<ShapeletRecord> records;
+    for (int i = 0; records.size() < std::size_t(count); ++i) {
+        ShapeletModel m = test::random_model(2 + i % 6, 1.5 + 0.1 * i, 0.0, 0.0, 300 + i, true, 0.3);
+        m.coeffs[0] = 2.0 + 0.1 * i;
+        if (flux(m) <= 0.0) continue;
+        ShapeletRecord r = record_of(m, "g" + std::to_string(i), 25.0 - 2.5 * std::log10(flux(m)));
+        ShapeletModel blue = m, red = m;
+        for (Complex& c : blue.coeffs) c *= 0.5;
+        blue.at(2, 0) += 0.3;
+        red.at(0, 0) *= 1.5 + 0.05 * (i % 7);
+        const std::vector<std::pair<std::string, const ShapeletModel*>> bands = {
+            {"b", &blue}, {"i", &m}, {"z", &red}};
+        const double zero_points[3] = {26.0, 25.0, 24.0};
+        for (std::size_t k = 0; k < 3; ++k) {
+            BandCoefficients b;
+            b.band = bands[k].first;
+            b.coeffs = bands[k].second->coeffs;
+            b.flux = flux(*bands[k].second);
+            b.extra["zero_point"] = zero_points[k];
+            r.bands.push_back(b);
+        }
+        records.push_back(r);
+    }
+    return records;
+}
+
+// Flux of a drawn band model over the drawn reference model's.
+double band_ratio(const DrawnGalaxy& g, std::size_t b) { return flux(g.band_models[b]) / flux(g.model); }
+
+}  // namespace
+
+// δ mode copies every band of the parent, placed as its reference band is: rotated back and
+// unaligned, each band is the parent's band to rounding.
+TEST(MorphologyBands, DeltaDrawsCopyEveryBand) {
+    const std::vector<ShapeletRecord> records = band_records(10);
+    SmoothOptions options;
+    options.delta = true;
+    const Morphology morph = build_morphology(records, options);
+    ASSERT_EQ(morph.bands, (std::vector<std::string>{"b", "i", "z"}));
+    EXPECT_EQ(*morph.band_zero_points[2], 24.0);
+    EXPECT_TRUE(morph.lambda.is_delta());
+    const std::vector<double> parents = parent_table(morph, 99.0);
+    for (int i = 0; i < 50; ++i) {
+        RandomStream stream(4, std::uint64_t(i), "galaxy");
+        const DrawnGalaxy g = draw_galaxy(morph, parents, stream, 0.04, 25.0, 99.0);
+        ASSERT_EQ(g.band_models.size(), 3u);
+        const ShapeletRecord& parent = records[g.parent];
+        for (std::size_t b = 0; b < 3; ++b) {
+            ShapeletModel s = rotate(g.band_models[b], -g.rotation);
+            if (g.reflected) s = reflect_x(s);
+            const ShapeletModel original = unalign(s, morph.points[g.parent].alignment);
+            ShapeletModel truth = parent.to_model();
+            truth.coeffs = parent.bands[b].coeffs;
+            // The same flux scale as the reference: the drawn magnitude is the parent's.
+            EXPECT_LT(max_difference(original, truth), 1e-10 * std::abs(truth.coeffs[0]))
+                << i << " band " << b;
+        }
+        EXPECT_EQ(g.band_models[1].coeffs, g.model.coeffs);  // the reference band is the model
+    }
+}
+
+// Smoothed draws: a perturbed shape keeps its parent's colour in every band (the perturbation
+// carries the parent's flux ratio), up to the colour perturbation, which is Epanechnikov of
+// half-width λ_b in magnitudes.
+TEST(MorphologyBands, PerturbationsKeepTheParentsColourUpToTheColourKernel) {
+    const std::vector<ShapeletRecord> records = band_records(40);
+    Morphology morph = build_morphology(records, SmoothOptions{});
+    ASSERT_EQ(morph.lambda.colour.size(), 3u);
+    EXPECT_GT(morph.lambda.colour[2], 0.0);  // the red cores vary: a colour axis
+    const Morphology round_trip = Morphology::from_json(morph.to_json());
+    EXPECT_EQ(round_trip.to_json(), morph.to_json());
+    const std::vector<double> parents = parent_table(morph, 99.0);
+    const auto parent_colour = [&](const DrawnGalaxy& g, std::size_t b) {
+        const ShapeletRecord& p = records[g.parent];
+        return -2.5 * std::log10(*p.bands[b].flux / *p.bands[1].flux);
+    };
+    // Without the colour kernel, every band's flux ratio is the parent's.
+    std::fill(morph.lambda.colour.begin(), morph.lambda.colour.end(), 0.0);
+    double largest = 0.0;
+    for (int i = 0; i < 200; ++i) {
+        RandomStream stream(5, std::uint64_t(i), "galaxy");
+        const DrawnGalaxy g = draw_galaxy(morph, parents, stream, 0.04, 25.0, 99.0);
+        ASSERT_GT(g.perturbation, 0.0);
+        for (std::size_t b : {0u, 2u})
+            largest = std::max(largest, std::abs(-2.5 * std::log10(band_ratio(g, b)) - parent_colour(g, b)));
+    }
+    EXPECT_LT(largest, 1e-9);
+    // With it: (drawn − parent colour)/λ follows the Epanechnikov kernel.
+    morph.lambda.colour = {0.2, 0.0, 0.3};
+    std::vector<double> scaled;
+    for (int i = 0; i < 2000; ++i) {
+        RandomStream stream(6, std::uint64_t(i), "galaxy");
+        const DrawnGalaxy g = draw_galaxy(morph, parents, stream, 0.04, 25.0, 99.0);
+        scaled.push_back((-2.5 * std::log10(band_ratio(g, 2)) - parent_colour(g, 2)) / 0.3);
+        EXPECT_NEAR(band_ratio(g, 1), 1.0, 1e-12);
+    }
+    EXPECT_LT(ks_epanechnikov(scaled), 1.63 / std::sqrt(2000.0));  // KS at 1%
+}
+
+TEST(MorphologyBands, OneModelHoldsOneSetOfBands) {
+    std::vector<ShapeletRecord> records = band_records(5);
+    records[3].bands.pop_back();
+    EXPECT_THROW(build_morphology(records, SmoothOptions{}), Error);
+    records = band_records(5);
+    std::swap(records[2].bands[0], records[2].bands[1]);
+    EXPECT_THROW(build_morphology(records, SmoothOptions{}), Error);
+    records = band_records(5);
+    records[4].bands.clear();
+    EXPECT_THROW(build_morphology(records, SmoothOptions{}), Error);
+    // A one-band model writes no band fields.
+    const Json plain = build_morphology({record_of(test::random_model(2, 2.0, 0, 0, 1, true, 0.1), "a", 24.0)},
+                                        SmoothOptions{}).to_json();
+    EXPECT_FALSE(plain.contains("bands"));
+    EXPECT_FALSE(plain.at("lambda").contains("colour"));
+    Json broken = build_morphology(band_records(3), SmoothOptions{}).to_json();
+    broken["points"][1]["bands"].erase(0);
+    EXPECT_THROW(Morphology::from_json(broken), Error);
+}

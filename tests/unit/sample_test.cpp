@@ -10,6 +10,7 @@
 #include <algorithm>
 #include <cmath>
 #include <map>
+#include <tuple>
 
 using namespace shapesim;
 
@@ -270,4 +271,60 @@ TEST(ParentSharesTest, CountsTheCommonestParentBelowEachLimit) {
     EXPECT_EQ(s[1].largest, 3u);
     EXPECT_EQ(s[1].parent, "9");
     EXPECT_EQ(shares.summary(), "I < 22: 1/2 from 3; I < 24: 3/6 from 9");
+}
+
+// Several bands (issue 17): each object carries every band, its colours the parent's in δ mode
+// whatever the run's zero point (band b's zero point moves with the reference's), and stars a
+// flat spectrum.
+TEST(Sample, MultiBandObjectsKeepTheirParentsColours) {
+    std::vector<ShapeletRecord> records;
+    std::map<std::string, double> colour;  // parent id → m_b − m_ref
+    for (int i = 0; records.size() < 12; ++i) {
+        ShapeletModel m = test::random_model(i % 5, 1.5 + 0.1 * i, 0.0, 0.0, 700 + i, true, 0.2);
+        m.coeffs[0] = 1.0 + 0.2 * i;
+        if (flux(m) <= 0.0) continue;
+        ShapeletRecord r = ShapeletRecord::from_model(m, 0.04, "p" + std::to_string(i));
+        r.mag = 25.0 - 2.5 * std::log10(flux(m));
+        r.extra["zero_point"] = 25.0;
+        ShapeletModel other = m;
+        for (Complex& c : other.coeffs) c *= 0.3 + 0.05 * i;
+        for (const auto& [name, model, zp] : {std::tuple{"ref", &m, 25.0}, std::tuple{"u", &other, 23.5}}) {
+            BandCoefficients b;
+            b.band = name;
+            b.coeffs = model->coeffs;
+            b.flux = flux(*model);
+            b.extra["zero_point"] = zp;
+            r.bands.push_back(b);
+        }
+        colour[r.id] = (23.5 - 2.5 * std::log10(flux(other))) - *r.mag;
+        records.push_back(r);
+    }
+    SmoothOptions delta;
+    delta.delta = true;
+    const Morphology morph = build_morphology(records, delta);
+    SampleOptions o = crowded_options(21);
+    o.zero_point = 27.0;  // two magnitudes off the real reference: band u's is then 25.5
+    long galaxies = 0, stars = 0;
+    sample_field(morph, test_field(300, 300), o, std::nullopt, [&](const ObjectRecord& r) {
+        ASSERT_EQ(r.bands.size(), 2u);
+        EXPECT_EQ(r.bands[0].band, "ref");
+        EXPECT_DOUBLE_EQ(r.bands[1].extra.at("zero_point").get<double>(), 25.5);
+        EXPECT_DOUBLE_EQ(r.bands[0].extra.at("zero_point").get<double>(), 27.0);
+        if (r.kind == "star") {
+            ++stars;
+            EXPECT_TRUE(r.bands[1].coeffs.empty());
+            EXPECT_DOUBLE_EQ(*r.bands[1].mag, *r.mag);
+            EXPECT_NEAR(r.bands[1].flux.value(), std::pow(10.0, -0.4 * (*r.mag - 25.5)), 1e-12 * r.bands[1].flux.value());
+            return;
+        }
+        ++galaxies;
+        EXPECT_NEAR(*r.bands[0].mag, *r.mag, 1e-12);
+        EXPECT_NEAR(*r.bands[1].mag - *r.mag, colour.at(*r.parent), 1e-9);
+        EXPECT_EQ(r.bands[0].coeffs, r.coeffs);
+        // The record reads back and renders in either band.
+        const ObjectRecord u = ObjectRecord::from_json(r.to_json()).in_band("u");
+        EXPECT_EQ(u.flux, *r.bands[1].flux);
+    });
+    EXPECT_GT(galaxies, 50);
+    EXPECT_GT(stars, 2);
 }
