@@ -1,0 +1,103 @@
+#!/usr/bin/env bash
+# Several bands end to end on a 160² corner of the shipped XDF (issue 17): detect --bands
+# measures every band in the detection's apertures and cuts its stamps in the same boxes;
+# decompose fits the bands jointly (one centre, beta, n_max; the reference band the record's
+# own); smooth --delta and sample carry every band; render --band draws each band with its own
+# noise. Bad band input: one stderr line, exit 1, no output file.
+source "$(dirname "${BASH_SOURCE[0]}")/../lib.sh"
+xdf=$(cd ../../../share/data/xdf && pwd)
+cd "$TMPDIR"
+cut='[200:359,200:359]'
+for b in f435w f814w f160w; do
+  case $b in f814w) ext=fits zp=25.959 ;; f435w) ext=fits.gz zp=25.684 ;; f160w) ext=fits.gz zp=25.946 ;; esac
+  printf '{"schema":"shapesim.band/1","band":"%s","image":"%s","weight":"%s","zero_point":%s}\n' \
+    $b "$xdf/${b}_sci.$ext$cut" "$xdf/${b}_wht.$ext$cut" $zp
+done > bands.jsonl
+
+"$BIN/shapesim-detect" -q "$xdf/detection_sci.fits.gz$cut" --weight "$xdf/detection_wht.fits.gz$cut" \
+  --pixel-scale 0.06 --bands bands.jsonl --stamps stamps.fits > sources.jsonl || fail "detect --bands failed"
+/usr/bin/python3 - <<'PY' || fail "detect --bands records"
+import json
+rows = [json.loads(l) for l in open("sources.jsonl")]
+assert len(rows) >= 30, len(rows)
+for r in rows:
+    names = [b["band"] for b in r["bands"]]
+    assert names == ["f435w", "f814w", "f160w"], names
+    for b in r["bands"]:
+        assert b["stamp_hdu"] == r["id"] + "." + b["band"], b
+        assert b["flux_err"] > 0 and "flux_inner" in b
+# Brighter galaxies: positive fluxes in every band.
+bright = [r for r in rows if r["bands"][1]["flux"] > 10 * r["bands"][1]["flux_err"]]
+assert len(bright) >= 5, len(bright)
+PY
+
+"$BIN/shapesim-decompose" -q -j 2 --reference-band f814w < sources.jsonl > joint.jsonl || fail "joint decompose failed"
+/usr/bin/python3 - <<'PY' || fail "joint records"
+import json, math
+rows = [json.loads(l) for l in open("joint.jsonl")]
+src = {json.loads(l)["id"]: json.loads(l) for l in open("sources.jsonl")}
+assert len(rows) >= 30
+ratios = []
+for r in rows:
+    assert r["band"] == "f814w" and [b["band"] for b in r["bands"]] == ["f814w", "f435w", "f160w"]
+    ref = r["bands"][0]
+    assert ref["coeffs"] == r["coeffs"] and abs(ref["flux"] - r["flux"]) <= 1e-12 * abs(r["flux"])
+    assert abs(r["zero_point"] - 25.959) < 1e-12
+    for b in r["bands"]:
+        assert len(b["coeffs"]) == len(r["coeffs"]) and len(b["coeff_errors"]) == len(r["coeffs"])
+        s = {x["band"]: x for x in src[r["id"]]["bands"]}[b["band"]]
+        if s["flux"] > 10 * s["flux_err"] and "neighbour" not in r["flags"]:
+            ratios.append(b["flux"] / s["flux"])
+ratios.sort()
+median = ratios[len(ratios) // 2]
+# The models' fluxes against the forced Kron fluxes: the Kron aperture misses a few per cent.
+assert len(ratios) >= 5 and 0.95 < median < 1.2, (len(ratios), median)
+PY
+
+"$BIN/shapesim-smooth" -q --delta --reject edge,noise < joint.jsonl > delta.json || fail "smooth failed"
+"$BIN/shapesim-sample" -q delta.json --size 0.16 --pixel-scale 0.06 --seed 3 --zero-point 25.959 \
+  > objects.jsonl || fail "sample failed"
+for b in f435w f814w f160w; do
+  "$BIN/shapesim-render" -q --band $b --noise-rms 0.001 --size 0.16 --pixel-scale 0.06 --seed 3 \
+    -o $b.fits --truth $b.truth.jsonl < objects.jsonl || fail "render --band $b failed"
+  grep -a "BAND    = '$b" $b.fits >/dev/null || fail "$b.fits: no BAND keyword"
+done
+"$BIN/shapesim-render" -q --band f435w --noise-free --size 0.16 --pixel-scale 0.06 --seed 3 \
+  -o clean.fits --truth clean.truth.jsonl < objects.jsonl || fail "noise-free render failed"
+/usr/bin/python3 - <<'PY' || fail "per-band truth"
+import json, math
+objs = {json.loads(l)["id"]: json.loads(l) for l in open("objects.jsonl")}
+for band in ("f435w", "f814w", "f160w"):
+    for l in open(band + ".truth.jsonl"):
+        t = json.loads(l)
+        b = {x["band"]: x for x in objs[t["id"]]["bands"]}[band]
+        # The truth's flux is the image's: the model's, plus the negative light clipped.
+        drawn = t["flux"] - t.get("clipped_flux", 0.0)
+        assert abs(drawn - b["flux"]) <= 1e-9 * abs(t["flux"]) + 1e-12, (band, t["id"])
+PY
+# Each band its own noise realisation of the one seed.
+cmp -s f435w.fits f814w.fits && fail "two bands drew the same image"
+
+# Bad band input.
+bad() {
+  local want=$1 rc=0
+  shift
+  "$@" >out 2>err || rc=$?
+  expect_error "$rc" 1 "$want"
+}
+bad "^shapesim-render: .*object .* has no band \"u\"" \
+  "$BIN/shapesim-render" --band u --size 0.16 --pixel-scale 0.06 -o u.fits -i objects.jsonl
+[ ! -e u.fits ] || fail "render left u.fits behind"
+bad "^shapesim-decompose: .*no band k (--reference-band)" \
+  "$BIN/shapesim-decompose" --reference-band k -i sources.jsonl
+{ head -1 bands.jsonl; head -1 bands.jsonl; } > twice.jsonl
+bad "^shapesim-detect: twice.jsonl:2: band: band \"f435w\" appears twice" \
+  "$BIN/shapesim-detect" -q "$xdf/detection_sci.fits.gz$cut" --pixel-scale 0.06 --bands twice.jsonl --stamps s2.fits
+sed 's/f160w_sci/f999w_sci/' bands.jsonl > missing.jsonl
+bad "^shapesim-detect: .*f999w_sci" \
+  "$BIN/shapesim-detect" -q "$xdf/detection_sci.fits.gz$cut" --pixel-scale 0.06 --bands missing.jsonl --stamps s3.fits
+[ ! -e s2.fits ] && [ ! -e s3.fits ] || fail "detect left a stamps file behind"
+printf '{"schema":"shapesim.band/1","band":"x","image":"%s"}\n' "$xdf/f435w_sci.fits.gz" > big.jsonl
+bad "^shapesim-detect: .*band x: the band image is 500×500 pixels but the detection image 160×160" \
+  "$BIN/shapesim-detect" -q "$xdf/detection_sci.fits.gz$cut" --pixel-scale 0.06 --bands big.jsonl
+exit 0
