@@ -213,15 +213,6 @@ void read_band_stamps(Job& job, const Settings& s, const std::string& record_fil
                       std::map<std::string, std::unique_ptr<FitsReader>>& stamp_files,
                       bool psf_given, const std::map<std::string, ShapeletModel>& band_psfs) {
     if (job.bands.empty()) return;
-    if (!s.reference_band.empty()) {
-        const auto ref = std::find_if(job.bands.begin(), job.bands.end(), [&](const SourceBand& b) {
-            return b.band == s.reference_band;
-        });
-        if (ref == job.bands.end())
-            throw Error("no band " + s.reference_band + " (--reference-band) in the record", "", 0,
-                        "bands");
-        std::rotate(job.bands.begin(), ref, ref + 1);
-    }
     for (const SourceBand& b : job.bands) {
         if (b.stamp_hdu.empty())
             throw Error("band " + b.band + " has no stamp (shapesim-detect --bands without "
@@ -242,6 +233,19 @@ void read_band_stamps(Job& job, const Settings& s, const std::string& record_fil
             job.band_psf.push_back(to_cartesian(dilate(own->second, 1.0 / job.pixel_scale)));
         else
             job.band_psf.push_back(psf_given ? job.psf : std::nullopt);
+    }
+    // The reference band first (read in the file's order: the stamps follow one another).
+    if (!s.reference_band.empty()) {
+        const auto ref = std::find_if(job.bands.begin(), job.bands.end(), [&](const SourceBand& b) {
+            return b.band == s.reference_band;
+        });
+        if (ref == job.bands.end())
+            throw Error("no band " + s.reference_band + " (--reference-band) in the record", "", 0,
+                        "bands");
+        const auto k = ref - job.bands.begin();
+        std::rotate(job.bands.begin(), ref, ref + 1);
+        std::rotate(job.band_stamps.begin(), job.band_stamps.begin() + k, job.band_stamps.begin() + k + 1);
+        std::rotate(job.band_psf.begin(), job.band_psf.begin() + k, job.band_psf.begin() + k + 1);
     }
 }
 

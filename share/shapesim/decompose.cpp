@@ -679,8 +679,11 @@ bool near_bright_star(double x, double y, double reach, double galaxy_flux,
         const auto kron = optional_double(star.extra, "kron_radius");
         if (kron && star.a) radius = *kron * *star.a;
         else if (star.fwhm) radius = 1.5 * *star.fwhm;
-        // A bright star's halo reaches past its Kron aperture: its isophote's radius too.
-        if (const auto area = optional_double(star.extra, "iso_area"))
+        // A bright star's halo reaches past its Kron aperture, as far as its isophote and, as
+        // the Kron radius's wings do, beyond: light at the noise level still matters to a
+        // galaxy the star outshines tenfold.
+        if (const auto area = optional_double(star.extra, "iso_area");
+            area && star.flux > 10.0 * galaxy_flux)
             radius = std::max(radius, std::sqrt(std::max(0.0, *area) / M_PI));
         if (std::hypot(star.x - x, star.y - y) < reach + 2.0 * radius) return true;
     }

@@ -221,10 +221,10 @@ ShapeletRecord shapelet_record(const SourceRecord& source, const Decomposition& 
                                const std::vector<BandLabel>& bands = {});
 
 /// Whether a star brighter than the galaxy lies close enough for its wings to touch the
-/// galaxy's model: the star's circle of twice its radius — the larger of its Kron radius
-/// (kron_radius·a, or 1.5·FWHM when the record has neither) and its isophote's, √(iso_area/π)
-/// (the XDF's I = 19 star: 3.9 against 41 pixels, its halo deblended into "galaxies") —
-/// overlaps the model's reach, β√(n_max+1) about its centre. All in
+/// galaxy's model: the star's circle of twice its radius — its Kron radius (kron_radius·a, or
+/// 1.5·FWHM when the record has neither) or, for a galaxy ten times fainter than the star, its
+/// isophote's, √(iso_area/π), when that is larger (the XDF's I = 19 star: 3.9 against 41
+/// pixels, its halo deblended into "galaxies" 5000 times fainter) — overlaps the model's reach, β√(n_max+1) about its centre. All in
 /// the parent image's FITS pixels; `galaxy_flux` and the stars' fluxes in the same units.
 bool near_bright_star(double x, double y, double reach, double galaxy_flux,
                       const std::vector<SourceRecord>& stars);

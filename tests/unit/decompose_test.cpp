@@ -254,12 +254,15 @@ TEST(DecomposeRecord, NearBrightStar) {
     fwhm_only.fwhm = 4.0;  // radius 6 px again
     EXPECT_TRUE(near_bright_star(112.0, 100.0, 0.5, 10.0, {fwhm_only}));
     EXPECT_FALSE(near_bright_star(113.0, 100.0, 0.5, 10.0, {fwhm_only}));
-    // A bright star's isophote reaches past its Kron radius: radius √(iso_area/π) = 20 px.
+    // A bright star's isophote reaches past its Kron radius: twice √(iso_area/π) = 40 px.
     SourceRecord halo = star;
     halo.extra["iso_area"] = 400.0 * M_PI;
     EXPECT_TRUE(near_bright_star(100.0, 143.0, 3.5, 10.0, {halo}));   // 43 < 3.5 + 40
     EXPECT_FALSE(near_bright_star(100.0, 144.0, 3.5, 10.0, {halo}));  // 44 > 43.5
-    halo.extra["iso_area"] = 4.0;  // smaller than the Kron radius: the Kron radius stands
+    // … for galaxies the star outshines tenfold: a brighter one sees the Kron radius.
+    EXPECT_FALSE(near_bright_star(100.0, 143.0, 3.5, 200.0, {halo}));
+    EXPECT_TRUE(near_bright_star(100.0, 115.0, 3.5, 200.0, {halo}));
+    halo.extra["iso_area"] = 25.0;  // inside the Kron radius: the Kron radius stands
     EXPECT_TRUE(near_bright_star(100.0, 115.0, 3.5, 10.0, {halo}));
     EXPECT_FALSE(near_bright_star(100.0, 116.0, 3.5, 10.0, {halo}));
 }
