@@ -381,8 +381,12 @@ int run(int argc, const char* const argv[]) {
                 std::vector<MaskArray> masks(job.bands.size());
                 for (std::size_t b = 0; b < bands.size(); ++b) {
                     masks[b] = (job.band_stamps[b].mask != 0.0).cast<std::uint8_t>();
+                    // --noise-correlation and --white-noise hold for every band.
+                    const double F = options.given("noise-correlation") ? s.noise_correlation
+                                     : s.ignore_correlation          ? 1.0
+                                                                     : job.bands[b].noise_correlation;
                     bands[b] = {&job.band_stamps[b].image, &job.band_stamps[b].weight, &masks[b],
-                                job.band_psf[b], job.bands[b].noise_correlation,
+                                job.band_psf[b], F,
                                 job.bands[b].noise_rms > 0.0 ? 1.0 / job.bands[b].noise_rms : 1.0};
                     labels.push_back({job.bands[b].band, job.bands[b].zero_point});
                 }
@@ -433,7 +437,9 @@ int run(int argc, const char* const argv[]) {
             const ShapeletFit& fit = o.decomposition->fit;
             const std::vector<FitsKeyword> where{FitsKeyword("LTV1", 1 - job.stamp.x0),
                                                  FitsKeyword("LTV2", 1 - job.stamp.y0)};
-            models->write_image(job.stamp.image, {job.source.id + ".data", -32, {}, {}, where, {}});
+            // A joint fit's model is the reference band's: its data beside it.
+            const ImageArray& data = job.band_stamps.empty() ? job.stamp.image : job.band_stamps[0].image;
+            models->write_image(data, {job.source.id + ".data", -32, {}, {}, where, {}});
             models->write_image(fit.model_image,
                                 {job.source.id + ".model", -32, {}, {}, where, {}});
             models->write_image(fit.residual,

@@ -45,13 +45,8 @@ KINDS := delta sim
 
 .PHONY: all outputs
 all:
-	@mkdir -p $(OUT)
-	@start=$$(date +%s.%N); { \
-	  echo "==== $$(date -u '+%Y-%m-%d %H:%M:%S UTC') make -f $(SELF) OUT=$(OUT) SEED=$(SEED) AREA=$(AREA)"; \
-	  echo "programs: $$($(call prog,detect) --version)"; \
-	  $(MAKE) --no-print-directory -f $(SELF) outputs; \
-	  echo "==== done in $$(awk -v a=$$start -v b=$$(date +%s.%N) 'BEGIN { printf "%.1f", b - a }') s"; \
-	} 2>&1 | tee -a $(OUT)/pipeline.log
+	$(call logged_outputs,SEED=$(SEED) AREA=$(AREA) MAG_LIMIT=$(MAG_LIMIT))
+
 outputs: $(OUT)/colours.md $(OUT)/figures/rgb.png
 
 value_seed := $(SEED)

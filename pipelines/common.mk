@@ -22,3 +22,18 @@ $(OUT)/params/%: FORCE
 	@if [ "$$(cat $@ 2>/dev/null)" != '$(value_$*)' ]; then echo '$(value_$*)' > $@; fi
 .PHONY: FORCE
 FORCE:
+
+# The whole job, logged: a pipeline's `all` runs its `outputs` target in a sub-make and appends
+# the transcript to $(OUT)/pipeline.log: the date, the parameters $(1), the programs' version,
+# the inputs' SHA-256 ($(INPUTS)), each command with the programs' own timing lines, and the
+# total wall time.
+define logged_outputs
+@mkdir -p $(OUT)
+@start=$$(date +%s.%N); { \
+  echo "==== $$(date -u '+%Y-%m-%d %H:%M:%S UTC') make -f $(SELF) OUT=$(OUT) $(1)"; \
+  echo "programs: $$($(call prog,detect) --version)"; \
+  echo "inputs (SHA-256):"; sha256sum $(INPUTS) | sed 's/^/  /'; \
+  $(MAKE) --no-print-directory -f $(SELF) outputs; \
+  echo "==== done in $$(awk -v a=$$start -v b=$$(date +%s.%N) 'BEGIN { printf "%.1f", b - a }') s"; \
+} 2>&1 | tee -a $(OUT)/pipeline.log
+endef

@@ -35,14 +35,7 @@ INPUTS    := $(IMAGE) $(WEIGHT) $(PSF_IMAGE) $(PAPER)
 # The whole job, logged: this make runs the targets below in a sub-make and keeps the transcript.
 .PHONY: all outputs
 all:
-	@mkdir -p $(OUT)
-	@start=$$(date +%s.%N); { \
-	  echo "==== $$(date -u '+%Y-%m-%d %H:%M:%S UTC') make -f $(SELF) OUT=$(OUT) SEED=$(SEED) AREA=$(AREA)"; \
-	  echo "programs: $$($(call prog,detect) --version)"; \
-	  echo "inputs (SHA-256):"; sha256sum $(INPUTS) | sed 's/^/  /'; \
-	  $(MAKE) --no-print-directory -f $(SELF) outputs; \
-	  echo "==== done in $$(awk -v a=$$start -v b=$$(date +%s.%N) 'BEGIN { printf "%.1f", b - a }') s"; \
-	} 2>&1 | tee -a $(OUT)/pipeline.log
+	$(call logged_outputs,SEED=$(SEED) AREA=$(AREA))
 
 # Parameters (common.mk).
 value_seed := $(SEED)

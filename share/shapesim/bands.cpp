@@ -11,7 +11,10 @@ namespace shapesim {
 
 double inner_radius(const Detection& object, const DetectionOptions& options) {
     const double r = std::max(options.kron_factor * object.kron_radius, options.kron_min_radius);
-    return std::max(1.5, 0.5 * r * std::sqrt(std::max(object.a, 0.5) * std::max(object.b, 0.5)));
+    const double a = std::max(object.a, 0.5), b = std::max(object.b, 0.5);
+    // Inside the AUTO ellipse however elongated (its minor semi-axis r·b), so the outer flux is
+    // an annulus's.
+    return std::max(1.5, std::min(0.5 * r * std::sqrt(a * b), r * b));
 }
 
 std::vector<BandField> measure_bands(const std::vector<BandRecord>& bands,

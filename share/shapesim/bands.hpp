@@ -32,8 +32,9 @@ struct BandField {
 };
 
 /// The inner aperture of a colour gradient: a circle of half the AUTO ellipse's geometric-mean
-/// radius, max(kron_factor·r_K, kron_min_radius)·√(ab) / 2, at least 1.5 pixels (≈ the
-/// half-light radius; the outer colour is that of the AUTO flux outside it).
+/// radius, r·√(ab) / 2 with r = max(kron_factor·r_K, kron_min_radius), but no wider than the
+/// ellipse's minor semi-axis r·b, and at least 1.5 pixels (≈ the half-light radius; the outer
+/// colour is that of the AUTO flux outside it).
 double inner_radius(const Detection& object, const DetectionOptions& options);
 
 /// Read every band's image and noise map (Error naming the file on a missing or mis-sized

@@ -330,20 +330,25 @@ Decomposition decompose(const ImageArray& image, const ImageArray& weight, const
     band.weight = &weight;
     band.mask = mask;
     band.noise_correlation = options.noise_correlation;
-    return decompose_bands({band}, x, y, beta_start, options);
+    Decomposition out = decompose_bands({band}, x, y, beta_start, options);
+    out.bands.clear();  // a one-band fit: the fields above say it all
+    return out;
 }
 
 Decomposition decompose_bands(const std::vector<BandStamp>& bands, double x, double y,
                               double beta_start, const DecomposeOptions& options) {
     options.validate();
     require(!bands.empty(), "no band to fit");
+    for (const BandStamp& b : bands) require(b.image && b.weight, "a band has no image or weight");
     const ImageArray& image = *bands.front().image;
     const double nx = double(image.cols()), ny = double(image.rows());
     require(nx > 0 && ny > 0, "stamp is empty");
     for (const BandStamp& b : bands) {
-        require(b.image && b.weight, "a band has no image or weight");
-        require(b.image->rows() == image.rows() && b.image->cols() == image.cols(),
-                "the bands' stamps differ in size");
+        const auto same = [&](const auto& plane) {
+            return plane.rows() == image.rows() && plane.cols() == image.cols();
+        };
+        require(same(*b.image) && same(*b.weight) && (!b.mask || same(*b.mask)),
+                "the bands' stamps (image, weight, mask) differ in size");
     }
     require(std::isfinite(x) && std::isfinite(y) && x >= 0.5 && x <= nx + 0.5 && y >= 0.5 &&
                 y <= ny + 0.5,
@@ -516,7 +521,7 @@ Decomposition decompose_bands(const std::vector<BandStamp>& bands, double x, dou
     }
     out.flux_error = errors.front();
     out.truncation_error = truncation.front();
-    if (problem.size() > 1) {
+    {
         for (std::size_t b = 0; b < problem.size(); ++b) {
             BandFit f;
             f.fit = kept.bands[b];

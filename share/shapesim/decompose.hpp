@@ -118,9 +118,9 @@ struct Decomposition {
     double truncation_error = 0.0;  ///< truncation's share alone
     long fits = 0;         ///< linear fits performed
     std::vector<OrderTrial> trials;  ///< the best (β, χ²_r) of each order tried
-    /// decompose_bands() with several bands: every band's fit (bands[0] is `fit`); the fields
-    /// above are the joint fit's (χ²_r, stop, flags) and the reference band's (flux errors,
-    /// holes).
+    /// decompose_bands(): every band's fit (bands[0] is `fit`; empty from decompose()); the
+    /// fields above are the joint fit's (χ²_r, stop, flags, holes) and the reference band's
+    /// (flux errors).
     std::vector<BandFit> bands;
 };
 

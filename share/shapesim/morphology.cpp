@@ -935,7 +935,8 @@ DrawnGalaxy draw_galaxy(const Morphology& morphology, const std::vector<double>&
     const double parent_sum = even_sum(shape_parent.shape);
     for (std::size_t b = 0; b < shape_parent.band_shapes.size(); ++b) {
         const std::vector<Complex>& own = shape_parent.band_shapes[b];
-        const double ratio = even_sum(own) / parent_sum;
+        // (A parent's flux sum is > 0: build_morphology's records have flux > 0.)
+        const double ratio = parent_sum > 0.0 ? even_sum(own) / parent_sum : 0.0;
         const double colour = l.colour.empty() ? 0.0 : l.colour[b] * stream.epanechnikov();
         const double scale = delta ? 1.0 : std::pow(10.0, -0.4 * colour);
         std::vector<Complex> band(own.size());

@@ -406,10 +406,12 @@ ShapeletModel ObjectRecord::to_model(double x_pix, double y_pix) const {
 ObjectRecord ObjectRecord::in_band(const std::string& name) const {
     for (const BandCoefficients& b : bands) {
         if (b.band != name) continue;
+        if (!b.flux)
+            throw Error("object " + id + "'s band \"" + name + "\" has no flux", {}, 0, "bands");
         ObjectRecord r = *this;
         r.bands.clear();
         if (has_shape()) r.coeffs = b.coeffs;
-        r.flux = b.flux.value_or(0.0);
+        r.flux = *b.flux;
         r.mag = b.mag;
         return r;
     }

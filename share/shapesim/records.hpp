@@ -49,7 +49,8 @@ struct BandRecord {
     std::string weight_type = "weight";  ///< "weight", "rms" or "variance"
     std::optional<double> zero_point;    ///< AB magnitude of one image unit
     std::optional<double> gain;          ///< e⁻ per image unit (source photon noise)
-    std::string psf;                     ///< the band's PSF record (path; empty: none)
+    std::string psf;                     ///< the band's PSF record (path; empty: none; kept
+                                         ///< for the user: decompose takes --band-psf)
     Json extra = Json::object();
 
     static BandRecord from_json(const Json& record);

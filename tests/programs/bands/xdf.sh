@@ -54,6 +54,21 @@ median = ratios[len(ratios) // 2]
 assert len(ratios) >= 5 and 0.95 < median < 1.2, (len(ratios), median)
 PY
 
+# A bands file of one band: every record carries that band; --no-bands fits the detection image.
+sed -n 2p bands.jsonl > one.jsonl
+"$BIN/shapesim-detect" -q "$xdf/detection_sci.fits.gz$cut" --weight "$xdf/detection_wht.fits.gz$cut" \
+  --pixel-scale 0.06 --bands one.jsonl --stamps one.fits > one.sources.jsonl || fail "one band: detect"
+"$BIN/shapesim-decompose" -q < one.sources.jsonl > one.joint.jsonl || fail "one band: decompose"
+"$BIN/shapesim-decompose" -q --no-bands < one.sources.jsonl > none.jsonl || fail "--no-bands failed"
+/usr/bin/python3 - <<'PY' || fail "one-band records"
+import json
+one = [json.loads(l) for l in open("one.joint.jsonl")]
+none = [json.loads(l) for l in open("none.jsonl")]
+assert len(one) == len(none) >= 30
+assert all([b["band"] for b in r["bands"]] == ["f814w"] and r["band"] == "f814w" for r in one)
+assert all("bands" not in r for r in none)
+PY
+
 "$BIN/shapesim-smooth" -q --delta --reject edge,noise < joint.jsonl > delta.json || fail "smooth failed"
 "$BIN/shapesim-sample" -q delta.json --size 0.16 --pixel-scale 0.06 --seed 3 --zero-point 25.959 \
   > objects.jsonl || fail "sample failed"
