@@ -115,6 +115,12 @@ public:
         }
         return out;
     }
+    // Band b as a multiple of `shape` (its centre the shape's).
+    ShapeletFit fit_band_shape(std::size_t b, const ShapeletModel& shape) const {
+        const auto& psf = options_[b].psf;
+        return fit_shape_amplitude(*bands_[b].image, *bands_[b].weight, bands_[b].mask, shape.x,
+                                   shape.y, shape, psf ? &*psf : nullptr);
+    }
     // Σ_b (pixels_b − p·F_b²), at least 1 (effective_dof() for one band).
     double dof(const JointFit& f) const {
         const double p = double(real_count(f.model().n_max));
@@ -519,17 +525,37 @@ Decomposition decompose_bands(const std::vector<BandStamp>& bands, double x, dou
     } catch (const Error&) {
         // Too few pixels for the higher order: no truncation estimate.
     }
+    // Several bands: a band whose own structure the noise could hold is the stack's shape
+    // times an amplitude (its colour), not a copy of its noise (see decompose_bands()).
+    std::vector<bool> templated(problem.size(), false);
+    if (problem.size() > 1 && !out.elliptical) {
+        const ShapeletModel stack = problem.centroid_model(kept);
+        const double extra = double(real_count(stack.n_max) - 1);
+        for (std::size_t b = 0; b < problem.size() && extra > 0.0; ++b) {
+            try {
+                ShapeletFit shaped = problem.fit_band_shape(b, stack);
+                ++out.fits;
+                const double F = problem.options(b).noise_correlation;
+                const double uptake = F * F * (extra + options.order_sigmas * std::sqrt(2.0 * extra));
+                if (shaped.chi2 - kept.bands[b].chi2 <= uptake) {
+                    kept.bands[b] = std::move(shaped);
+                    templated[b] = true;
+                }
+            } catch (const Error&) {
+                // The stack's shape leaves the band no light: keep its own fit.
+            }
+        }
+    }
     out.flux_error = errors.front();
     out.truncation_error = truncation.front();
-    {
-        for (std::size_t b = 0; b < problem.size(); ++b) {
-            BandFit f;
-            f.fit = kept.bands[b];
-            f.flux_error = errors[b];
-            f.truncation_error = truncation[b];
-            f.chi2r = effective_chi2r(kept.bands[b], problem.options(b).noise_correlation);
-            out.bands.push_back(std::move(f));
-        }
+    for (std::size_t b = 0; b < problem.size(); ++b) {
+        BandFit f;
+        f.fit = kept.bands[b];
+        f.flux_error = errors[b];  // the band's own fit's: the larger
+        f.truncation_error = truncation[b];
+        f.chi2r = effective_chi2r(kept.bands[b], problem.options(b).noise_correlation);
+        f.templated = templated[b];
+        out.bands.push_back(std::move(f));
     }
     out.fit = std::move(kept.bands.front());
     return out;
@@ -663,6 +689,7 @@ ShapeletRecord shapelet_record(const SourceRecord& source, const Decomposition& 
         b.chi2r = fit_b.chi2r;
         b.extra["flux_err_truncation"] = fit_b.truncation_error;
         b.extra["coeff_errors"] = coefficient_errors(fit_b.fit);
+        if (fit_b.templated) b.extra["shape"] = "stack";
         if (bands[k].zero_point) b.extra["zero_point"] = *bands[k].zero_point;
         r.bands.push_back(std::move(b));
     }

@@ -99,6 +99,7 @@ struct BandFit {
     double chi2r = 0.0;            ///< this band's effective χ²_r
     double flux_error = 0.0;       ///< 1σ, with β's and truncation's shares
     double truncation_error = 0.0;
+    bool templated = false;        ///< the stack's shape times an amplitude (see below)
 };
 
 /// The result of decompose().
@@ -180,6 +181,14 @@ Decomposition decompose(const ImageArray& image, const ImageArray& weight, const
 /// an amplitude per band. Flux errors per band as decompose() gives them, β's share from the
 /// joint profile χ². bands[0] is the reference band: its fit is `fit`, its errors the
 /// record's. One band is exactly decompose().
+///
+/// A faint band's own coefficients at the order the bright bands chose are mostly its noise,
+/// which a simulation drawn from them would add to its own (the XDF's F140W colours came out
+/// twice as broad). So with several bands, each band is also fitted as the S/N-weighted
+/// stack's shape times one amplitude, and takes that model (BandFit::templated: its colour,
+/// no gradient of its own) unless its own coefficients take up more χ² than the noise would
+/// with p − 1 more parameters, F_b²·(Δp + order_sigmas·√(2Δp)) — the order test's rule. Its
+/// flux error stays its own fit's.
 Decomposition decompose_bands(const std::vector<BandStamp>& bands, double x, double y,
                               double beta_start, const DecomposeOptions& options);
 

@@ -612,6 +612,7 @@ TEST(DecomposeBands, EachBandsFluxAndColourGradientAreRecovered) {
         const Decomposition d =
             decompose_bands({b0, b1}, g.blue.x + 0.3, g.blue.y - 0.2, 2.0, DecomposeOptions{});
         ASSERT_EQ(d.bands.size(), 2u);
+        EXPECT_FALSE(d.bands[1].templated) << k;  // a real gradient: its own coefficients
         EXPECT_EQ(d.bands[0].fit.model.coeffs, d.fit.model.coeffs);
         EXPECT_EQ(d.bands[0].fit.model.beta_pix, d.bands[1].fit.model.beta_pix);
         EXPECT_EQ(d.bands[0].fit.model.x, d.bands[1].fit.model.x);
@@ -656,8 +657,8 @@ TEST(DecomposeBands, EachBandsFluxAndColourGradientAreRecovered) {
     EXPECT_NEAR(gradient_fit / gradient_truth, 1.0, 0.05);
 }
 
-// A band where the galaxy is absent (a dropout) fits to zero within its error and does not
-// keep the other band from its model.
+// A band where the galaxy is absent (a dropout) fits to zero within its error, as the stack's
+// shape times an amplitude, and does not keep the other band from its model.
 TEST(DecomposeBands, ADropoutBandFitsToZero) {
     const int side = 41;
     const ShapeletModel truth = test::centred_galaxy(4, 3.0, side, 9, 1000.0);
@@ -670,6 +671,8 @@ TEST(DecomposeBands, ADropoutBandFitsToZero) {
     a.image = &seen, a.weight = &weight;
     b.image = &empty, b.weight = &weight;
     const Decomposition d = decompose_bands({a, b}, truth.x, truth.y, 2.0, DecomposeOptions{});
+    // Nothing of its own beyond the noise: the stack's shape times an amplitude.
+    EXPECT_TRUE(d.bands[1].templated);
     EXPECT_NEAR(flux(d.bands[1].fit.model), 0.0, 4.0 * d.bands[1].flux_error);
     EXPECT_NEAR(flux(d.fit.model), 1000.0, 4.0 * d.flux_error);
     EXPECT_GE(d.fit.model.n_max, 2);
@@ -678,4 +681,34 @@ TEST(DecomposeBands, ADropoutBandFitsToZero) {
     c.image = &small;
     EXPECT_THROW(decompose_bands({a, c}, truth.x, truth.y, 2.0, DecomposeOptions{}), Error);
     EXPECT_THROW(decompose_bands({}, truth.x, truth.y, 2.0, DecomposeOptions{}), Error);
+}
+
+// A faint band that is the bright band's galaxy at a third of its flux: its own coefficients
+// would be mostly noise, so it takes the stack's shape, its amplitude the right colour.
+TEST(DecomposeBands, AFaintScaledCopyTakesTheStacksShape) {
+    const int side = 41;
+    std::vector<double> pulls;
+    for (int k = 0; k < 8; ++k) {
+        const ShapeletModel truth = test::centred_galaxy(6, 3.0, side, 40 + unsigned(k), 2000.0);
+        ShapeletModel faint = truth;
+        for (Complex& c : faint.coeffs) c /= 3.0;
+        const ImageArray bright_image = test::noisy_stamp(truth, side, 1.0, 60 + k, 1);
+        const ImageArray faint_image = test::noisy_stamp(faint, side, 6.0, 60 + k, 2);
+        const ImageArray w1 = ImageArray::Constant(side, side, 1.0);
+        const ImageArray w6 = ImageArray::Constant(side, side, 1.0 / 36.0);
+        BandStamp a, b;
+        a.image = &bright_image, a.weight = &w1, a.signal_weight = 1.0;
+        b.image = &faint_image, b.weight = &w6, b.signal_weight = 1.0 / 6.0;
+        const Decomposition d = decompose_bands({a, b}, truth.x, truth.y, 2.0, DecomposeOptions{});
+        ASSERT_GE(d.fit.model.n_max, 2);
+        EXPECT_TRUE(d.bands[1].templated) << k;
+        // Proportional to the stack: the same shape as the bright band's, to its noise.
+        const ShapeletModel& m = d.bands[1].fit.model;
+        const double scale = m.coeffs[0].real() / d.fit.model.coeffs[0].real();
+        for (std::size_t i = 1; i < m.coeffs.size(); ++i)
+            EXPECT_NEAR(std::abs(m.coeffs[i] - scale * d.fit.model.coeffs[i]), 0.0,
+                        0.05 * std::abs(m.coeffs[0]));
+        pulls.push_back((flux(m) - flux(faint)) / d.bands[1].flux_error);
+    }
+    for (double p : pulls) EXPECT_LT(std::abs(p), 4.0);
 }
