@@ -157,9 +157,7 @@ struct Job {
     double noise_correlation = 1.0;
     long line = 0;
     std::optional<CartesianModel> psf;  // --psf at this record's pixel scale
-    std::vector<SourceBand> bands;      // a joint fit: the reference band first
-    std::vector<Stamp> band_stamps;     // in the same order
-    std::vector<std::optional<CartesianModel>> band_psf;
+    JointStamps joint;                  // several bands: the reference band first
 };
 
 struct Outcome {
@@ -207,48 +205,6 @@ int run_psf(const Settings& s, const app::ProgramOptions& options, const app::Lo
     return 0;
 }
 
-// A joint fit's stamps, the reference band first, each in the detection stamp's box, and each
-// band's PSF (--band-psf, else --psf) at the record's pixel scale.
-void read_band_stamps(Job& job, const Settings& s, const std::string& record_file,
-                      std::map<std::string, std::unique_ptr<FitsReader>>& stamp_files,
-                      bool psf_given, const std::map<std::string, ShapeletModel>& band_psfs) {
-    if (job.bands.empty()) return;
-    for (const SourceBand& b : job.bands) {
-        if (b.stamp_hdu.empty())
-            throw Error("band " + b.band + " has no stamp (shapesim-detect --bands without "
-                        "--stamps?)", "", 0, "bands");
-        const std::string file = !s.stamps.empty() ? s.stamps
-                                 : b.stamp_file.empty() ? record_file : b.stamp_file;
-        auto& fits = stamp_files[file];
-        if (!fits) fits = std::make_unique<FitsReader>(file);
-        job.band_stamps.push_back(read_stamp(*fits, b.stamp_hdu));
-        const Stamp& stamp = job.band_stamps.back();
-        if (stamp.x0 != job.stamp.x0 || stamp.y0 != job.stamp.y0 ||
-            stamp.image.rows() != job.stamp.image.rows() ||
-            stamp.image.cols() != job.stamp.image.cols())
-            throw Error("band " + b.band + "'s stamp " + b.stamp_hdu +
-                        " is not in the detection stamp's box", "", 0, "bands");
-        const auto own = band_psfs.find(b.band);
-        if (own != band_psfs.end())
-            job.band_psf.push_back(to_cartesian(dilate(own->second, 1.0 / job.pixel_scale)));
-        else
-            job.band_psf.push_back(psf_given ? job.psf : std::nullopt);
-    }
-    // The reference band first (read in the file's order: the stamps follow one another).
-    if (!s.reference_band.empty()) {
-        const auto ref = std::find_if(job.bands.begin(), job.bands.end(), [&](const SourceBand& b) {
-            return b.band == s.reference_band;
-        });
-        if (ref == job.bands.end())
-            throw Error("no band " + s.reference_band + " (--reference-band) in the record", "", 0,
-                        "bands");
-        const auto k = ref - job.bands.begin();
-        std::rotate(job.bands.begin(), ref, ref + 1);
-        std::rotate(job.band_stamps.begin(), job.band_stamps.begin() + k, job.band_stamps.begin() + k + 1);
-        std::rotate(job.band_psf.begin(), job.band_psf.begin() + k, job.band_psf.begin() + k + 1);
-    }
-}
-
 int run(int argc, const char* const argv[]) {
     app::ProgramOptions options("shapesim-decompose", "[OPTION]...", description,
                                 app::Common::quiet | app::Common::verbose | app::Common::threads |
@@ -275,7 +231,7 @@ int run(int argc, const char* const argv[]) {
     // Read every record and its stamp first (cfitsio handles stay on this thread), fit in
     // parallel, write in input order: the output does not depend on the thread count.
     JsonlReader reader(s.input, {SourceRecord::schema});
-    std::map<std::string, std::unique_ptr<FitsReader>> stamp_files;
+    StampFiles stamp_files;
     std::vector<Job> jobs;
     // Named inputs are opened before any record is read: a missing file is an error even when
     // there is nothing to fit. The PSF is read once, in arcsec (pixel scale 1), and dilated
@@ -344,10 +300,17 @@ int run(int argc, const char* const argv[]) {
             job.psf = at_scale->second;
         }
         if (!s.no_bands) {
-            job.bands = placed([&] { return source_bands(source); });
-            placed([&] {
-                read_band_stamps(job, s, file, stamp_files, psf_arcsec.has_value(), band_psfs);
-                return 0;
+            const auto psf_of = [&](const std::string& band) -> std::optional<CartesianModel> {
+                const auto own = band_psfs.find(band);
+                if (own != band_psfs.end())
+                    return to_cartesian(dilate(own->second, 1.0 / job.pixel_scale));
+                return job.psf;
+            };
+            job.joint = placed([&] {
+                std::vector<SourceBand> bands = source_bands(source);
+                if (bands.empty()) return JointStamps{};
+                return read_joint_stamps(std::move(bands), job.stamp, file, s.stamps,
+                                         s.reference_band, stamp_files, psf_of);
             });
         }
         job.source = source;
@@ -369,32 +332,21 @@ int run(int argc, const char* const argv[]) {
             const double x = job.source.x - (job.stamp.x0 - 1);
             const double y = job.source.y - (job.stamp.y0 - 1);
             const double beta = std::max(job.source.a.value_or(1.0), 0.5);
-            if (job.bands.empty()) {
+            if (job.joint.bands.empty()) {
                 out.decomposition = decompose(job.stamp.image, job.stamp.weight, &mask, x, y,
                                               beta, fit);
                 out.record = shapelet_record(job.source, *out.decomposition, job.stamp,
                                              job.pixel_scale, job.zero_point,
                                              job.psf ? &*job.psf : nullptr);
-            } else {
-                std::vector<BandStamp> bands(job.bands.size());
-                std::vector<BandLabel> labels;
-                std::vector<MaskArray> masks(job.bands.size());
-                for (std::size_t b = 0; b < bands.size(); ++b) {
-                    masks[b] = (job.band_stamps[b].mask != 0.0).cast<std::uint8_t>();
-                    // --noise-correlation and --white-noise hold for every band.
-                    const double F = options.given("noise-correlation") ? s.noise_correlation
-                                     : s.ignore_correlation          ? 1.0
-                                                                     : job.bands[b].noise_correlation;
-                    bands[b] = {&job.band_stamps[b].image, &job.band_stamps[b].weight, &masks[b],
-                                job.band_psf[b], F,
-                                job.bands[b].noise_rms > 0.0 ? 1.0 / job.bands[b].noise_rms : 1.0};
-                    labels.push_back({job.bands[b].band, job.bands[b].zero_point});
-                }
-                out.decomposition = decompose_bands(bands, x, y, beta, fit);
-                const auto& psf = job.band_psf.front();
-                out.record = shapelet_record(job.source, *out.decomposition, job.stamp,
-                                             job.pixel_scale, job.bands.front().zero_point,
-                                             psf ? &*psf : nullptr, labels);
+            } else {  // --noise-correlation and --white-noise hold for every band
+                const std::optional<double> F =
+                    options.given("noise-correlation") ? std::optional(s.noise_correlation)
+                    : s.ignore_correlation             ? std::optional(1.0)
+                                                       : std::nullopt;
+                auto [d, r] = decompose_joint(job.source, job.joint, job.stamp, x, y, beta, fit,
+                                              job.pixel_scale, F);
+                out.decomposition = std::move(d);
+                out.record = std::move(r);
             }
             const ShapeletModel& m = out.decomposition->fit.model;
             if (near_bright_star(out.record->x, out.record->y,
@@ -438,7 +390,8 @@ int run(int argc, const char* const argv[]) {
             const std::vector<FitsKeyword> where{FitsKeyword("LTV1", 1 - job.stamp.x0),
                                                  FitsKeyword("LTV2", 1 - job.stamp.y0)};
             // A joint fit's model is the reference band's: its data beside it.
-            const ImageArray& data = job.band_stamps.empty() ? job.stamp.image : job.band_stamps[0].image;
+            const ImageArray& data =
+                job.joint.stamps.empty() ? job.stamp.image : job.joint.stamps.front().image;
             models->write_image(data, {job.source.id + ".data", -32, {}, {}, where, {}});
             models->write_image(fit.model_image,
                                 {job.source.id + ".model", -32, {}, {}, where, {}});

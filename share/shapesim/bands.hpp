@@ -9,13 +9,18 @@
 // of its own sky, and its stamps' local renormalisation and photon noise (its own gain).
 #pragma once
 
+#include "shapesim/decompose.hpp"
 #include "shapesim/detect.hpp"
 #include "shapesim/fits_io.hpp"
 #include "shapesim/records.hpp"
 #include "shapesim/stamps.hpp"
 
+#include <functional>
+#include <map>
+#include <memory>
 #include <optional>
 #include <string>
+#include <utility>
 #include <vector>
 
 namespace shapesim {
@@ -72,6 +77,35 @@ struct SourceBand {
 /// The record's bands (empty when it has none); Error naming the field (e.g.
 /// "bands[2].stamp_hdu") on a malformed entry or a repeated band.
 std::vector<SourceBand> source_bands(const SourceRecord& record);
+
+/// A source's joint-fit inputs: its bands (the reference band first), their stamps (all in the
+/// detection stamp's box) and each band's PSF (field pixels, unit flux; none: fitted as seen).
+struct JointStamps {
+    std::vector<SourceBand> bands;
+    std::vector<Stamp> stamps;
+    std::vector<std::optional<CartesianModel>> psfs;
+};
+
+/// Stamp files opened once, by name.
+using StampFiles = std::map<std::string, std::unique_ptr<FitsReader>>;
+
+/// Read the stamps of `bands` in their order (a file's stamps follow one another): each from
+/// `stamps_file` when given, else its own stamp_file, else `record_file`; each must lie in
+/// `box`; band b's PSF is psf_of(name). Then `reference` (when not empty) is put first. Error
+/// (field "bands") on a band without a stamp, a stamp outside the box, or no such band.
+JointStamps read_joint_stamps(std::vector<SourceBand> bands, const Stamp& box,
+                              const std::string& record_file, const std::string& stamps_file,
+                              const std::string& reference, StampFiles& files,
+                              const std::function<std::optional<CartesianModel>(const std::string&)>& psf_of);
+
+/// The joint fit of a source's bands from (x, y) (stamp FITS coordinates) and scale
+/// `beta_start` (decompose_bands(): each band's noise correlation, or `noise_correlation` for
+/// all when given; 1/noise_rms its stack weight) and its record (shapelet_record() with the
+/// bands' names and zero points, the reference band's PSF and zero point).
+std::pair<Decomposition, ShapeletRecord> decompose_joint(
+    const SourceRecord& source, const JointStamps& joint, const Stamp& box, double x, double y,
+    double beta_start, const DecomposeOptions& options, double pixel_scale,
+    std::optional<double> noise_correlation);
 
 /// The HDU name of a band's stamp of object `id`: "<id>.<band>".
 std::string band_stamp_hdu(const std::string& id, const std::string& band);
