@@ -241,6 +241,7 @@ int run(int argc, const char* const argv[]) {
     if (!s.psf.empty()) psf_arcsec = read_psf_model(s.psf, 1.0);
     std::map<double, CartesianModel> psfs;  // by pixel scale
     std::map<std::string, ShapeletModel> band_psfs;  // --band-psf, arcsec
+    std::map<std::pair<std::string, double>, CartesianModel> band_psfs_at;  // by pixel scale
     for (const std::string& item : s.band_psfs) {
         const auto eq = item.find('=');
         if (eq == std::string::npos || eq == 0 || eq + 1 == item.size())
@@ -300,11 +301,17 @@ int run(int argc, const char* const argv[]) {
             job.psf = at_scale->second;
         }
         if (!s.no_bands) {
+            // A --band-psf at this record's pixel scale, dilated once per scale (as --psf).
             const auto psf_of = [&](const std::string& band) -> std::optional<CartesianModel> {
                 const auto own = band_psfs.find(band);
-                if (own != band_psfs.end())
-                    return to_cartesian(dilate(own->second, 1.0 / job.pixel_scale));
-                return job.psf;
+                if (own == band_psfs.end()) return job.psf;
+                auto at = band_psfs_at.find({band, job.pixel_scale});
+                if (at == band_psfs_at.end())
+                    at = band_psfs_at
+                             .emplace(std::pair(band, job.pixel_scale),
+                                      to_cartesian(dilate(own->second, 1.0 / job.pixel_scale)))
+                             .first;
+                return at->second;
             };
             job.joint = placed([&] {
                 std::vector<SourceBand> bands = source_bands(source);

@@ -120,6 +120,13 @@ double mean_nearest_neighbour_separation(std::vector<double> values) {
 
 namespace {
 
+// A record's number field, or none when absent or not a number (records pass fields on
+// unchecked; a field the model can do without is not an error).
+std::optional<double> number_or_none(const Json& extra, const char* field) {
+    const auto it = extra.find(field);
+    return it != extra.end() && it->is_number() ? std::optional(it->get<double>()) : std::nullopt;
+}
+
 // Σ_{n even} Re c_{n,0}: a shape's flux over 2√π β a_{0,0}.
 double even_sum(const std::vector<Complex>& shape) {
     double sum = 0.0;
@@ -135,29 +142,22 @@ double even_sum(const std::vector<Complex>& shape) {
 // record must then carry the same bands in the same order.
 void add_band_shapes(Morphology& out, const ShapeletRecord& r, MorphologyPoint& p, double a00) {
     const bool first = out.points.empty();
-    if (first) {
+    if (first)
         for (const BandCoefficients& b : r.bands) {
             out.bands.push_back(b.band);
-            const auto zp = b.extra.contains("zero_point") && b.extra.at("zero_point").is_number()
-                                ? std::optional<double>(b.extra.at("zero_point").get<double>())
-                                : std::nullopt;
-            out.band_zero_points.push_back(zp);
+            out.band_zero_points.push_back(number_or_none(b.extra, "zero_point"));
         }
-    }
     bool same = r.bands.size() == out.bands.size();
     for (std::size_t b = 0; same && b < r.bands.size(); ++b) same = r.bands[b].band == out.bands[b];
     if (!same)
         throw Error("record " + r.id + "'s bands differ from record " + out.points.front().id +
                         "'s: one morphology model holds one set of bands",
                     "", 0, "bands");
+    ShapeletModel model = r.to_model();
     for (std::size_t b = 0; b < r.bands.size(); ++b) {
-        const auto& zp = out.band_zero_points[b];
-        const auto own = r.bands[b].extra.contains("zero_point") &&
-                                 r.bands[b].extra.at("zero_point").is_number()
-                             ? std::optional<double>(r.bands[b].extra.at("zero_point").get<double>())
-                             : std::nullopt;
-        if (zp != own) out.band_zero_points[b] = std::nullopt;
-        ShapeletModel model = r.to_model();
+        // One zero point per band when every record agrees.
+        if (out.band_zero_points[b] != number_or_none(r.bands[b].extra, "zero_point"))
+            out.band_zero_points[b] = std::nullopt;
         model.coeffs = r.bands[b].coeffs;
         ShapeletModel aligned = rotate(model, p.alignment.rotation);
         if (p.alignment.reflected) aligned = reflect_x(aligned);
@@ -183,8 +183,7 @@ Morphology build_morphology(const std::vector<ShapeletRecord>& records,
         p.n_max = r.n_max;
         p.beta = r.beta;
         p.mag = *r.mag;
-        if (r.extra.contains("psf_beta") && r.extra.at("psf_beta").is_number())
-            p.psf_beta = r.extra.at("psf_beta").get<double>();
+        p.psf_beta = number_or_none(r.extra, "psf_beta").value_or(0.0);
         const ShapeletModel aligned = align(model, &p.alignment);
         p.shape.resize(aligned.coeffs.size());
         for (std::size_t k = 0; k < aligned.coeffs.size(); ++k) p.shape[k] = aligned.coeffs[k] / a00;
@@ -232,9 +231,7 @@ Morphology build_morphology(const std::vector<ShapeletRecord>& records,
     std::optional<double> zp;
     bool agree = true;
     for (const ShapeletRecord& r : records) {
-        const auto z = r.extra.contains("zero_point") && r.extra.at("zero_point").is_number()
-                           ? std::optional<double>(r.extra.at("zero_point").get<double>())
-                           : std::nullopt;
+        const auto z = number_or_none(r.extra, "zero_point");
         if (!z) agree = false;
         else if (!zp) zp = z;
         else if (*zp != *z) agree = false;

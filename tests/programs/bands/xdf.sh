@@ -54,6 +54,20 @@ median = ratios[len(ratios) // 2]
 assert len(ratios) >= 5 and 0.95 < median < 1.2, (len(ratios), median)
 PY
 
+# --band-psf: that band is fitted through its PSF (the star's, from F814W), the others as seen.
+"$BIN/shapesim-decompose" -q --psf-image "$xdf/f814w_sci.fits[87:145,352:410]" --psf-pixel-scale 0.06 \
+  --pixel-scale 0.06 > psf.jsonl || fail "PSF mode failed"
+"$BIN/shapesim-decompose" -q -j 2 --reference-band f814w --band-psf f160w=psf.jsonl \
+  < sources.jsonl > psf.joint.jsonl || fail "--band-psf failed"
+/usr/bin/python3 - <<'PY' || fail "--band-psf did not change the F160W fits"
+import json
+plain = [json.loads(l) for l in open("joint.jsonl")]
+through = [json.loads(l) for l in open("psf.joint.jsonl")]
+assert len(plain) == len(through)
+changed = sum(a["bands"][2]["coeffs"] != b["bands"][2]["coeffs"] for a, b in zip(plain, through))
+assert changed >= len(plain) // 2, changed
+PY
+
 # A bands file of one band: every record carries that band; --no-bands fits the detection image.
 sed -n 2p bands.jsonl > one.jsonl
 "$BIN/shapesim-detect" -q "$xdf/detection_sci.fits.gz$cut" --weight "$xdf/detection_wht.fits.gz$cut" \
@@ -103,6 +117,9 @@ bad() {
 bad "^shapesim-render: .*object .* has no band \"u\"" \
   "$BIN/shapesim-render" --band u --size 0.16 --pixel-scale 0.06 -o u.fits -i objects.jsonl
 [ ! -e u.fits ] || fail "render left u.fits behind"
+rc=0
+"$BIN/shapesim-decompose" --band-psf f160w -i sources.jsonl >out 2>err || rc=$?
+expect_error "$rc" 2 "^shapesim-decompose: --band-psf wants NAME=FILE"  # a usage error
 bad "^shapesim-decompose: .*no band k (--reference-band)" \
   "$BIN/shapesim-decompose" --reference-band k -i sources.jsonl
 { head -1 bands.jsonl; head -1 bands.jsonl; } > twice.jsonl
