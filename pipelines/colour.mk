@@ -21,6 +21,8 @@ SEED      ?= 7
 AREA      ?= 1.5
 THREADS   ?= 2
 MAG_LIMIT ?= 28
+# Extra shapesim-smooth options for both models (e.g. --keep-colour-noise to compare).
+SMOOTH_OPTIONS ?=
 SCALE     := 0.06
 REFERENCE := f814w
 BANDS     := f435w f606w f775w f814w f850lp f105w f125w f140w f160w
@@ -81,10 +83,10 @@ $(OUT)/joint.jsonl: $(OUT)/sources.jsonl $(OUT)/stars.jsonl $(call prog,decompos
 	mv $(tmp) $@
 
 $(OUT)/delta.json: $(OUT)/joint.jsonl $(call prog,smooth)
-	$(call prog,smooth) --delta --area 0.25 < $< > $(tmp)
+	$(call prog,smooth) --delta --area 0.25 $(SMOOTH_OPTIONS) < $< > $(tmp)
 	mv $(tmp) $@
 $(OUT)/morphology.json: $(OUT)/joint.jsonl $(call prog,smooth)
-	$(call prog,smooth) --area 0.25 < $< > $(tmp)
+	$(call prog,smooth) --area 0.25 $(SMOOTH_OPTIONS) < $< > $(tmp)
 	mv $(tmp) $@
 
 FIELD := --area $(AREA) --pixel-scale $(SCALE)

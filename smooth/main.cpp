@@ -43,6 +43,7 @@ struct Settings {
     double k = 4.0, phase = 15.0, beta = 0.0, mag = 0.0, modulus = 0.0, mag_limit = 0.0, area = 0.0,
            pixel_scale = 0.0;
     bool delta = false;
+    bool keep_colour_noise = false;
     std::vector<std::string> fields;
 };
 
@@ -103,7 +104,10 @@ int run(int argc, const char* const argv[]) {
          "override lambda of the magnitude")
         ("lambda-modulus", po::value(&s.modulus)->notifier(in_range("lambda-modulus", 0.0, 1e6)),
          "override lambda of every coefficient axis (|a_nm/a_00|, a_n0/a_00)")
-        ("delta", po::bool_switch(&s.delta), "every lambda = 0: the delta-function PDF");
+        ("delta", po::bool_switch(&s.delta), "every lambda = 0: the delta-function PDF")
+        ("keep-colour-noise", po::bool_switch(&s.keep_colour_noise),
+         "several bands: keep each parent's flux ratios as measured, noise and all (by default "
+         "they are deconvolved from it, so a simulation does not carry its noise twice)");
     if (!options.parse(argc, argv)) return 0;
     const app::Log log("shapesim-smooth", options.common().verbosity);
 
@@ -111,6 +115,7 @@ int run(int argc, const char* const argv[]) {
     smooth.k = s.k;
     smooth.phase_deg = s.phase;
     smooth.delta = s.delta;
+    smooth.keep_colour_noise = s.keep_colour_noise;
     if (options.given("lambda-beta")) smooth.beta = s.beta;
     if (options.given("lambda-mag")) smooth.mag = s.mag;
     if (options.given("lambda-modulus")) smooth.modulus = s.modulus;
@@ -298,6 +303,7 @@ int run(int argc, const char* const argv[]) {
                               {{"k", s.k},
                                {"lambda_phase", s.phase},
                                {"delta", s.delta},
+                               {"keep_colour_noise", s.keep_colour_noise},
                                {"require", required},
                                {"reject", rejected}}}};
     std::cout << morphology.to_json().dump() << '\n';

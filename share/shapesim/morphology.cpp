@@ -1,5 +1,6 @@
 #include "shapesim/morphology.hpp"
 
+#include "shapesim/deconvolution.hpp"
 #include "shapesim/error.hpp"
 #include "shapesim/jsonl.hpp"
 #include "shapesim/moments.hpp"
@@ -137,6 +138,15 @@ double even_sum(const std::vector<Complex>& shape) {
     return sum;
 }
 
+}  // namespace
+
+double flux_ratio(const MorphologyPoint& p, std::size_t band) {
+    const double sum = even_sum(p.shape);
+    return sum != 0.0 ? even_sum(p.band_shapes.at(band)) / sum : std::numeric_limits<double>::quiet_NaN();
+}
+
+namespace {
+
 // A record's bands as point `p`'s band shapes (aligned as its reference shape, over the
 // reference a_{0,0}); the first record with bands sets the morphology's band list, and every
 // record must then carry the same bands in the same order.
@@ -167,6 +177,75 @@ void add_band_shapes(Morphology& out, const ShapeletRecord& r, MorphologyPoint& 
     }
 }
 
+// The statistical part of a band's flux error: the fit's and β's share, not truncation's
+// (a simulation's noise adds the first again, never the second). None when not given.
+std::optional<double> statistical_flux_error(const BandCoefficients& b) {
+    if (!b.flux_err || !(*b.flux_err >= 0.0)) return std::nullopt;
+    const double t = number_or_none(b.extra, "flux_err_truncation").value_or(0.0);
+    return std::sqrt(std::max(0.0, *b.flux_err * *b.flux_err - t * t));
+}
+
+// The band a joint record's own fields are: the one whose coefficients are the record's
+// (its "band" names it too), or none.
+std::optional<std::size_t> reference_band(const ShapeletRecord& r) {
+    for (std::size_t b = 0; b < r.bands.size(); ++b)
+        if (r.bands[b].coeffs == r.coeffs) return b;
+    return std::nullopt;
+}
+
+// Each point's flux ratios, denoised (see the header).
+void denoise_colours(Morphology& out, const std::vector<ShapeletRecord>& records) {
+    const std::size_t bands = out.bands.size();
+    const std::optional<std::size_t> found = reference_band(records.front());
+    if (!found) return;
+    const std::size_t reference = *found;
+    const Eigen::Index d = Eigen::Index(bands) - 1;
+    // V has d(d+1)/2 numbers: with fewer points than d + 2 there is nothing to deconvolve.
+    if (d < 1 || out.points.size() < std::size_t(d) + 2) return;
+    std::vector<Eigen::VectorXd> ratios;
+    std::vector<Eigen::MatrixXd> noise;
+    for (std::size_t i = 0; i < out.points.size(); ++i) {
+        const MorphologyPoint& p = out.points[i];
+        const ShapeletRecord& r = records[i];
+        Eigen::VectorXd x(d), sigma(d);
+        bool known = true;
+        for (std::size_t b = 0, k = 0; b < bands; ++b) {
+            if (b == reference) continue;
+            x(Eigen::Index(k)) = flux_ratio(p, b);
+            const auto e = statistical_flux_error(r.bands[b]);
+            known = known && e;
+            sigma(Eigen::Index(k++)) = e.value_or(0.0);
+        }
+        const auto reference_flux = r.bands[reference].flux;
+        const auto reference_error = statistical_flux_error(r.bands[reference]);
+        known = known && reference_flux && *reference_flux > 0.0 && reference_error;
+        Eigen::MatrixXd s = Eigen::MatrixXd::Zero(d, d);
+        if (reference_band(r) != reference)
+            throw Error("record " + r.id + "'s reference band differs from record " +
+                            records.front().id + "'s",
+                        "", 0, "bands");
+        if (known) {
+            // s_b = F_b / F_ref: Cov = (diag σ_b² + s sᵀ σ_ref²) / F_ref².
+            s.diagonal() = sigma.array().square();
+            s += x * x.transpose() * (*reference_error * *reference_error);
+            s /= *reference_flux * *reference_flux;
+        }
+        ratios.push_back(std::move(x));
+        noise.push_back(std::move(s));
+    }
+    if (std::all_of(noise.begin(), noise.end(), [](const auto& s) { return s.isZero(0.0); })) return;
+    const GaussianPopulation population = deconvolve_gaussian(ratios, noise);
+    for (std::size_t i = 0; i < out.points.size(); ++i) {
+        MorphologyPoint& p = out.points[i];
+        const Eigen::VectorXd moved = denoise(population, ratios[i], noise[i]) - ratios[i];
+        for (std::size_t b = 0, k = 0; b < bands; ++b) {
+            if (b == reference) continue;
+            const double change = moved(Eigen::Index(k++));
+            for (std::size_t m = 0; m < p.shape.size(); ++m) p.band_shapes[b][m] += change * p.shape[m];
+        }
+    }
+}
+
 }  // namespace
 
 Morphology build_morphology(const std::vector<ShapeletRecord>& records,
@@ -194,6 +273,7 @@ Morphology build_morphology(const std::vector<ShapeletRecord>& records,
     }
     if (!out.bands.empty() && out.points.size() != records.size())
         throw Error("internal: band points lost", "", 0, "bands");
+    if (!out.bands.empty() && !options.keep_colour_noise) denoise_colours(out, records);
     SmoothingLengths& l = out.lambda;
     const double k = options.delta ? 0.0 : options.k;
     l.phase_deg = options.delta ? 0.0 : options.phase_deg;
@@ -222,7 +302,7 @@ Morphology build_morphology(const std::vector<ShapeletRecord>& records,
     for (std::size_t b = 0; b < out.bands.size() && !options.delta; ++b) {
         std::vector<double> colours;
         for (const auto& p : out.points) {
-            const double ratio = even_sum(p.band_shapes[b]) / even_sum(p.shape);
+            const double ratio = flux_ratio(p, b);
             if (ratio > 0.0 && std::isfinite(ratio)) colours.push_back(-2.5 * std::log10(ratio));
         }
         l.colour[b] = k * mean_nearest_neighbour_separation(colours);
@@ -929,11 +1009,11 @@ DrawnGalaxy draw_galaxy(const Morphology& morphology, const std::vector<double>&
     g.perturbation = drawn.norm > 0.0 ? std::sqrt(drawn.change / drawn.norm) : 0.0;
     // Each band: the parent's, plus the reference perturbation at the parent's mean colour,
     // times the colour perturbation (drawn last: one-band draws are unchanged).
-    const double parent_sum = even_sum(shape_parent.shape);
     for (std::size_t b = 0; b < shape_parent.band_shapes.size(); ++b) {
         const std::vector<Complex>& own = shape_parent.band_shapes[b];
         // (A parent's flux sum is > 0: build_morphology's records have flux > 0.)
-        const double ratio = parent_sum > 0.0 ? even_sum(own) / parent_sum : 0.0;
+        const double parent_ratio = flux_ratio(shape_parent, b);
+        const double ratio = std::isfinite(parent_ratio) ? parent_ratio : 0.0;
         const double colour = l.colour.empty() ? 0.0 : l.colour[b] * stream.epanechnikov();
         const double scale = delta ? 1.0 : std::pow(10.0, -0.4 * colour);
         std::vector<Complex> band(own.size());

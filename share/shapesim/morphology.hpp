@@ -52,6 +52,17 @@
 // then a colour perturbation: c_b × 10^{−0.4 λ_b ε}, λ_b = k × the mean nearest-neighbour
 // separation of the points' colours −2.5 log₁₀ s_b (0 in δ mode: a δ draw copies every band).
 // The bands are placed with the same a_{0,0}, β, rotation and reflection as the reference.
+//
+// A parent's measured flux ratios s_b carry its measurement noise, and a simulation adds its
+// own noise on top: a faint band's colours come out twice as noisy as the real ones. So
+// build_morphology first denoises them (deconvolution.hpp): the population of the vectors
+// (s_b) over the non-reference bands, N(μ, V), is deconvolved from each parent's noise S
+// (its bands' statistical flux errors — fit and β, not truncation — over the reference flux,
+// and the reference's own error through every ratio), and each parent's ratios move by the
+// least-displacement map from N(μ, V + S) to N(μ, V): a precise colour stays, a noisy one is
+// drawn towards the population's. The move adds the reference shape times the ratio change,
+// so the band's own structure (its gradients) is kept. Parents without flux errors keep their
+// colours; SmoothOptions::keep_colour_noise turns it off.
 #pragma once
 
 #include "shapesim/model.hpp"
@@ -119,6 +130,9 @@ struct SmoothOptions {
     double phase_deg = 15.0;             ///< λ_phase
     std::optional<double> beta, mag, modulus;  ///< overrides (modulus: every coefficient axis)
     bool delta = false;                  ///< every λ = 0
+    /// Multi-band: keep each parent's colours as measured, noise and all (by default they are
+    /// denoised: see build_morphology).
+    bool keep_colour_noise = false;
     void validate() const;
 };
 
@@ -205,6 +219,10 @@ struct Morphology {
     /// call it again after changing a shape).
     void prepare();
 };
+
+/// Multi-band: band b's flux over the reference band's, s_b = Σ_{n even} c_{b,n,0} / Σ_{n even}
+/// c_{n,0} (NaN when the reference's sum is 0).
+double flux_ratio(const MorphologyPoint& p, std::size_t band);
 
 /// Mean over the values of the distance to the nearest other value (0 for fewer than two).
 double mean_nearest_neighbour_separation(std::vector<double> values);

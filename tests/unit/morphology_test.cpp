@@ -848,3 +848,67 @@ TEST(MorphologyBands, OneModelHoldsOneSetOfBands) {
     broken["points"][1]["bands"].erase(0);
     EXPECT_THROW(Morphology::from_json(broken), Error);
 }
+
+// Joint-fit colours through noise: the parents' measured z/i flux ratios scatter by their
+// noise (σ = 0.3) about a population of σ = 0.05; built into a morphology they scatter as the
+// population does, about its mean, each moved by the reference shape times its ratio's change
+// (the band's own structure kept). The keep_colour_noise option leaves them as measured.
+TEST(MorphologyBands, ParentsColoursAreDeconvolvedFromTheirNoise) {
+    std::vector<ShapeletRecord> records;
+    std::vector<double> measured;
+    RandomStream stream(11, 0, "colour noise test");
+    for (int i = 0; records.size() < 400; ++i) {
+        ShapeletModel m = test::random_model(2 + i % 4, 1.5 + 0.001 * i, 0.0, 0.0, 900 + i, true, 0.3);
+        m.coeffs[0] = 2.0;
+        if (flux(m) <= 0.0) continue;
+        ShapeletRecord r = record_of(m, "g" + std::to_string(i), 25.0 - 2.5 * std::log10(flux(m)));
+        const double truth = 1.5 + 0.05 * stream.gaussian();
+        const double sigma = (i % 2 ? 0.1 : 0.4) * std::sqrt(1.0 + i % 3);
+        measured.push_back(truth + sigma * stream.gaussian());
+        const std::vector<std::pair<std::string, double>> bands = {
+            {"b", 0.5}, {"i", 1.0}, {"z", measured.back()}};
+        const double errors[3] = {0.01, 0.001, sigma};
+        for (std::size_t k = 0; k < 3; ++k) {
+            BandCoefficients b;
+            b.band = bands[k].first;
+            for (const Complex& c : m.coeffs) b.coeffs.push_back(c * bands[k].second);
+            b.flux = flux(m) * bands[k].second;
+            b.flux_err = errors[k] * flux(m);
+            b.extra["flux_err_truncation"] = 0.0;
+            r.bands.push_back(b);
+        }
+        records.push_back(r);
+    }
+    const auto ratios = [](const Morphology& morph, std::size_t b) {
+        std::vector<double> out;
+        for (const auto& p : morph.points) out.push_back(flux_ratio(p, b));
+        return out;
+    };
+    const auto spread = [](const std::vector<double>& v) {
+        double m = 0.0, s = 0.0;
+        for (double x : v) m += x / double(v.size());
+        for (double x : v) s += (x - m) * (x - m) / double(v.size() - 1);
+        return std::make_pair(m, std::sqrt(s));
+    };
+    SmoothOptions keep;
+    keep.keep_colour_noise = true;
+    const Morphology kept = build_morphology(records, keep);
+    const std::vector<double> as_measured = ratios(kept, 2);
+    for (std::size_t i = 0; i < measured.size(); ++i) EXPECT_NEAR(as_measured[i], measured[i], 1e-12);
+    EXPECT_GT(spread(as_measured).second, 0.2);
+
+    const Morphology morph = build_morphology(records, SmoothOptions{});
+    const auto [mean, sd] = spread(ratios(morph, 2));
+    EXPECT_NEAR(mean, 1.5, 0.02);
+    EXPECT_NEAR(sd, 0.05, 0.015);
+    // The reference is itself; the precise band barely moves.
+    for (std::size_t i = 0; i < morph.points.size(); ++i) {
+        EXPECT_EQ(morph.points[i].band_shapes[1], kept.points[i].band_shapes[1]);
+        EXPECT_NEAR(flux_ratio(morph.points[i], 0), 0.5, 0.02);
+    }
+    // The move is the reference shape times the ratio's change.
+    const MorphologyPoint& p = morph.points[7];
+    const double change = flux_ratio(p, 2) - flux_ratio(kept.points[7], 2);
+    for (std::size_t k = 0; k < p.shape.size(); ++k)
+        EXPECT_LT(std::abs(p.band_shapes[2][k] - kept.points[7].band_shapes[2][k] - change * p.shape[k]), 1e-12);
+}

@@ -84,6 +84,48 @@ assert all("bands" not in r for r in none)
 PY
 
 "$BIN/shapesim-smooth" -q --delta --reject edge,noise < joint.jsonl > delta.json || fail "smooth failed"
+# The parents' flux ratios: as measured with --keep-colour-noise, deconvolved from their noise
+# by default (no band's spread larger, the noisiest's smaller).
+"$BIN/shapesim-smooth" -q --delta --reject edge,noise --keep-colour-noise < joint.jsonl > noisy.json \
+  || fail "smooth --keep-colour-noise failed"
+/usr/bin/python3 - <<'PY' || fail "colour deconvolution"
+import json, statistics
+records = {r["id"]: r for r in map(json.loads, open("joint.jsonl"))}
+# Packed polar order: n = 0, 1, …; m = n mod 2, …, n in steps of 2. The (even n, m = 0) slots.
+EVEN, k = set(), 0
+for n in range(40):
+    for m in range(n % 2, n + 1, 2):
+        if m == 0:
+            EVEN.add(k)
+        k += 1
+def ratios(name):
+    m = json.load(open(name))
+    bands = [b["band"] for b in m["bands"]]
+    out = {b: [] for b in bands}
+    for p in m["points"]:
+        even = lambda shape: sum(c[0] for k, c in enumerate(shape) if k in EVEN)
+        for b, shape in zip(bands, p["bands"]):
+            out[b].append(even(shape) / even(p["shape"]))
+    return m, out
+noisy, raw = ratios("noisy.json")
+clean, denoised = ratios("delta.json")
+assert noisy["provenance"]["options"]["keep_colour_noise"] is True
+assert clean["provenance"]["options"]["keep_colour_noise"] is False
+ids = [p["id"] for p in noisy["points"]]
+for b, values in raw.items():
+    for i, v in zip(ids, values):
+        f = {x["band"]: x["flux"] for x in records[i]["bands"]}
+        assert abs(v - f[b] / f["f814w"]) <= 1e-9 * abs(v) + 1e-12, (b, i)
+assert denoised["f814w"] == raw["f814w"]
+narrower = 0
+for b in raw:
+    if b == "f814w":
+        continue
+    s0, s1 = statistics.stdev(raw[b]), statistics.stdev(denoised[b])
+    assert s1 <= s0 * 1.0001, (b, s0, s1)
+    narrower += s1 < 0.8 * s0
+assert narrower >= 1, narrower  # F160W's, its noisiest: about halved
+PY
 "$BIN/shapesim-sample" -q delta.json --size 0.16 --pixel-scale 0.06 --seed 3 --zero-point 25.959 \
   > objects.jsonl || fail "sample failed"
 for b in f435w f814w f160w; do
