@@ -44,6 +44,7 @@ struct Settings {
            pixel_scale = 0.0;
     bool delta = false;
     bool keep_colour_noise = false;
+    double colour = 0.25;
     std::vector<std::string> fields;
 };
 
@@ -102,6 +103,10 @@ int run(int argc, const char* const argv[]) {
              ->notifier(in_range("lambda-beta", 0.0, 1e6)), "override lambda of beta")
         ("lambda-mag", po::value(&s.mag)->notifier(in_range("lambda-mag", 0.0, 1e6)),
          "override lambda of the magnitude")
+        ("lambda-colour", po::value(&s.colour)->value_name("H")->default_value(0.25, "0.25")
+             ->notifier(in_range("lambda-colour", 0.0, 1e6)),
+         "several bands: the colour kernel's width, in units of the population's spread "
+         "(0: the parents' colours)")
         ("lambda-modulus", po::value(&s.modulus)->notifier(in_range("lambda-modulus", 0.0, 1e6)),
          "override lambda of every coefficient axis (|a_nm/a_00|, a_n0/a_00)")
         ("delta", po::bool_switch(&s.delta), "every lambda = 0: the delta-function PDF")
@@ -119,6 +124,7 @@ int run(int argc, const char* const argv[]) {
     if (options.given("lambda-beta")) smooth.beta = s.beta;
     if (options.given("lambda-mag")) smooth.mag = s.mag;
     if (options.given("lambda-modulus")) smooth.modulus = s.modulus;
+    smooth.colour = s.colour;
     smooth.validate();
     const std::vector<std::string> required = app::split_list(s.require),
                                    rejected = app::split_list(s.reject);
@@ -304,6 +310,7 @@ int run(int argc, const char* const argv[]) {
                                {"lambda_phase", s.phase},
                                {"delta", s.delta},
                                {"keep_colour_noise", s.keep_colour_noise},
+                               {"lambda_colour", s.colour},
                                {"require", required},
                                {"reject", rejected}}}};
     std::cout << morphology.to_json().dump() << '\n';

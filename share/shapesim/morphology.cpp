@@ -91,8 +91,7 @@ ShapeletModel unalign(const ShapeletModel& aligned, const Alignment& how) {
 bool SmoothingLengths::is_delta() const {
     if (phase_deg != 0.0 || beta != 0.0 || mag != 0.0) return false;
     const auto zero = [](double l) { return l == 0.0; };
-    return std::all_of(coefficient.begin(), coefficient.end(), zero) &&
-           std::all_of(colour.begin(), colour.end(), zero);
+    return std::all_of(coefficient.begin(), coefficient.end(), zero) && colour == 0.0;
 }
 
 void SmoothOptions::validate() const {
@@ -104,6 +103,7 @@ void SmoothOptions::validate() const {
     if (beta) check(*beta, "lambda_beta");
     if (mag) check(*mag, "lambda_mag");
     if (modulus) check(*modulus, "lambda_modulus");
+    check(colour, "lambda_colour");
 }
 
 double mean_nearest_neighbour_separation(std::vector<double> values) {
@@ -246,6 +246,30 @@ void denoise_colours(Morphology& out, const std::vector<ShapeletRecord>& records
     }
 }
 
+// The points' flux ratios: mean and covariance (divided by n), the reference's row and
+// column 0; the reference found as denoise_colours() finds it.
+void set_colour_population(Morphology& out, const std::vector<ShapeletRecord>& records) {
+    out.reference_band = reference_band(records.front());
+    if (!out.reference_band) return;
+    const std::size_t bands = out.bands.size();
+    const double n = double(out.points.size());
+    Eigen::VectorXd mean = Eigen::VectorXd::Zero(Eigen::Index(bands));
+    std::vector<Eigen::VectorXd> ratios;
+    for (const MorphologyPoint& p : out.points) {
+        Eigen::VectorXd s(static_cast<Eigen::Index>(bands));
+        for (std::size_t b = 0; b < bands; ++b) s(Eigen::Index(b)) = flux_ratio(p, b);
+        s(Eigen::Index(*out.reference_band)) = 1.0;
+        mean += s / n;
+        ratios.push_back(std::move(s));
+    }
+    out.colour_covariance = Eigen::MatrixXd::Zero(mean.size(), mean.size());
+    const Eigen::Index r = Eigen::Index(*out.reference_band);
+    mean(r) = 1.0;  // exactly (a sum of n ones over n need not be)
+    for (const Eigen::VectorXd& s : ratios)
+        out.colour_covariance += (s - mean) * (s - mean).transpose() / n;
+    out.colour_mean.assign(mean.data(), mean.data() + mean.size());
+}
+
 }  // namespace
 
 Morphology build_morphology(const std::vector<ShapeletRecord>& records,
@@ -298,14 +322,9 @@ Morphology build_morphology(const std::vector<ShapeletRecord>& records,
                 axis.push_back(index[i].m == 0 ? p.shape[i].real() : std::abs(p.shape[i]));
         l.coefficient[i] = k * mean_nearest_neighbour_separation(axis);
     }
-    l.colour.assign(out.bands.size(), 0.0);
-    for (std::size_t b = 0; b < out.bands.size() && !options.delta; ++b) {
-        std::vector<double> colours;
-        for (const auto& p : out.points) {
-            const double ratio = flux_ratio(p, b);
-            if (ratio > 0.0 && std::isfinite(ratio)) colours.push_back(-2.5 * std::log10(ratio));
-        }
-        l.colour[b] = k * mean_nearest_neighbour_separation(colours);
+    if (!out.bands.empty()) {
+        set_colour_population(out, records);
+        l.colour = options.delta || !out.reference_band ? 0.0 : options.colour;
     }
     // One zero point when every record agrees.
     std::optional<double> zp;
@@ -337,6 +356,7 @@ Morphology build_morphology(const std::vector<ShapeletRecord>& records,
 }
 
 void Morphology::prepare() {
+    colour_root = colour_covariance.size() ? symmetric_sqrt(colour_covariance) : Eigen::MatrixXd();
     for (MorphologyPoint& p : points) {
         p.modulus.resize(p.shape.size());
         p.phase.resize(p.shape.size());
@@ -517,6 +537,18 @@ Json Morphology::to_json() const {
             list.push_back(std::move(j));
         }
         doc["bands"] = std::move(list);
+        if (reference_band) {
+            Json covariance = Json::array();
+            for (Eigen::Index i = 0; i < colour_covariance.rows(); ++i) {
+                Json row = Json::array();
+                for (Eigen::Index j = 0; j < colour_covariance.cols(); ++j)
+                    row.push_back(colour_covariance(i, j));
+                covariance.push_back(std::move(row));
+            }
+            doc["colours"] = {{"reference", bands[*reference_band]},
+                              {"mean", colour_mean},
+                              {"covariance", std::move(covariance)}};
+        }
     }
     Json pts = Json::array();
     for (const auto& p : points) {
@@ -573,6 +605,37 @@ double number(const Json& object, const char* field, const std::string& where) {
     return v;
 }
 
+// "colours": {"reference": band, "mean": [one per band], "covariance": [[…] one row per band]}.
+void read_colour_population(Morphology& m, const Json& colours) {
+    const std::size_t n = m.bands.size();
+    if (!colours.is_object() || !colours.contains("reference") || !colours.at("reference").is_string())
+        throw Error("missing or not a string", "", 0, "colours.reference");
+    const auto at = std::find(m.bands.begin(), m.bands.end(), colours.at("reference").get<std::string>());
+    if (at == m.bands.end()) throw Error("not one of the bands", "", 0, "colours.reference");
+    m.reference_band = std::size_t(at - m.bands.begin());
+    const auto numbers = [](const Json& list, std::size_t size, const std::string& where) {
+        if (!list.is_array() || list.size() != size)
+            throw Error("must be an array of one number per band", "", 0, where);
+        std::vector<double> out;
+        for (const Json& v : list) {
+            if (!v.is_number() || !std::isfinite(v.get<double>())) throw Error("not a finite number", "", 0, where);
+            out.push_back(v.get<double>());
+        }
+        return out;
+    };
+    m.colour_mean = numbers(colours.contains("mean") ? colours.at("mean") : Json(), n, "colours.mean");
+    const Json& rows = colours.contains("covariance") ? colours.at("covariance") : Json();
+    if (!rows.is_array() || rows.size() != n)
+        throw Error("must hold one row per band", "", 0, "colours.covariance");
+    m.colour_covariance.resize(Eigen::Index(n), Eigen::Index(n));
+    for (std::size_t i = 0; i < n; ++i) {
+        const std::vector<double> row = numbers(rows[i], n, "colours.covariance");
+        for (std::size_t j = 0; j < n; ++j) m.colour_covariance(Eigen::Index(i), Eigen::Index(j)) = row[j];
+    }
+    if (!m.colour_covariance.isApprox(m.colour_covariance.transpose()))
+        throw Error("must be symmetric", "", 0, "colours.covariance");
+}
+
 }  // namespace
 
 Morphology Morphology::from_json(const Json& doc) {
@@ -617,14 +680,13 @@ Morphology Morphology::from_json(const Json& doc) {
                                              ? std::optional(number(list[b], "zero_point", where + "."))
                                              : std::nullopt);
         }
-        if (!lam.contains("colour") || !lam.at("colour").is_array() ||
-            lam.at("colour").size() != m.bands.size())
-            throw Error("must be an array of one number per band", "", 0, "lambda.colour");
-        for (const Json& v : lam.at("colour")) {
-            if (!v.is_number() || !(v.get<double>() >= 0.0) || !std::isfinite(v.get<double>()))
-                throw Error("must be finite numbers ≥ 0", "", 0, "lambda.colour");
-            m.lambda.colour.push_back(v.get<double>());
-        }
+        if (lam.contains("colour") && lam.at("colour").is_array())
+            throw Error("is one width per band: a model of an older shapesim-smooth (smooth its "
+                        "records again)",
+                        "", 0, "lambda.colour");
+        m.lambda.colour = number(lam, "colour", "lambda.");
+        if (m.lambda.colour < 0.0) throw Error("must be ≥ 0", "", 0, "lambda.colour");
+        if (doc.contains("colours")) read_colour_population(m, doc.at("colours"));
     }
     if (!doc.contains("points") || !doc.at("points").is_array() || doc.at("points").empty())
         throw Error("must be a non-empty array", "", 0, "points");
@@ -930,6 +992,31 @@ ShapeletModel placed_model(const std::vector<Complex>& shape, int n_max, double 
 
 }  // namespace
 
+namespace {
+
+// The colour kernel (see the header): every band's drawn flux ratio, the reference's its own;
+// none when colours are not perturbed (δ, no reference band, h = 0).
+std::vector<double> drawn_ratios(const Morphology& m, const MorphologyPoint& parent,
+                                 RandomStream& stream) {
+    const double h = m.lambda.colour;
+    const Eigen::Index n = Eigen::Index(m.bands.size());
+    if (!(h > 0.0) || !m.reference_band || m.colour_root.rows() != n) return {};
+    Eigen::VectorXd g(n);
+    for (Eigen::Index b = 0; b < n; ++b) g(b) = stream.gaussian();
+    const Eigen::VectorXd kick = h * (m.colour_root * g);
+    const double shrink = 1.0 / std::sqrt(1.0 + h * h);
+    std::vector<double> out(m.bands.size());
+    for (std::size_t b = 0; b < out.size(); ++b) {
+        const double own = flux_ratio(parent, b), mean = m.colour_mean[b];
+        out[b] = b == *m.reference_band
+                     ? own
+                     : std::max(0.0, mean + (own - mean + kick(Eigen::Index(b))) * shrink);
+    }
+    return out;
+}
+
+}  // namespace
+
 DrawnGalaxy draw_galaxy(const Morphology& morphology, const std::vector<double>& parents,
                         RandomStream& stream, double pixel_scale, double zero_point,
                         double mag_limit, const DrawOptions& draw) {
@@ -1008,18 +1095,19 @@ DrawnGalaxy draw_galaxy(const Morphology& morphology, const std::vector<double>&
     g.model = placed_model(drawn.shape, shape_parent.n_max, beta_pix, a00, g.rotation, g.reflected);
     g.perturbation = drawn.norm > 0.0 ? std::sqrt(drawn.change / drawn.norm) : 0.0;
     // Each band: the parent's, plus the reference perturbation at the parent's mean colour,
-    // times the colour perturbation (drawn last: one-band draws are unchanged).
+    // then the colour kernel (drawn last: one-band draws are unchanged).
+    const std::vector<double> ratios = drawn_ratios(morphology, shape_parent, stream);
     for (std::size_t b = 0; b < shape_parent.band_shapes.size(); ++b) {
         const std::vector<Complex>& own = shape_parent.band_shapes[b];
         // (A parent's flux sum is > 0: build_morphology's records have flux > 0.)
         const double parent_ratio = flux_ratio(shape_parent, b);
         const double ratio = std::isfinite(parent_ratio) ? parent_ratio : 0.0;
-        const double colour = l.colour.empty() ? 0.0 : l.colour[b] * stream.epanechnikov();
-        const double scale = delta ? 1.0 : std::pow(10.0, -0.4 * colour);
+        const double change = ratios.empty() ? 0.0 : ratios[b] - ratio;
         std::vector<Complex> band(own.size());
         for (std::size_t k = 0; k < own.size(); ++k)
             band[k] = delta ? own[k]
-                            : scale * (own[k] + (drawn.shape[k] - shape_parent.shape[k]) * ratio);
+                            : own[k] + (drawn.shape[k] - shape_parent.shape[k]) * ratio +
+                                  change * drawn.shape[k];
         g.band_models.push_back(
             placed_model(band, shape_parent.n_max, beta_pix, a00, g.rotation, g.reflected));
     }

@@ -48,10 +48,18 @@
 // the reference band's a_{0,0}: c_b = a_b / a_{0,0}, colours per shapelet mode, so a red bulge
 // in a blue disc stays one. A draw gives band b the parent's c_b plus the reference shape's
 // perturbation scaled by the parent's flux ratio s_b = Σ_{n even} c_{b,n,0} / Σ_{n even} c_{n,0}
-// (the perturbation carries the galaxy's mean colour, the parent's colour gradients are kept),
-// then a colour perturbation: c_b × 10^{−0.4 λ_b ε}, λ_b = k × the mean nearest-neighbour
-// separation of the points' colours −2.5 log₁₀ s_b (0 in δ mode: a δ draw copies every band).
-// The bands are placed with the same a_{0,0}, β, rotation and reflection as the reference.
+// (the perturbation carries the galaxy's mean colour, the parent's colour gradients are kept).
+// Then its colours are perturbed as one vector: the non-reference ratios s of the points have
+// mean μ and covariance V (Morphology::colour_mean, colour_covariance), and a draw takes
+// s' = μ + (s − μ + h V^{1/2} g)/√(1 + h²), g standard normal, clipped at s' ≥ 0: Silverman's
+// (1986, §6.4.1) smoothed bootstrap with its variance correction, with a kernel shaped as the
+// population (§4.2.1), so the draws have the parents' mean and covariance. SEDs are smooth and
+// neighbouring bands' ratios move together: a kernel per band would widen every adjacent
+// colour by its own width. h = SmoothingLengths::colour, 0.25 by default (SmoothOptions;
+// measured on the XDF, README: the d-dimensional normal-reference rule, 0.6 for 102 parents in
+// 8 dimensions, blurs the colour distributions' clumps), 0 in δ mode (a δ draw copies every band). The change s' − s enters as the drawn reference shape times it (a
+// uniform colour change; the parent's gradients stay). The bands are placed with the same
+// a_{0,0}, β, rotation and reflection as the reference.
 //
 // A parent's measured flux ratios s_b carry its measurement noise, and a simulation adds its
 // own noise on top: a faint band's colours come out twice as noisy as the real ones. So
@@ -68,6 +76,8 @@
 #include "shapesim/model.hpp"
 #include "shapesim/records.hpp"
 #include "shapesim/rng.hpp"
+
+#include <Eigen/Dense>
 
 #include <limits>
 #include <optional>
@@ -119,8 +129,8 @@ struct SmoothingLengths {
     double mag = 0.0;
     /// Per packed polar index (n, m): of |c| for m > 0, of c for m = 0; index 0 unused (0).
     std::vector<double> coefficient;
-    /// Multi-band: each band's colour against the reference band, magnitudes.
-    std::vector<double> colour;
+    /// Multi-band: the colour kernel's width h, in units of the population's own spread.
+    double colour = 0.0;
     bool is_delta() const;
 };
 
@@ -133,6 +143,8 @@ struct SmoothOptions {
     /// Multi-band: keep each parent's colours as measured, noise and all (by default they are
     /// denoised: see build_morphology).
     bool keep_colour_noise = false;
+    /// Multi-band: the colour kernel's width h (see above).
+    double colour = 0.25;
     void validate() const;
 };
 
@@ -207,6 +219,13 @@ struct Morphology {
     /// zero points (of the real images, when every record gave one).
     std::vector<std::string> bands;
     std::vector<std::optional<double>> band_zero_points;
+    /// Multi-band: the band the points' shapes and magnitudes are (index into `bands`), and
+    /// the mean and covariance of the points' flux ratios s_b (the reference's entry 1, its
+    /// row and column 0). Without a reference the colours are not perturbed.
+    std::optional<std::size_t> reference_band;
+    std::vector<double> colour_mean;
+    Eigen::MatrixXd colour_covariance;
+    Eigen::MatrixXd colour_root;         ///< V^{1/2} (prepare() fills it)
     Json provenance = Json::object();    ///< input hash, options, program version
 
     Json to_json() const;
@@ -215,12 +234,12 @@ struct Morphology {
     /// The model in file `path` ("-": stdin); Error naming the file on unreadable or invalid
     /// input.
     static Morphology read(const std::string& path);
-    /// Fill every point's derived modulus and phase (build_morphology and from_json do;
-    /// call it again after changing a shape).
+    /// Fill every point's derived modulus and phase, and colour_root (build_morphology and
+    /// from_json do; call it again after changing a shape or the colour covariance).
     void prepare();
 };
 
-/// Multi-band: band b's flux over the reference band's, s_b = Σ_{n even} c_{b,n,0} / Σ_{n even}
+/// Multi-band: band b's flux over the reference band's (the point's shape), s_b = Σ_{n even} c_{b,n,0} / Σ_{n even}
 /// c_{n,0} (NaN when the reference's sum is 0).
 double flux_ratio(const MorphologyPoint& p, std::size_t band);
 

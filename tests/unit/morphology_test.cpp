@@ -792,41 +792,67 @@ TEST(MorphologyBands, DeltaDrawsCopyEveryBand) {
 }
 
 // Smoothed draws: a perturbed shape keeps its parent's colour in every band (the perturbation
-// carries the parent's flux ratio), up to the colour perturbation, which is Epanechnikov of
-// half-width λ_b in magnitudes.
-TEST(MorphologyBands, PerturbationsKeepTheParentsColourUpToTheColourKernel) {
+// carries the parent's flux ratio) without the colour kernel. With it, the drawn ratios are
+// s' = μ + (s − μ + h V^{1/2} g)/√(1 + h²): the kick, whitened by V, is standard normal in each
+// band, and the draws keep the drawn parents' second moments about μ, shrunk towards V.
+TEST(MorphologyBands, ColourKernelIsShapedAsThePopulationAndKeepsItsSpread) {
     const std::vector<ShapeletRecord> records = band_records(40);
     Morphology morph = build_morphology(records, SmoothOptions{});
-    ASSERT_EQ(morph.lambda.colour.size(), 3u);
-    EXPECT_GT(morph.lambda.colour[2], 0.0);  // the red cores vary: a colour axis
+    ASSERT_TRUE(morph.reference_band);
+    EXPECT_EQ(*morph.reference_band, 1u);  // "i", whose coefficients the records' own are
+    EXPECT_EQ(morph.lambda.colour, 0.25);
+    EXPECT_GT(morph.colour_covariance(2, 2), 0.0);  // the red cores vary: a colour axis
+    EXPECT_EQ(morph.colour_covariance(1, 1), 0.0);
     const Morphology round_trip = Morphology::from_json(morph.to_json());
     EXPECT_EQ(round_trip.to_json(), morph.to_json());
     const std::vector<double> parents = parent_table(morph, 99.0);
-    const auto parent_colour = [&](const DrawnGalaxy& g, std::size_t b) {
-        const ShapeletRecord& p = records[g.parent];
-        return -2.5 * std::log10(*p.bands[b].flux / *p.bands[1].flux);
-    };
     // Without the colour kernel, every band's flux ratio is the parent's.
-    std::fill(morph.lambda.colour.begin(), morph.lambda.colour.end(), 0.0);
+    morph.lambda.colour = 0.0;
     double largest = 0.0;
     for (int i = 0; i < 200; ++i) {
         RandomStream stream(5, std::uint64_t(i), "galaxy");
         const DrawnGalaxy g = draw_galaxy(morph, parents, stream, 0.04, 25.0, 99.0);
         ASSERT_GT(g.perturbation, 0.0);
         for (std::size_t b : {0u, 2u})
-            largest = std::max(largest, std::abs(-2.5 * std::log10(band_ratio(g, b)) - parent_colour(g, b)));
+            largest = std::max(largest, std::abs(band_ratio(g, b) / flux_ratio(morph.points[g.parent], b) - 1.0));
     }
     EXPECT_LT(largest, 1e-9);
-    // With it: (drawn − parent colour)/λ follows the Epanechnikov kernel.
-    morph.lambda.colour = {0.2, 0.0, 0.3};
-    std::vector<double> scaled;
-    for (int i = 0; i < 2000; ++i) {
+    // With it.
+    const double h = 0.5, grow = std::sqrt(1.0 + h * h);
+    morph.lambda.colour = h;
+    const std::vector<std::size_t> axes = {0, 2};
+    Eigen::Matrix2d v, moments = Eigen::Matrix2d::Zero(), drawn = Eigen::Matrix2d::Zero();
+    for (int a = 0; a < 2; ++a)
+        for (int c = 0; c < 2; ++c) v(a, c) = morph.colour_covariance(Eigen::Index(axes[a]), Eigen::Index(axes[c]));
+    const Eigen::Matrix2d whiten = v.llt().matrixL().solve(Eigen::Matrix2d::Identity());
+    std::vector<double> white[2];
+    const int draws = 4000;
+    for (int i = 0; i < draws; ++i) {
         RandomStream stream(6, std::uint64_t(i), "galaxy");
         const DrawnGalaxy g = draw_galaxy(morph, parents, stream, 0.04, 25.0, 99.0);
-        scaled.push_back((-2.5 * std::log10(band_ratio(g, 2)) - parent_colour(g, 2)) / 0.3);
         EXPECT_NEAR(band_ratio(g, 1), 1.0, 1e-12);
+        Eigen::Vector2d kick, from_mean, parent;
+        for (int a = 0; a < 2; ++a) {
+            const std::size_t b = axes[a];
+            const double mean = morph.colour_mean[b];
+            parent(a) = flux_ratio(morph.points[g.parent], b) - mean;
+            from_mean(a) = band_ratio(g, b) - mean;
+            kick(a) = from_mean(a) * grow - parent(a);
+        }
+        const Eigen::Vector2d w = whiten * kick / h;
+        white[0].push_back(w(0));
+        white[1].push_back(w(1));
+        moments += parent * parent.transpose() / draws;
+        drawn += from_mean * from_mean.transpose() / draws;
     }
-    EXPECT_LT(ks_epanechnikov(scaled), 1.63 / std::sqrt(2000.0));  // KS at 1%
+    const auto normal = [](double x) { return 0.5 * std::erfc(-x / std::sqrt(2.0)); };
+    EXPECT_GT(test::ks_p_value(white[0], normal), 0.01);
+    EXPECT_GT(test::ks_p_value(white[1], normal), 0.01);
+    // E(s' − μ)(s' − μ)ᵀ = (E(s − μ)(s − μ)ᵀ + h² V)/(1 + h²), to sampling error.
+    const Eigen::Matrix2d expected = (moments + h * h * v) / (grow * grow);
+    for (int a = 0; a < 2; ++a)
+        EXPECT_NEAR(drawn(a, a) / expected(a, a), 1.0, 0.08) << a;
+    EXPECT_NEAR(drawn(0, 1), expected(0, 1), 0.08 * std::sqrt(expected(0, 0) * expected(1, 1)));
 }
 
 TEST(MorphologyBands, OneModelHoldsOneSetOfBands) {
