@@ -873,6 +873,22 @@ TEST(MorphologyBands, OneModelHoldsOneSetOfBands) {
     Json broken = build_morphology(band_records(3), SmoothOptions{}).to_json();
     broken["points"][1]["bands"].erase(0);
     EXPECT_THROW(Morphology::from_json(broken), Error);
+    // An older model's one width per band; a colour population of the wrong size or shape.
+    const Json good = build_morphology(band_records(8), SmoothOptions{}).to_json();
+    ASSERT_TRUE(good.contains("colours"));
+    broken = good;
+    broken["lambda"]["colour"] = Json::array({0.1, 0.0, 0.2});
+    EXPECT_THROW(Morphology::from_json(broken), Error);
+    broken = good;
+    broken["colours"]["covariance"].erase(2);
+    EXPECT_THROW(Morphology::from_json(broken), Error);
+    broken = good;
+    broken["colours"]["covariance"][0][2] = 5.0;
+    EXPECT_THROW(Morphology::from_json(broken), Error);
+    broken = good;
+    broken["colours"]["reference"] = "u";
+    EXPECT_THROW(Morphology::from_json(broken), Error);
+    EXPECT_EQ(Morphology::from_json(good).to_json(), good);
 }
 
 // Joint-fit colours through noise: the parents' measured z/i flux ratios scatter by their
