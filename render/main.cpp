@@ -6,7 +6,6 @@
 #include "shapesim/app/options.hpp"
 #include "shapesim/app/provenance.hpp"
 #include "shapesim/app/run_main.hpp"
-#include "shapesim/compare.hpp"
 #include "shapesim/convolve.hpp"
 #include "shapesim/error.hpp"
 #include "shapesim/fits_io.hpp"
@@ -16,6 +15,7 @@
 #include "shapesim/psf.hpp"
 #include "shapesim/records.hpp"
 #include "shapesim/scene.hpp"
+#include "shapesim/statistics.hpp"
 
 #include <algorithm>
 #include <chrono>

@@ -13,8 +13,8 @@
 //    catalogue; the colour–magnitude relation as the median colour per magnitude bin.
 #pragma once
 
-#include "shapesim/compare.hpp"
 #include "shapesim/records.hpp"
+#include "shapesim/statistics.hpp"
 
 #include <iosfwd>
 #include <string>

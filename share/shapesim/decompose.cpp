@@ -1,5 +1,6 @@
 #include "shapesim/decompose.hpp"
 
+#include "shapesim/constants.hpp"
 #include "shapesim/convolve.hpp"
 #include "shapesim/error.hpp"
 #include "shapesim/jsonl.hpp"
@@ -716,7 +717,7 @@ bool near_bright_star(double x, double y, double reach, double galaxy_flux,
         // galaxy the star outshines tenfold.
         if (const auto area = optional_double(star.extra, "iso_area");
             area && star.flux > 10.0 * galaxy_flux)
-            radius = std::max(radius, std::sqrt(std::max(0.0, *area) / M_PI));
+            radius = std::max(radius, std::sqrt(std::max(0.0, *area) / pi));
         if (std::hypot(star.x - x, star.y - y) < reach + 2.0 * radius) return true;
     }
     return false;

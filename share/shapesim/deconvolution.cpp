@@ -1,5 +1,6 @@
 #include "shapesim/deconvolution.hpp"
 
+#include "shapesim/constants.hpp"
 #include "shapesim/error.hpp"
 
 #include <cmath>
@@ -53,7 +54,7 @@ GaussianPopulation deconvolve_gaussian(const std::vector<Eigen::VectorXd>& point
     // A start inside the cone: EM keeps V positive definite when it starts so.
     pop.covariance.diagonal().array() += 1e-9 * std::max(pop.covariance.trace() / double(d), 1e-300);
 
-    const double log_2pi = std::log(2.0 * 3.14159265358979323846);
+    const double log_2pi = std::log(2.0 * pi);
     double previous = -std::numeric_limits<double>::infinity();
     Eigen::VectorXd mean_b(d);
     Eigen::MatrixXd scatter(d, d);

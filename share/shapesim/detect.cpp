@@ -1,6 +1,8 @@
 #include "shapesim/detect.hpp"
 
+#include "shapesim/constants.hpp"
 #include "shapesim/error.hpp"
+#include "shapesim/statistics.hpp"
 
 #include <cstddef>  // sep.h uses size_t without including it
 extern "C" {        // sep.h has no C++ guards
@@ -21,7 +23,6 @@ namespace shapesim {
 
 namespace {
 
-constexpr double pi = 3.14159265358979323846;
 
 // libsep's status text plus its detail buffer (sizes from sep.h's contract: 61 and 512).
 std::string sep_message(int status) {
@@ -44,13 +45,6 @@ struct BackgroundDeleter {
 struct CatalogDeleter {
     void operator()(sep_catalog* p) const { sep_catalog_free(p); }
 };
-
-double median_of(std::vector<double>& values) {
-    if (values.empty()) return std::numeric_limits<double>::quiet_NaN();
-    const auto middle = values.begin() + std::ptrdiff_t(values.size() / 2);
-    std::nth_element(values.begin(), middle, values.end());
-    return *middle;
-}
 
 sep_image sep_view(const ImageArray& data, const ImageArray* sigma, const std::uint8_t* bad,
                    const LabelArray* segmentation) {
@@ -461,7 +455,7 @@ DetectionResult noise_field(const ImageArray& image, const ImageArray* inverse_v
         sigmas.reserve(n);
         for (std::size_t k = 0; k < n; ++k)
             if (!result.bad[k]) sigmas.push_back(1.0 / std::sqrt(inverse_variance->data()[k]));
-        const double median_sigma = median_of(sigmas);
+        const double median_sigma = upper_median(sigmas);
         if (options.rescale_weight) {
             if (!(result.background_rms > 0.0))
                 throw Error("background rms is zero: cannot rescale the weight map "

@@ -1,5 +1,6 @@
 #include "shapesim/geometry.hpp"
 
+#include "shapesim/constants.hpp"
 #include "shapesim/error.hpp"
 #include "shapesim/fits_io.hpp"
 
@@ -10,7 +11,6 @@
 namespace shapesim {
 
 namespace {
-constexpr double deg = M_PI / 180.0;
 
 double det_cd(const Wcs& w) { return w.cd1_1 * w.cd2_2 - w.cd1_2 * w.cd2_1; }
 
@@ -38,7 +38,7 @@ void read_cd(FitsReader& fits, Wcs& w) {
         w.cd2_2 = cdelt2 * fits.optional_double("PC2_2").value_or(1.0);
         return;
     }
-    const double rho = fits.optional_double("CROTA2").value_or(0.0) * deg;
+    const double rho = fits.optional_double("CROTA2").value_or(0.0) * degree;
     w.cd1_1 = cdelt1 * std::cos(rho);
     w.cd1_2 = -cdelt2 * std::sin(rho);
     w.cd2_1 = cdelt1 * std::sin(rho);
@@ -89,26 +89,26 @@ std::pair<double, double> Wcs::distort(double u, double v) const {
 
 SkyPosition Wcs::pixel_to_sky(double x, double y) const {
     const auto [dx, dy] = distort(x - crpix1, y - crpix2);
-    const double xi = (cd1_1 * dx + cd1_2 * dy) * deg;
-    const double eta = (cd2_1 * dx + cd2_2 * dy) * deg;
-    const double dec0 = crval2 * deg;
+    const double xi = (cd1_1 * dx + cd1_2 * dy) * degree;
+    const double eta = (cd2_1 * dx + cd2_2 * dy) * degree;
+    const double dec0 = crval2 * degree;
     const double denom = std::cos(dec0) - eta * std::sin(dec0);
-    double ra = crval1 + std::atan2(xi, denom) / deg;
+    double ra = crval1 + std::atan2(xi, denom) / degree;
     const double dec = std::atan2(eta * std::cos(dec0) + std::sin(dec0), std::hypot(xi, denom));
     ra = std::fmod(ra, 360.0);
     if (ra < 0.0) ra += 360.0;
-    return {ra, dec / deg};
+    return {ra, dec / degree};
 }
 
 PixelPosition Wcs::sky_to_pixel(double ra, double dec) const {
-    const double dra = (ra - crval1) * deg, d = dec * deg, d0 = crval2 * deg;
+    const double dra = (ra - crval1) * degree, d = dec * degree, d0 = crval2 * degree;
     const double cos_c = std::sin(d) * std::sin(d0) + std::cos(d) * std::cos(d0) * std::cos(dra);
     if (!(cos_c > 0.0))
         throw Error("(" + std::to_string(ra) + ", " + std::to_string(dec) +
                     ") is 90 degrees or more from the WCS reference point");
-    const double xi = std::cos(d) * std::sin(dra) / cos_c / deg;
+    const double xi = std::cos(d) * std::sin(dra) / cos_c / degree;
     const double eta =
-        (std::cos(d0) * std::sin(d) - std::sin(d0) * std::cos(d) * std::cos(dra)) / cos_c / deg;
+        (std::cos(d0) * std::sin(d) - std::sin(d0) * std::cos(d) * std::cos(dra)) / cos_c / degree;
     // Invert the 2×2 CD matrix (validated non-singular), then the distortion: Newton on
     // distort(u, v) = (u′, v′), from (u′, v′); SIP terms are small, so it converges in a few
     // steps (the Jacobian by central differences of 1e−3 pixel, exact for the quadratic part).
@@ -164,7 +164,7 @@ Wcs tan_wcs(double ra, double dec, double pixel_scale_arcsec, double crpix1, dou
     w.crpix1 = crpix1;
     w.crpix2 = crpix2;
     // CDELT1 = −s (east left), CDELT2 = s (north up), rotated as FITS CROTA2 (read_cd).
-    const double s = pixel_scale_arcsec / 3600.0, rho = rotation_deg * deg;
+    const double s = pixel_scale_arcsec / 3600.0, rho = rotation_deg * degree;
     w.cd1_1 = -s * std::cos(rho);
     w.cd1_2 = -s * std::sin(rho);
     w.cd2_1 = -s * std::sin(rho);

@@ -1,5 +1,6 @@
 #include "shapesim/measure.hpp"
 
+#include "shapesim/constants.hpp"
 #include "shapesim/error.hpp"
 
 #include <algorithm>
@@ -44,7 +45,7 @@ MorphRecord measure_object(const DetectionResult& field, const Detection& object
     r.theta = source.theta;
     if (source.a && source.b && source.theta && *source.a > 0.0) {
         const double a2 = *source.a * *source.a, b2 = *source.b * *source.b;
-        const double e = (a2 - b2) / (a2 + b2), t = 2.0 * *source.theta * M_PI / 180.0;
+        const double e = (a2 - b2) / (a2 + b2), t = 2.0 * *source.theta * pi / 180.0;
         r.e1 = e * std::cos(t);
         r.e2 = e * std::sin(t);
     }

@@ -1,5 +1,6 @@
 #include "shapesim/morphology.hpp"
 
+#include "shapesim/constants.hpp"
 #include "shapesim/deconvolution.hpp"
 #include "shapesim/error.hpp"
 #include "shapesim/jsonl.hpp"
@@ -19,8 +20,6 @@ namespace shapesim {
 
 namespace {
 
-constexpr double pi = 3.14159265358979323846;
-constexpr double degree = pi / 180.0;
 
 bool nonzero(Complex c, double scale) { return std::abs(c) > 1e-12 * scale; }
 

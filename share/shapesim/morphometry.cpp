@@ -1,5 +1,6 @@
 #include "shapesim/morphometry.hpp"
 
+#include "shapesim/constants.hpp"
 #include "shapesim/error.hpp"
 #include "shapesim/optimize.hpp"
 
@@ -18,7 +19,6 @@ namespace shapesim {
 
 namespace {
 
-constexpr double pi = 3.14159265358979323846;
 constexpr double nan = std::numeric_limits<double>::quiet_NaN();
 
 using Grid = Eigen::Array<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>;

@@ -1,7 +1,8 @@
 #include "shapesim/noise.hpp"
 
-#include "shapesim/compare.hpp"
+#include "shapesim/constants.hpp"
 #include "shapesim/error.hpp"
+#include "shapesim/statistics.hpp"
 
 #include <Eigen/SVD>
 
@@ -14,7 +15,6 @@ namespace shapesim {
 
 namespace {
 
-constexpr double pi = 3.14159265358979323846;
 
 int side(int radius) { return 2 * radius + 1; }
 

@@ -1,14 +1,14 @@
 #include "shapesim/psf.hpp"
 
-#include "shapesim/compare.hpp"
 #include "shapesim/fits_io.hpp"
+#include "shapesim/statistics.hpp"
 
 #include "shapesim/error.hpp"
 #include "shapesim/jsonl.hpp"
-#include "shapesim/transform.hpp"
 #include "shapesim/lsq.hpp"
 #include "shapesim/moments.hpp"
 #include "shapesim/resample.hpp"
+#include "shapesim/transform.hpp"
 
 #include <algorithm>
 #include <cmath>

@@ -1,5 +1,7 @@
 #include "shapesim/records.hpp"
 
+#include "shapesim/constants.hpp"
+
 #include <cmath>
 #include <sstream>
 
@@ -145,7 +147,7 @@ ShapeletRecord nested_shapelet(const Json& j, const std::string& field) {
 double model_flux(const ShapeletModel& model) {
     double sum = 0.0;
     for (int n = 0; n <= model.n_max; n += 2) sum += model.at(n, 0).real();
-    return 2.0 * std::sqrt(M_PI) * model.beta_pix * sum;
+    return 2.0 * std::sqrt(pi) * model.beta_pix * sum;
 }
 
 const Names source_fields = {"id",  "x", "y", "ra",    "dec",  "flux",       "flux_err",

@@ -1,5 +1,6 @@
 #include "shapesim/sample.hpp"
 
+#include "shapesim/constants.hpp"
 #include "shapesim/error.hpp"
 #include "shapesim/moments.hpp"
 #include "shapesim/rng.hpp"
@@ -96,7 +97,6 @@ std::vector<Tile> tile_grid(long field_nx, long field_ny, long width, long heigh
 
 namespace {
 
-constexpr double degree = 3.14159265358979323846 / 180.0;
 
 // A uniform position over the field's pixel area.
 // A record of object `id` of `kind` at pixel position `p` of the field.

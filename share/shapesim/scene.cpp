@@ -1,6 +1,7 @@
 #include "shapesim/scene.hpp"
 
 #include "shapesim/basis1d.hpp"
+#include "shapesim/constants.hpp"
 #include "shapesim/convolve.hpp"
 #include "shapesim/error.hpp"
 #include "shapesim/parallel.hpp"
@@ -17,7 +18,6 @@ namespace shapesim {
 
 namespace {
 
-constexpr double pi = 3.14159265358979323846;
 // Cramér's bound |φ_n(u)| ≤ 1.086435 π^{−1/4}, rounded up.
 const double hermite_bound = 1.0865 * std::pow(pi, -0.25);
 

@@ -1,5 +1,6 @@
 #include "shapesim/stellarity.hpp"
 
+#include "shapesim/constants.hpp"
 #include "shapesim/error.hpp"
 #include "shapesim/render.hpp"
 #include "shapesim/resample.hpp"
@@ -13,7 +14,6 @@ namespace shapesim {
 
 namespace {
 
-constexpr double pi = 3.14159265358979323846;
 constexpr double model_floor = 0.02;  // relative ρ★ error allowed for the PSF model itself
 
 // A pixelised PSF whose centre sits at FITS (x, y) of the returned stamp.

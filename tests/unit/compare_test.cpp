@@ -91,3 +91,14 @@ TEST(Compare, PublishedTableRow) {
     }
     EXPECT_THROW(table_row_from_json(Json::parse(R"({"c_mean":1})")), Error);
 }
+
+// statistics.hpp: the upper median takes the ⌊n/2⌋-th smallest; median_of_values averages
+// the two middle values of an even sample.
+TEST(Statistics, UpperMedianAndMedian) {
+    std::vector<double> even = {4.0, 1.0, 3.0, 2.0}, odd = {5.0, -1.0, 2.0}, none;
+    EXPECT_EQ(median_of_values(even), 2.5);
+    EXPECT_EQ(upper_median(even), 3.0);
+    EXPECT_EQ(upper_median(odd), 2.0);
+    EXPECT_TRUE(std::isnan(upper_median(none)));
+    EXPECT_TRUE(std::isnan(median_of_values(none)));
+}
