@@ -23,7 +23,6 @@ namespace shapesim {
 
 namespace {
 
-
 // libsep's status text plus its detail buffer (sizes from sep.h's contract: 61 and 512).
 std::string sep_message(int status) {
     char message[64] = {};

@@ -20,7 +20,6 @@ namespace shapesim {
 
 namespace {
 
-
 bool nonzero(Complex c, double scale) { return std::abs(c) > 1e-12 * scale; }
 
 }  // namespace
@@ -206,6 +205,10 @@ void denoise_colours(Morphology& out, const std::vector<ShapeletRecord>& records
     for (std::size_t i = 0; i < out.points.size(); ++i) {
         const MorphologyPoint& p = out.points[i];
         const ShapeletRecord& r = records[i];
+        if (reference_band(r) != reference)
+            throw Error("record " + r.id + "'s reference band differs from record " +
+                            records.front().id + "'s",
+                        "", 0, "bands");
         Eigen::VectorXd x(d), sigma(d);
         bool known = true;
         for (std::size_t b = 0, k = 0; b < bands; ++b) {
@@ -219,10 +222,6 @@ void denoise_colours(Morphology& out, const std::vector<ShapeletRecord>& records
         const auto reference_error = statistical_flux_error(r.bands[reference]);
         known = known && reference_flux && *reference_flux > 0.0 && reference_error;
         Eigen::MatrixXd s = Eigen::MatrixXd::Zero(d, d);
-        if (reference_band(r) != reference)
-            throw Error("record " + r.id + "'s reference band differs from record " +
-                            records.front().id + "'s",
-                        "", 0, "bands");
         if (known) {
             // s_b = F_b / F_ref: Cov = (diag σ_b² + s sᵀ σ_ref²) / F_ref².
             s.diagonal() = sigma.array().square();
@@ -988,10 +987,6 @@ ShapeletModel placed_model(const std::vector<Complex>& shape, int n_max, double 
     }
     return model;
 }
-
-}  // namespace
-
-namespace {
 
 // The colour kernel (see the header): every band's drawn flux ratio, the reference's its own;
 // none when colours are not perturbed (δ, no reference band, h = 0).

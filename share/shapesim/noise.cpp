@@ -15,7 +15,6 @@ namespace shapesim {
 
 namespace {
 
-
 int side(int radius) { return 2 * radius + 1; }
 
 // Square dilation of `blocked` (row-major ny × nx) by `grow` pixels: two 1-D passes.

@@ -97,7 +97,6 @@ std::vector<Tile> tile_grid(long field_nx, long field_ny, long width, long heigh
 
 namespace {
 
-
 // A uniform position over the field's pixel area.
 // A record of object `id` of `kind` at pixel position `p` of the field.
 // Band b of a drawn object, in units where the reference band has the simulation's zero point
