@@ -191,12 +191,10 @@ std::optional<std::size_t> reference_band(const ShapeletRecord& r) {
     return std::nullopt;
 }
 
-// Each point's flux ratios, denoised (see the header).
+// Each point's flux ratios, denoised (see the header); out.reference_band set.
 void denoise_colours(Morphology& out, const std::vector<ShapeletRecord>& records) {
     const std::size_t bands = out.bands.size();
-    const std::optional<std::size_t> found = reference_band(records.front());
-    if (!found) return;
-    const std::size_t reference = *found;
+    const std::size_t reference = *out.reference_band;
     const Eigen::Index d = Eigen::Index(bands) - 1;
     // V has d(d+1)/2 numbers: with fewer points than d + 2 there is nothing to deconvolve.
     if (d < 1 || out.points.size() < std::size_t(d) + 2) return;
@@ -245,10 +243,8 @@ void denoise_colours(Morphology& out, const std::vector<ShapeletRecord>& records
 }
 
 // The points' flux ratios: mean and covariance (divided by n), the reference's row and
-// column 0; the reference found as denoise_colours() finds it.
-void set_colour_population(Morphology& out, const std::vector<ShapeletRecord>& records) {
-    out.reference_band = reference_band(records.front());
-    if (!out.reference_band) return;
+// column 0; out.reference_band set.
+void set_colour_population(Morphology& out) {
     const std::size_t bands = out.bands.size();
     const double n = double(out.points.size());
     Eigen::VectorXd mean = Eigen::VectorXd::Zero(Eigen::Index(bands));
@@ -295,7 +291,8 @@ Morphology build_morphology(const std::vector<ShapeletRecord>& records,
     }
     if (!out.bands.empty() && out.points.size() != records.size())
         throw Error("internal: band points lost", "", 0, "bands");
-    if (!out.bands.empty() && !options.keep_colour_noise) denoise_colours(out, records);
+    if (!out.bands.empty()) out.reference_band = reference_band(records.front());
+    if (out.reference_band && !options.keep_colour_noise) denoise_colours(out, records);
     SmoothingLengths& l = out.lambda;
     const double k = options.delta ? 0.0 : options.k;
     l.phase_deg = options.delta ? 0.0 : options.phase_deg;
@@ -321,7 +318,7 @@ Morphology build_morphology(const std::vector<ShapeletRecord>& records,
         l.coefficient[i] = k * mean_nearest_neighbour_separation(axis);
     }
     if (!out.bands.empty()) {
-        set_colour_population(out, records);
+        if (out.reference_band) set_colour_population(out);
         l.colour = options.delta || !out.reference_band ? 0.0 : options.colour;
     }
     // One zero point when every record agrees.
@@ -988,9 +985,9 @@ ShapeletModel placed_model(const std::vector<Complex>& shape, int n_max, double 
     return model;
 }
 
-// The colour kernel (see the header): every band's drawn flux ratio, the reference's its own;
-// none when colours are not perturbed (δ, no reference band, h = 0).
-std::vector<double> drawn_ratios(const Morphology& m, const MorphologyPoint& parent,
+// The colour kernel (see the header): every band's drawn flux ratio from the parent's,
+// the reference's its own; none when colours are not perturbed (δ, no reference band, h = 0).
+std::vector<double> drawn_ratios(const Morphology& m, const std::vector<double>& parent,
                                  RandomStream& stream) {
     const double h = m.lambda.colour;
     const Eigen::Index n = Eigen::Index(m.bands.size());
@@ -1001,7 +998,7 @@ std::vector<double> drawn_ratios(const Morphology& m, const MorphologyPoint& par
     const double shrink = 1.0 / std::sqrt(1.0 + h * h);
     std::vector<double> out(m.bands.size());
     for (std::size_t b = 0; b < out.size(); ++b) {
-        const double own = flux_ratio(parent, b), mean = m.colour_mean[b];
+        const double own = parent[b], mean = m.colour_mean[b];
         out[b] = b == *m.reference_band
                      ? own
                      : std::max(0.0, mean + (own - mean + kick(Eigen::Index(b))) * shrink);
@@ -1090,12 +1087,16 @@ DrawnGalaxy draw_galaxy(const Morphology& morphology, const std::vector<double>&
     g.perturbation = drawn.norm > 0.0 ? std::sqrt(drawn.change / drawn.norm) : 0.0;
     // Each band: the parent's, plus the reference perturbation at the parent's mean colour,
     // then the colour kernel (drawn last: one-band draws are unchanged).
-    const std::vector<double> ratios = drawn_ratios(morphology, shape_parent, stream);
+    std::vector<double> parent_ratios;
+    for (std::size_t b = 0; b < shape_parent.band_shapes.size(); ++b) {
+        // (A parent's flux sum is > 0: build_morphology's records have flux > 0.)
+        const double ratio = flux_ratio(shape_parent, b);
+        parent_ratios.push_back(std::isfinite(ratio) ? ratio : 0.0);
+    }
+    const std::vector<double> ratios = drawn_ratios(morphology, parent_ratios, stream);
     for (std::size_t b = 0; b < shape_parent.band_shapes.size(); ++b) {
         const std::vector<Complex>& own = shape_parent.band_shapes[b];
-        // (A parent's flux sum is > 0: build_morphology's records have flux > 0.)
-        const double parent_ratio = flux_ratio(shape_parent, b);
-        const double ratio = std::isfinite(parent_ratio) ? parent_ratio : 0.0;
+        const double ratio = parent_ratios[b];
         const double change = ratios.empty() ? 0.0 : ratios[b] - ratio;
         std::vector<Complex> band(own.size());
         for (std::size_t k = 0; k < own.size(); ++k)

@@ -56,10 +56,11 @@
 // population (§4.2.1), so the draws have the parents' mean and covariance. SEDs are smooth and
 // neighbouring bands' ratios move together: a kernel per band would widen every adjacent
 // colour by its own width. h = SmoothingLengths::colour, 0.25 by default (SmoothOptions;
-// measured on the XDF, README: the d-dimensional normal-reference rule, 0.6 for 102 parents in
-// 8 dimensions, blurs the colour distributions' clumps), 0 in δ mode (a δ draw copies every band). The change s' − s enters as the drawn reference shape times it (a
-// uniform colour change; the parent's gradients stay). The bands are placed with the same
-// a_{0,0}, β, rotation and reflection as the reference.
+// measured on the XDF, README: the d-dimensional normal-reference rule, 0.6 for 102 parents
+// in 8 dimensions, blurs the colour distributions' clumps), 0 in δ mode (a δ draw copies
+// every band). The change s' − s enters as the drawn reference shape times it (a uniform
+// colour change; the parent's gradients stay). The bands are placed with the same a_{0,0},
+// β, rotation and reflection as the reference.
 //
 // A parent's measured flux ratios s_b carry its measurement noise, and a simulation adds its
 // own noise on top: a faint band's colours come out twice as noisy as the real ones. So
@@ -239,8 +240,8 @@ struct Morphology {
     void prepare();
 };
 
-/// Multi-band: band b's flux over the reference band's (the point's shape), s_b = Σ_{n even} c_{b,n,0} / Σ_{n even}
-/// c_{n,0} (NaN when the reference's sum is 0).
+/// Multi-band: band b's flux over the reference band's (the point's shape),
+/// s_b = Σ_{n even} c_{b,n,0} / Σ_{n even} c_{n,0} (NaN when the reference's sum is 0).
 double flux_ratio(const MorphologyPoint& p, std::size_t band);
 
 /// Mean over the values of the distance to the nearest other value (0 for fewer than two).
