@@ -114,6 +114,10 @@ void declare(app::ProgramOptions& options, Settings& s) {
          "flag holes a model dipping below zero by more than this fraction of its peak, or "
          "with more than this fraction of its light below zero (an intrinsic model as seen "
          "through its PSF)")
+        ("max-unsupported", po::value(&f.max_unsupported)->default_value(0.2)
+             ->notifier(in_range("max-unsupported", 0.0, 1.0)),
+         "flag unsupported a model with more than this fraction of its light where no datum "
+         "constrains it (outside the stamp, on a neighbour's pixels, at zero weight)")
         ("noise-correlation", po::value(&s.noise_correlation)->value_name("F")
              ->notifier(in_range("noise-correlation", 1.0, 100.0)),
          "correlated-noise factor for the effective degrees of freedom (default: the "

@@ -38,8 +38,10 @@ const char* const description =
 struct Settings {
     // Every fit that is a faithful model: whatever stopped its order search (converged,
     // flattened at the noise, the cap, the stamp), unless χ²_r says it misses real structure
-    // ("bad_fit"). The paper's `converged|n_max_cap` is one --require away.
-    std::string input = "-", require, reject = "edge,bright_star,noise,bad_fit,holes", weight_field;
+    // ("bad_fit"), rings ("holes") or lies off its data ("unsupported"). The paper's
+    // `converged|n_max_cap` is one --require away.
+    std::string input = "-", require, reject = "edge,bright_star,noise,bad_fit,holes,unsupported",
+                weight_field;
     double k = 4.0, phase = 15.0, beta = 0.0, mag = 0.0, modulus = 0.0, mag_limit = 0.0, area = 0.0,
            pixel_scale = 0.0;
     bool delta = false;
@@ -75,9 +77,10 @@ int run(int argc, const char* const argv[]) {
          "keep records carrying all these flags (comma-separated; empty: all; A|B: either);\n"
          "the paper's selection: converged|n_max_cap")
         ("reject", po::value(&s.reject)->value_name("FLAGS")
-             ->default_value("edge,bright_star,noise,bad_fit,holes"),
+             ->default_value(s.reject),
          "drop records carrying any of these flags (bad_fit: chi2_r above "
-         "shapesim-decompose --bad-fit-chi2r; holes: dips below zero beyond its --max-hole)")
+         "shapesim-decompose --bad-fit-chi2r; holes: dips below zero beyond its --max-hole; "
+         "unsupported: light off the data beyond its --max-unsupported)")
         ("mag-limit", po::value(&s.mag_limit)->value_name("MAG"),
          "drop records fainter than this")
         ("area", po::value(&s.area)->value_name("ARCMIN2")->notifier(in_range("area", 1e-9, 1e9)),
@@ -216,11 +219,12 @@ int run(int argc, const char* const argv[]) {
         }
         if (field < fields.size() && r.mag && record.value("kind", std::string("galaxy")) != "star")
             fields[field].mags.push_back(*r.mag);
+        // Counted under the first reason, in the order the options list them.
         std::string why;
         for (const auto& f : required)
-            if (!has_any(r.flags, f)) why = "not " + f;
+            if (why.empty() && !has_any(r.flags, f)) why = "not " + f;
         for (const auto& f : rejected)
-            if (has(r.flags, f)) why = f;
+            if (why.empty() && has(r.flags, f)) why = f;
         if (why.empty() && !r.mag) why = "no magnitude";
         if (why.empty() && options.given("mag-limit") && *r.mag > s.mag_limit) why = "fainter than --mag-limit";
         if (why.empty() && !(r.coeffs[0].real() > 0.0)) why = "a_00 <= 0";

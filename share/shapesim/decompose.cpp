@@ -33,6 +33,8 @@ void DecomposeOptions::validate() const {
     if (!(order_sigmas >= 0.0 && std::isfinite(order_sigmas))) fail("order_sigmas", "must be ≥ 0");
     if (!(bad_fit_chi2r > 0.0)) fail("bad_fit_chi2r", "must be > 0");
     if (!(max_hole >= 0.0)) fail("max_hole", "must be ≥ 0");
+    if (!(max_unsupported >= 0.0 && max_unsupported <= 1.0))
+        fail("max_unsupported", "must be in [0, 1]");
     if (!(noise_correlation >= 1.0 && std::isfinite(noise_correlation)))
         fail("noise_correlation", "must be ≥ 1");
 }
@@ -328,6 +330,29 @@ std::optional<EllipticalFit> fit_elliptical(const JointProblem& problem, const J
     return best;
 }
 
+// The share of a model's light that no datum constrains: outside the stamp, on a neighbour's
+// (masked) pixels or on pixels of zero weight. The fit is free to put light there (a scale
+// grown to the stamp's size to take up a neighbour's wings, extrapolated past the edge).
+double unsupported_light(const CartesianModel& model, const BandStamp& band) {
+    const ImageArray& weight = *band.weight;
+    const Eigen::Index nx = weight.cols(), ny = weight.rows();
+    // Out to where a Gaussian-weighted series is ~e^{-4.5} of its centre and beyond.
+    const double extent = model.beta_pix * (std::sqrt(2.0 * model.n_max + 1.0) + 3.0);
+    const int margin = int(std::ceil(std::min(extent, 1024.0)));
+    CartesianModel shifted = model;
+    shifted.x += margin;
+    shifted.y += margin;
+    const ImageArray all = render_stamp(shifted, int(nx) + 2 * margin, int(ny) + 2 * margin);
+    double supported = 0.0;
+    for (Eigen::Index j = 0; j < ny; ++j)
+        for (Eigen::Index i = 0; i < nx; ++i)
+            if (weight(j, i) > 0.0 && !(band.mask && (*band.mask)(j, i) != 0))
+                supported += all(j + margin, i + margin);
+    const double total = all.sum();
+    // No positive light at all is the noise flag's case, not this one's.
+    return total > 0.0 ? 1.0 - supported / total : std::numeric_limits<double>::quiet_NaN();
+}
+
 }  // namespace
 
 Decomposition decompose(const ImageArray& image, const ImageArray& weight, const MaskArray* mask,
@@ -475,11 +500,13 @@ Decomposition decompose_bands(const std::vector<BandStamp>& bands, double x, dou
     // faint band's own coefficients ring with its noise at the order the bright bands chose).
     const auto& psf = problem.options(0).psf;
     const ShapeletModel judged = problem.centroid_model(kept);
-    const PixelHoles holes =
-        pixel_holes(psf ? convolve(to_cartesian(judged), *psf) : to_cartesian(judged));
+    const CartesianModel seen = psf ? convolve(to_cartesian(judged), *psf) : to_cartesian(judged);
+    const PixelHoles holes = pixel_holes(seen);
     out.hole = holes.depth;
     out.negative_light = holes.negative_light;
     out.holes = !(out.hole <= options.max_hole && out.negative_light <= options.max_hole);
+    out.unsupported_light = unsupported_light(seen, bands.front());
+    out.unsupported = out.unsupported_light > options.max_unsupported;
 
     // Each band's flux error: the fixed-β error, β's share from the joint profile χ² at
     // ln β ± h, and truncation's share.
@@ -633,10 +660,12 @@ ShapeletRecord shapelet_record(const SourceRecord& source, const Decomposition& 
     if (decomposition.elliptical) r.flags.push_back("elliptical");
     if (decomposition.bad_fit) r.flags.push_back("bad_fit");
     if (decomposition.holes) r.flags.push_back("holes");
+    if (decomposition.unsupported) r.flags.push_back("unsupported");
     // Undefined (null) for a model with no positive peak or total: all hole.
     const auto finite_or_null = [](double v) { return std::isfinite(v) ? Json(v) : Json(nullptr); };
     r.extra["hole_depth"] = finite_or_null(decomposition.hole);
     r.extra["negative_light"] = finite_or_null(decomposition.negative_light);
+    r.extra["unsupported_light"] = finite_or_null(decomposition.unsupported_light);
     const double reach = fit.model.beta_pix * std::sqrt(fit.model.n_max + 1.0);
     if (has(source.flags, "blended") ||
         masked_fraction(stamp, fit.model.x, fit.model.y, reach) > 0.05)

@@ -71,6 +71,12 @@ struct DecomposeOptions {
     /// intrinsic model through its PSF, as the data see it), is flagged "holes": light is never
     /// negative, and such a model rings (noise fitted, a truncated series).
     double max_hole = 0.1;
+    /// A model with more than this fraction of its light (as the data see it) where no datum
+    /// constrains it — outside the stamp, on a neighbour's masked pixels, at zero weight — is
+    /// flagged "unsupported": its scale ran away to take up a neighbour's wings or to
+    /// extrapolate past the edge (XDF: a 15-pixel source fitted with β 9.7 pixels and 48 times
+    /// its aperture flux). Well-fitted models put ≤ 2% there (HDF: none above 0.1).
+    double max_unsupported = 0.2;
     double noise_correlation = 1.0;///< F for the effective degrees of freedom (see above)
     /// Where the order search ends at n_max 0 (a round Gaussian), try an elliptical Gaussian
     /// (see "The elliptical lowest order" above) and keep it when significant.
@@ -115,6 +121,8 @@ struct Decomposition {
     double hole = 0.0;     ///< its holes' depth, of the peak (render.hpp pixel_holes) …
     double negative_light = 0.0;  ///< … and the light below zero, of the total
     bool holes = false;    ///< either above max_hole
+    double unsupported_light = 0.0;  ///< its light off the data (NaN: none positive)
+    bool unsupported = false;          ///< above max_unsupported
     double flux_error = 0.0;  ///< 1σ, with β's and truncation's shares (see decompose())
     double truncation_error = 0.0;  ///< truncation's share alone
     long fits = 0;         ///< linear fits performed
@@ -204,6 +212,7 @@ double flux_error(const ShapeletFit& fit);
 ///  - flags: "converged" or "not_converged"; "n_max_cap"; "bad_fit" (χ²_r above
 ///    bad_fit_chi2r: the model misses real structure); "holes" (the model dips below zero
 ///    by more than max_hole of its peak or of its light; `hole_depth`, `negative_light`);
+///    "unsupported" (more than max_unsupported of its light off the data, `unsupported_light`);
 ///    "neighbour" (the source was
 ///    deblended, or more than 5% of the pixels within the model's reach β√(n_max+1) belong
 ///    to a neighbour); "edge" (the segment or the paper's 3a + 5 square cut by the image edge); "noise" (model flux

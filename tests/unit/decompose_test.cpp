@@ -45,6 +45,9 @@ TEST(DecomposeOptions, RefusesOutOfRangeValues) {
     o = DecomposeOptions{};
     o.theta_min = 0.0;
     EXPECT_THROW(o.validate(), Error);
+    o = DecomposeOptions{};
+    o.max_unsupported = 1.5;
+    EXPECT_THROW(o.validate(), Error);
 }
 
 // A noise-free model is found at its own n_max or below (fewer coefficients can already fit
@@ -441,6 +444,36 @@ TEST(DecomposeOrders, ModelsRingingBelowZeroAreFlaggedHoles) {
     EXPECT_NEAR(w.negative_light, truth.negative_light, 0.05);
     EXPECT_TRUE(w.holes);
     EXPECT_DOUBLE_EQ(record_of(w, side).extra.at("negative_light").get<double>(), w.negative_light);
+}
+
+// The light a model puts where no datum constrains it. A round Gaussian (β 3 px) whose right
+// side from 3.5 px off its centre is a neighbour's (masked): the fit recovers it from the
+// rest, and the share of its light on the mask is the Gaussian's tail, Φ(−3.5/3) = 0.1217
+// (its light beyond the stamp's edges, 6.5β away, is negligible). Masked from 0.5 px left of
+// the centre, the share is Φ(0.5/3) = 0.566: more than max_unsupported, flagged.
+TEST(DecomposeOrders, LightOffTheDataIsMeasuredAndFlaggedUnsupported) {
+    const int side = 41;
+    ShapeletModel truth(20.0, 20.0, 3.0, 0);
+    truth.coeffs[0] = 100.0;
+    const ImageArray image = render_stamp(truth, side, side);
+    const ImageArray weight = ImageArray::Constant(side, side, 1e6);
+    const auto normal_tail = [](double z) { return 0.5 * std::erfc(z / std::sqrt(2.0)); };
+    for (const int first_masked : {24, 20}) {  // FITS column: its left edge at first − 0.5
+        MaskArray mask = MaskArray::Zero(side, side);
+        mask.rightCols(side - (first_masked - 1)).setConstant(1);
+        const Decomposition d = decompose(image, weight, &mask, 20.3, 19.8, 2.5, DecomposeOptions{});
+        const double expected = normal_tail((first_masked - 0.5 - truth.x) / truth.beta_pix);
+        report("unsupported_light_" + std::to_string(first_masked), d.unsupported_light);
+        EXPECT_NEAR(d.unsupported_light, expected, 2e-3) << "mask from column " << first_masked;
+        EXPECT_EQ(d.unsupported, expected > DecomposeOptions{}.max_unsupported);
+        const ShapeletRecord r = record_of(d, side);
+        EXPECT_EQ(has_flag(r, "unsupported"), d.unsupported);
+        EXPECT_DOUBLE_EQ(r.extra.at("unsupported_light").get<double>(), d.unsupported_light);
+    }
+    // Unmasked, the same galaxy's light is all on its data.
+    const Decomposition clear = decompose(image, weight, nullptr, 20.3, 19.8, 2.5, DecomposeOptions{});
+    EXPECT_LT(clear.unsupported_light, 1e-6);
+    EXPECT_FALSE(clear.unsupported);
 }
 
 // An intrinsic fit is judged as the data see it, through its PSF: a compact model ringing

@@ -50,15 +50,15 @@ field ground "$TMPDIR/ground.fits" '[14:45,80:111]'
 # Real vs δ, measured alike (stars, stellarity > 0.9, left out). The δ simulation draws the
 # kept models at the field's density, with replacement, so: the counts agree within Poisson
 # (2σ + 1), and every δ galaxy brighter than 24 is a kept model's (within 0.2 mag), or a blend
-# of drawn kept models (their light within 10 pixels, to 0.3 mag; seed 7 puts two copies of the
-# XDF's I = 23.8 galaxy 14 pixels apart): nothing bright is invented and no rejected model is
-# drawn. The ground frame's brightest galaxy (the
+# of drawn kept models (their light within 15 pixels, to 0.3 mag; seed 7 puts an I = 25.6
+# galaxy 10 pixels from a copy of the XDF's I = 23.8 one): nothing bright is invented and no
+# rejected model is drawn. The ground frame's brightest galaxy (the
 # XDF's I = 20.3 spiral through the seeing) is modelled and kept, its magnitude within 0.15 of
 # the measured one. On the XDF itself it is not yet: its fit stops at the n_max cap with χ²_r
 # 5.2, is flagged bad_fit, and smooth leaves it out (issue 14).
 python3 - <<'PY' || fail "the δ simulations do not give the fields back"
 import json, math
-rejected = {"edge", "bright_star", "noise", "bad_fit", "holes"}
+rejected = {"edge", "bright_star", "noise", "bad_fit", "holes", "unsupported"}
 def mags(path):
     return sorted(r["mag"] for r in map(json.loads, open(path))
                   if r.get("mag") is not None and r["stellarity"] <= 0.9)
@@ -72,7 +72,7 @@ for name, limit in (("xdf", 27.0), ("ground", 25.0)):
     assert n_real >= 4, (name, "too few real galaxies", n_real)
     assert abs(n_delta - n_real) <= 2 * math.sqrt(n_real) + 1, (name, n_real, n_delta)
     # A δ galaxy brighter than 24 is a kept model's, or (random positions blend the draws) the
-    # light of the drawn objects within 10 pixels of it together.
+    # light of the drawn objects within 15 pixels of it together.
     drawn = [json.loads(l) for l in open(name + "/objects.jsonl")]
     for r in map(json.loads, open(name + "/delta.morph.jsonl")):
         if r.get("mag") is None or r["stellarity"] > 0.9 or r["mag"] >= 24:
@@ -80,7 +80,7 @@ for name, limit in (("xdf", 27.0), ("ground", 25.0)):
         m = r["mag"]
         if min(abs(m - k) for k in kept) < 0.2:
             continue
-        near = [o["mag"] for o in drawn if math.hypot(o["x"] - r["x"], o["y"] - r["y"]) < 10]
+        near = [o["mag"] for o in drawn if math.hypot(o["x"] - r["x"], o["y"] - r["y"]) < 15]
         together = -2.5 * math.log10(sum(10 ** (-0.4 * k) for k in near)) if near else 99
         assert abs(m - together) < 0.3 and all(min(abs(k - q) for q in kept) < 1e-6 for k in near
                                                if k < 24), (name, "δ galaxy of no kept model", m, near)
