@@ -6,6 +6,7 @@
 #include "shapesim/polar.hpp"
 #include "shapesim/render.hpp"
 
+#include <algorithm>
 #include <cmath>
 #include <optional>
 #include <string>
@@ -236,6 +237,60 @@ ShapeletFit fit_shape_amplitude(const ImageArray& image, const ImageArray& weigh
     fit.chi2r = fit.chi2 / double(fit.dof);
     fit.solver_used = LsqSolver::normal;
     return fit;
+}
+
+namespace {
+// (R b)(p) = Σ_d ξ(d) b(p + d) over the stamp (b is zero beyond it).
+Eigen::MatrixXd correlate(const Eigen::MatrixXd& b, const NoiseCorrelation& xi) {
+    const Eigen::Index ny = b.rows(), nx = b.cols();
+    Eigen::MatrixXd out = Eigen::MatrixXd::Zero(ny, nx);
+    for (int dy = -xi.radius; dy <= xi.radius; ++dy)
+        for (int dx = -xi.radius; dx <= xi.radius; ++dx) {
+            const double w = xi.at(dx, dy);
+            const Eigen::Index j0 = std::max<Eigen::Index>(0, -dy), i0 = std::max<Eigen::Index>(0, -dx);
+            const Eigen::Index h = std::min(ny, ny - dy) - j0, wd = std::min(nx, nx - dx) - i0;
+            if (w == 0.0 || h <= 0 || wd <= 0) continue;
+            out.block(j0, i0, h, wd) += w * b.block(j0 + dy, i0 + dx, h, wd);
+        }
+    return out;
+}
+}  // namespace
+
+double noise_take_up(const ImageArray& image, const ImageArray& weight, const MaskArray* mask,
+                     double x, double y, double beta_pix, int n_max, const NoiseCorrelation& xi,
+                     const CartesianModel* psf) {
+    check_fit_inputs(n_max, beta_pix);
+    require(xi.radius >= 0 && xi.values.size() == std::size_t((2 * xi.radius + 1) * (2 * xi.radius + 1)),
+            "noise_take_up: the correlation's values do not match its radius");
+    const CleanStamp s = clean_stamp(image, weight, mask);
+    check_pixels(s, n_max);
+    // The design at the scale and order the data are fitted with (convolve.hpp for the PSF's).
+    const int n_out = psf ? n_max + psf->n_max : n_max;
+    const double scale = psf ? convolved_beta(beta_pix, psf->beta_pix) : beta_pix;
+    const int nx = int(image.cols()), ny = int(image.rows());
+    const Eigen::MatrixXd phi_x = pixel_basis_1d(n_out, scale, 1.0 - x, nx);
+    const Eigen::MatrixXd phi_y = pixel_basis_1d(n_out, scale, 1.0 - y, ny);
+    const Eigen::MatrixXd root = s.weight.cwiseSqrt();
+    Eigen::MatrixXd normal = normal_system(s, phi_x, phi_y, n_out).normal;  // BᵀB
+    const int nc = real_count(n_out);
+    Eigen::MatrixXd spread(nc, nc);  // BᵀRB, column by column
+    for (int n = 0; n <= n_out; ++n)
+        for (int n1 = 0; n1 <= n; ++n1) {
+            const Eigen::MatrixXd column =
+                root.cwiseProduct(phi_y.row(n - n1).transpose() * phi_x.row(n1));
+            const Eigen::MatrixXd projected =
+                phi_y * root.cwiseProduct(correlate(column, xi)) * phi_x.transpose();
+            const int k = cartesian_index(n1, n - n1);
+            for (int m = 0; m <= n_out; ++m)
+                for (int m1 = 0; m1 <= m; ++m1)
+                    spread(cartesian_index(m1, m - m1), k) = projected(m - m1, m1);
+        }
+    if (psf) {
+        const Eigen::MatrixXd map = cartesian_convolution_matrix(*psf, beta_pix, n_max);
+        normal = map.transpose() * normal * map;
+        spread = map.transpose() * spread * map;
+    }
+    return normal.ldlt().solve(spread).trace();
 }
 
 }  // namespace shapesim

@@ -48,11 +48,6 @@ double cdf_from_quantiles(const std::vector<double>& q, double x) {
 
 }  // namespace
 
-double NoiseCorrelation::at(int dx, int dy) const {
-    if (std::abs(dx) > radius || std::abs(dy) > radius) return 0.0;
-    return values[std::size_t((dy + radius) * side(radius) + dx + radius)];
-}
-
 // ---------------------------------------------------------------------------------------------
 // The record
 

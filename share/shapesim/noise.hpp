@@ -26,6 +26,7 @@
 // multiply-adds.
 #pragma once
 
+#include "shapesim/correlation.hpp"
 #include "shapesim/detect.hpp"
 #include "shapesim/jsonl.hpp"
 
@@ -34,13 +35,6 @@
 #include <vector>
 
 namespace shapesim {
-
-/// A normalised 2-D autocorrelation ξ(dx, dy), |dx|, |dy| ≤ radius.
-struct NoiseCorrelation {
-    int radius = 0;
-    std::vector<double> values;  ///< (2·radius + 1)², row-major: index (dy + r)(2r + 1) + dx + r
-    double at(int dx, int dy) const;
-};
 
 /// The measured sky noise of an image (`shapesim.noise/1`, from shapesim-detect).
 struct NoiseRecord {

@@ -1,11 +1,13 @@
 // Weighted least-squares decomposition: exact recovery, honest errors, bad input.
 #include "shapesim/lsq.hpp"
 
+#include "shapesim/constants.hpp"
 #include "shapesim/convolve.hpp"
 #include "shapesim/error.hpp"
 #include "shapesim/moments.hpp"
 #include "shapesim/polar.hpp"
 #include "shapesim/render.hpp"
+#include "shapesim/rng.hpp"
 #include "test_support.hpp"
 
 #include <gtest/gtest.h>
@@ -226,4 +228,118 @@ TEST(LsqAmplitude, RecoversTheAmplitudeOfAFixedShape) {
     std::cout << "  [measured] amplitude pull rms " << rms << "\n";
     EXPECT_NEAR(rms, 1.0, 0.12);
     EXPECT_THROW(fit_shape_amplitude(plain, ImageArray::Zero(40, 40), nullptr, 20.0, 20.0, shape), Error);
+}
+
+namespace {
+// The correlation of white noise smoothed by [1, 2, 1] ⊗ [1, 2, 1] (ξ = k ⋆ k / Σk², radius 2;
+// F² = (Σk)²/Σk² = 256/36), and the smoothing itself, for the noise take-up tests.
+const double smoothing[3] = {1.0, 2.0, 1.0};
+NoiseCorrelation smoothed_white_correlation() {
+    NoiseCorrelation xi;
+    xi.radius = 2;
+    double auto1d[5] = {0, 0, 0, 0, 0};
+    for (int d = -2; d <= 2; ++d)
+        for (int a = 0; a < 3; ++a)
+            if (a + d >= 0 && a + d < 3) auto1d[d + 2] += smoothing[a] * smoothing[a + d];
+    for (int dy = -2; dy <= 2; ++dy)
+        for (int dx = -2; dx <= 2; ++dx)
+            xi.values.push_back(auto1d[dy + 2] * auto1d[dx + 2] / (auto1d[2] * auto1d[2]));
+    return xi;
+}
+
+// T = tr((BᵀB)⁻¹BᵀRB) the long way: every column of the design rendered on its own (a unit
+// Cartesian coefficient, through `psf` when given), R written out pixel by pixel.
+double brute_force_take_up(const ImageArray& weight, const MaskArray& mask, double x, double y,
+                           double beta, int n_max, const NoiseCorrelation& xi,
+                           const CartesianModel* psf) {
+    const int ny = int(weight.rows()), nx = int(weight.cols());
+    std::vector<std::pair<int, int>> used;
+    for (int j = 0; j < ny; ++j)
+        for (int i = 0; i < nx; ++i)
+            if (weight(j, i) > 0.0 && mask(j, i) == 0) used.push_back({j, i});
+    const int p = real_count(n_max);
+    Eigen::MatrixXd design(used.size(), p);
+    int k = 0;
+    for (int n = 0; n <= n_max; ++n)
+        for (int n1 = 0; n1 <= n; ++n1, ++k) {
+            CartesianModel unit(x, y, beta, n_max);
+            unit.b(n1, n - n1) = 1.0;
+            const ImageArray column = render_stamp(psf ? convolve(unit, *psf) : unit, nx, ny);
+            for (std::size_t r = 0; r < used.size(); ++r)
+                design(Eigen::Index(r), k) = std::sqrt(weight(used[r].first, used[r].second)) *
+                                             column(used[r].first, used[r].second);
+        }
+    Eigen::MatrixXd correlation(used.size(), used.size());
+    for (std::size_t a = 0; a < used.size(); ++a)
+        for (std::size_t b = 0; b < used.size(); ++b)
+            correlation(Eigen::Index(a), Eigen::Index(b)) =
+                xi.at(used[b].second - used[a].second, used[b].first - used[a].first);
+    const Eigen::MatrixXd normal = design.transpose() * design;
+    return normal.ldlt().solve(design.transpose() * correlation * design).trace();
+}
+}  // namespace
+
+// The exact noise take-up: p for white noise (with weights, a mask and through a PSF), the
+// brute-force trace for correlated noise, and the mean χ² a fit leaves on 400 noise images.
+TEST(LsqNoiseTakeUp, WhiteIsTheCountCorrelatedIsTheTrace) {
+    const int side = 13;
+    ImageArray weight(side, side);
+    std::mt19937_64 engine(3);
+    std::uniform_real_distribution<double> spread(0.5, 2.0);
+    for (Eigen::Index k = 0; k < weight.size(); ++k) weight.data()[k] = spread(engine);
+    MaskArray mask = MaskArray::Zero(side, side);
+    mask.block(0, 9, 4, 4).setConstant(1);
+    const ImageArray image = ImageArray::Zero(side, side);
+    const NoiseCorrelation white{0, {1.0}};
+    CartesianModel psf(0.0, 0.0, 1.2, 2);
+    psf.b(0, 0) = 1.0 / std::sqrt(4.0 * pi);
+    psf.b(2, 0) = psf.b(0, 2) = 0.05;
+    for (const CartesianModel* through : std::vector<const CartesianModel*>{nullptr, &psf}) {
+        EXPECT_NEAR(noise_take_up(image, weight, &mask, 6.7, 7.2, 1.8, 3, white, through),
+                    real_count(3), 1e-9);
+        const NoiseCorrelation xi = smoothed_white_correlation();
+        const double fast = noise_take_up(image, weight, &mask, 6.7, 7.2, 1.8, 3, xi, through);
+        const double brute = brute_force_take_up(weight, mask, 6.7, 7.2, 1.8, 3, xi, through);
+        EXPECT_NEAR(fast, brute, 1e-9 * brute) << (through ? "through the PSF" : "plain");
+    }
+}
+
+TEST(LsqNoiseTakeUp, IsTheMeanChi2AFitLeavesOnCorrelatedNoise) {
+    const int side = 25, n_max = 4, trials = 400;
+    const double beta = 2.5, centre = 13.0;
+    const NoiseCorrelation xi = smoothed_white_correlation();
+    const ImageArray weight = ImageArray::Ones(side, side);
+    const double take_up = noise_take_up(ImageArray::Zero(side, side), weight, nullptr, centre,
+                                         centre, beta, n_max, xi);
+    double sum = 0.0, sum2 = 0.0;
+    for (int t = 0; t < trials; ++t) {
+        RandomStream r(17, std::uint64_t(t), "take-up");
+        ImageArray white(side + 2, side + 2);
+        for (Eigen::Index k = 0; k < white.size(); ++k) white.data()[k] = r.gaussian();
+        ImageArray noise(side, side);
+        for (int j = 0; j < side; ++j)
+            for (int i = 0; i < side; ++i) {
+                double v = 0.0;
+                for (int b = 0; b < 3; ++b)
+                    for (int a = 0; a < 3; ++a) v += smoothing[b] * smoothing[a] * white(j + b, i + a);
+                noise(j, i) = v / 6.0;  // Σk² = 36: unit variance per pixel
+            }
+        const double left = side * side - fit_shapelets(noise, weight, nullptr, centre, centre,
+                                                       beta, n_max).chi2;
+        sum += left;
+        sum2 += left * left;
+    }
+    const double mean = sum / trials, error = std::sqrt((sum2 / trials - mean * mean) / trials);
+    const double f2_rule = real_count(n_max) * 256.0 / 36.0;
+    std::cout << "  [measured] take-up " << take_up << ", Monte Carlo " << mean << " ± " << error
+              << ", p·F² " << f2_rule << "\n";
+    EXPECT_NEAR(mean, take_up, 4.0 * error);
+    EXPECT_GT(std::abs(f2_rule - take_up), 8.0 * error);  // the exact trace is not the rule's
+}
+
+TEST(LsqNoiseTakeUp, RefusesACorrelationOfTheWrongSize) {
+    const NoiseCorrelation broken{1, {1.0, 0.5}};
+    EXPECT_THROW(noise_take_up(ImageArray::Zero(9, 9), ImageArray::Ones(9, 9), nullptr, 5.0, 5.0,
+                               2.0, 2, broken),
+                 Error);
 }
