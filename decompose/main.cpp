@@ -12,6 +12,7 @@
 #include "shapesim/fits_io.hpp"
 #include "shapesim/geometry.hpp"
 #include "shapesim/jsonl.hpp"
+#include "shapesim/noise.hpp"
 #include "shapesim/parallel.hpp"
 #include "shapesim/polar.hpp"
 #include "shapesim/psf.hpp"
@@ -52,7 +53,8 @@ const char* const description =
 struct Settings {
     std::string stamps, models, ids, stars;
     std::string psf_image, psf, reference_band;
-    std::vector<std::string> band_psfs;
+    std::vector<std::string> band_psfs, band_noise_models;
+    std::string noise_model;
     bool no_bands = false;
     double psf_pixel_scale = 0.0, pixel_scale = 0.0, psf_residual = 0.01;
     std::vector<double> psf_box;
@@ -84,6 +86,8 @@ void declare(app::ProgramOptions& options, Settings& s) {
          "the band whose model is the record's own (default: the record's first band)")
         ("band-psf", po::value(&s.band_psfs)->value_name("NAME=FILE")->composing(),
          "fit band NAME through this PSF record instead of --psf (repeatable)")
+        ("band-noise-model", po::value(&s.band_noise_models)->value_name("NAME=FILE")->composing(),
+         "band NAME's sky noise record instead of --noise-model (repeatable)")
         ("no-bands", po::bool_switch(&s.no_bands),
          "fit only the detection image's stamp, even when records carry bands");
     options.group("Optimiser").add_options()
@@ -122,6 +126,10 @@ void declare(app::ProgramOptions& options, Settings& s) {
              ->notifier(in_range("noise-correlation", 1.0, 100.0)),
          "correlated-noise factor for the effective degrees of freedom (default: the "
          "record's noise_correlation from shapesim-detect, else 1)")
+        ("noise-model", po::value(&s.noise_model)->value_name("FILE"),
+         "the image's sky noise record (shapesim-detect --noise-model): its measured "
+         "correlation gives each fit's exact noise take-up (degrees of freedom, order test) "
+         "instead of F^2 per coefficient")
         ("white-noise", po::bool_switch(&s.ignore_correlation),
          "use the textbook chi2_r (F = 1) even when the record has a factor")
         ("round-lowest", po::bool_switch(&s.round_lowest),
@@ -151,6 +159,14 @@ void declare(app::ProgramOptions& options, Settings& s) {
          "write data, model and residual images (<id>.data/.model/.residual) to this FITS file")
         ("ids", po::value(&s.ids)->value_name("LIST"),
          "with --models: only these ids (comma-separated; default all)");
+}
+
+// NAME=FILE of a repeatable per-band option.
+std::pair<std::string, std::string> name_and_file(const std::string& item, const char* option) {
+    const auto eq = item.find('=');
+    if (eq == std::string::npos || eq == 0 || eq + 1 == item.size())
+        throw po::error(std::string(option) + " wants NAME=FILE, got \"" + item + "\"");
+    return {item.substr(0, eq), item.substr(eq + 1)};
 }
 
 struct Job {
@@ -223,6 +239,8 @@ int run(int argc, const char* const argv[]) {
         throw po::error("--n-max-min must not exceed --n-max-cap");
     s.fit.validate();
     if (!s.ids.empty() && s.models.empty()) throw po::error("--ids needs --models");
+    if (s.ignore_correlation && (!s.noise_model.empty() || !s.band_noise_models.empty()))
+        throw po::error("--white-noise and a noise model exclude each other");
     if (!s.models.empty()) app::check_writable(s.models);
     if (!s.psf_image.empty()) return run_psf(s, options, log);
 
@@ -247,10 +265,15 @@ int run(int argc, const char* const argv[]) {
     std::map<std::string, ShapeletModel> band_psfs;  // --band-psf, arcsec
     std::map<std::pair<std::string, double>, CartesianModel> band_psfs_at;  // by pixel scale
     for (const std::string& item : s.band_psfs) {
-        const auto eq = item.find('=');
-        if (eq == std::string::npos || eq == 0 || eq + 1 == item.size())
-            throw po::error("--band-psf wants NAME=FILE, got \"" + item + "\"");
-        band_psfs[item.substr(0, eq)] = read_psf_model(item.substr(eq + 1), 1.0);
+        const auto [band, file] = name_and_file(item, "--band-psf");
+        band_psfs[band] = read_psf_model(file, 1.0);
+    }
+    // Measured noise correlations: the exact take-up replaces p·F² (decompose.hpp).
+    if (!s.noise_model.empty()) s.fit.correlation = read_noise_record(s.noise_model).correlation;
+    std::map<std::string, NoiseCorrelation> band_correlations;  // --band-noise-model
+    for (const std::string& item : s.band_noise_models) {
+        const auto [band, file] = name_and_file(item, "--band-noise-model");
+        band_correlations[band] = read_noise_record(file).correlation;
     }
     SourceRecord source;
     // Field errors from the record's extra fields, placed at the reader's file and line.
@@ -323,6 +346,11 @@ int run(int argc, const char* const argv[]) {
                 return read_joint_stamps(std::move(bands), job.stamp, file, s.stamps,
                                          s.reference_band, stamp_files, psf_of);
             });
+            for (const SourceBand& band : job.joint.bands) {
+                const auto own = band_correlations.find(band.band);
+                job.joint.correlations.push_back(
+                    own != band_correlations.end() ? std::optional(own->second) : std::nullopt);
+            }
         }
         job.source = source;
         jobs.push_back(std::move(job));

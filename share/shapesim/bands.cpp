@@ -130,7 +130,8 @@ std::pair<Decomposition, ShapeletRecord> decompose_joint(
         masks[b] = (joint.stamps[b].mask != 0.0).cast<std::uint8_t>();
         bands[b] = {&joint.stamps[b].image, &joint.stamps[b].weight, &masks[b], joint.psfs[b],
                     noise_correlation.value_or(band.noise_correlation),
-                    band.noise_rms > 0.0 ? 1.0 / band.noise_rms : 1.0};
+                    band.noise_rms > 0.0 ? 1.0 / band.noise_rms : 1.0,
+                    b < joint.correlations.size() ? joint.correlations[b] : std::nullopt};
         labels.push_back({band.band, band.zero_point});
     }
     Decomposition d = decompose_bands(bands, x, y, beta_start, options);

@@ -84,6 +84,9 @@ struct JointStamps {
     std::vector<SourceBand> bands;
     std::vector<Stamp> stamps;
     std::vector<std::optional<CartesianModel>> psfs;
+    /// Each band's measured noise correlation, in the bands' order (empty, or an entry
+    /// without one: decompose's p·F² rule, or DecomposeOptions::correlation).
+    std::vector<std::optional<NoiseCorrelation>> correlations;
 };
 
 /// Stamp files opened once, by name.

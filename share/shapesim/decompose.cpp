@@ -77,6 +77,7 @@ constexpr double infinite = std::numeric_limits<double>::infinity();
 struct JointFit {
     std::vector<ShapeletFit> bands;
     double chi2 = 0.0;
+    std::vector<double> take_up;  // each band's noise take-up (JointProblem::account); empty: p·F²
     const ShapeletModel& model() const { return bands.front().model; }
 };
 
@@ -88,6 +89,7 @@ public:
         for (const BandStamp& b : bands) {
             DecomposeOptions o = options;
             if (b.psf) o.psf = *b.psf;
+            if (b.correlation) o.correlation = *b.correlation;
             o.noise_correlation = b.noise_correlation;
             options_.push_back(std::move(o));
         }
@@ -124,10 +126,40 @@ public:
         return fit_shape_amplitude(*bands_[b].image, *bands_[b].weight, bands_[b].mask, shape.x,
                                    shape.y, shape, psf ? &*psf : nullptr);
     }
-    // Σ_b (pixels_b − p·F_b²), at least 1 (effective_dof() for one band).
+    // Whether any band's noise correlation is known: the exact take-up replaces p·F².
+    bool exact() const {
+        for (const DecomposeOptions& o : options_)
+            if (o.correlation) return true;
+        return false;
+    }
+    // Each band's noise take-up T_b (lsq.hpp noise_take_up; p·F_b² where no correlation).
+    void account(JointFit& f) const {
+        const ShapeletModel& m = f.model();
+        f.take_up.clear();
+        for (std::size_t b = 0; b < size(); ++b) {
+            const DecomposeOptions& o = options_[b];
+            const double F = o.noise_correlation;
+            f.take_up.push_back(
+                o.correlation ? noise_take_up(*bands_[b].image, *bands_[b].weight, bands_[b].mask,
+                                              m.x, m.y, m.beta_pix, m.n_max, *o.correlation,
+                                              o.psf ? &*o.psf : nullptr)
+                              : double(real_count(m.n_max)) * F * F);
+        }
+    }
+    // Band b's pixels − T_b (T_b = p·F_b² unless accounted), at least 1.
+    double band_dof(const JointFit& f, std::size_t b) const {
+        if (f.take_up.empty()) return effective_dof(f.bands[b], options_[b].noise_correlation);
+        return std::max(1.0, double(f.bands[b].pixels_used) - f.take_up[b]);
+    }
+    // Σ_b (pixels_b − T_b), at least 1 (effective_dof() for one band without a correlation).
     double dof(const JointFit& f) const {
-        const double p = double(real_count(f.model().n_max));
         double sum = 0.0;
+        if (!f.take_up.empty()) {
+            for (std::size_t b = 0; b < size(); ++b)
+                sum += double(f.bands[b].pixels_used) - f.take_up[b];
+            return std::max(1.0, sum);
+        }
+        const double p = double(real_count(f.model().n_max));
         for (std::size_t b = 0; b < size(); ++b) {
             const double F = options_[b].noise_correlation;
             sum += double(f.bands[b].pixels_used) - p * F * F;
@@ -160,6 +192,19 @@ public:
             f4 += F2 * F2;
         }
         return f2 * extra + o.order_sigmas * std::sqrt(2.0 * extra * f4);
+    }
+    // The same from the accounted fits of two orders: ΔT = Σ_b ΔT_b, each band's extra
+    // coefficients taking up λ_b = ΔT_b/Δp apiece, so the scatter is √(2Δp Σ λ_b²) (the rule
+    // above when every T_b = p·F_b²).
+    double uptake(const JointFit& from, const JointFit& to, const DecomposeOptions& o) const {
+        const double extra = double(real_count(to.model().n_max) - real_count(from.model().n_max));
+        double sum = 0.0, squares = 0.0;
+        for (std::size_t b = 0; b < size(); ++b) {
+            const double added = std::max(0.0, to.take_up[b] - from.take_up[b]);
+            sum += added;
+            squares += extra > 0.0 ? added * added / extra : 0.0;
+        }
+        return sum + o.order_sigmas * std::sqrt(2.0 * squares);
     }
     // The χ² two more parameters (the shear) would take up from noise in every band:
     // F²·(2 + order_sigmas·2) for one band.
@@ -454,15 +499,21 @@ Decomposition decompose_bands(const std::vector<BandStamp>& bands, double x, dou
             out.stop = "stamp_small";
             break;
         }
-        const double chi2r = search.best_chi2r();
-        const JointFit& best = *search.best();
+        // With a measured correlation the order's fit is scored by its exact take-up (the β
+        // search's p·F² is a constant per order: the same minimum).
+        JointFit best = *search.best();
+        if (problem.exact()) problem.account(best);
+        const double chi2r = problem.exact() ? best.chi2 / problem.dof(best) : search.best_chi2r();
         out.trials.push_back({n, best.model().beta_pix, chi2r});
         x = best.model().x;
         y = best.model().y;
         beta = best.model().beta_pix;
         // This order becomes the candidate when it takes up significantly more χ² than the
         // noise would over the candidate's.
-        if (!have_kept || kept.chi2 - best.chi2 > problem.uptake(kept.model().n_max, n, options)) {
+        const double uptake = !have_kept ? 0.0
+                              : problem.exact() ? problem.uptake(kept, best, options)
+                                                : problem.uptake(kept.model().n_max, n, options);
+        if (!have_kept || kept.chi2 - best.chi2 > uptake) {
             kept = best;
             have_kept = true;
             kept_chi2r = chi2r;
@@ -581,7 +632,7 @@ Decomposition decompose_bands(const std::vector<BandStamp>& bands, double x, dou
         f.fit = kept.bands[b];
         f.flux_error = errors[b];  // the band's own fit's: the larger
         f.truncation_error = truncation[b];
-        f.chi2r = effective_chi2r(kept.bands[b], problem.options(b).noise_correlation);
+        f.chi2r = kept.bands[b].chi2 / problem.band_dof(kept, b);
         f.templated = templated[b];
         out.bands.push_back(std::move(f));
     }

@@ -42,7 +42,13 @@
 // falls below 1 before the model has taken up the galaxy (drizzled HDF: F ≈ 1.8, so a
 // 15-coefficient model on 100 pixels reaches χ²_r ≈ 0.57 on pure noise), biasing n_max low.
 // With `noise_correlation` = F the reduced χ² uses the effective degrees of freedom
-// N − p·F² (clamped to ≥ 1); F = 1 is the textbook χ²_r.
+// N − p·F² (clamped to ≥ 1); F = 1 is the textbook χ²_r. The rule holds for basis functions
+// smoother than the correlation, and for the HDF's short drizzle correlation; for smoothly
+// correlated noise (PSF-matched images: ξ 0.82, 0.50 at 1, 2 pixels in the XDF's F606W) the
+// higher orders take up far less (half at n_max 8). Given the measured correlation
+// (`correlation`), each order's best fit counts its exact take-up T = tr((BᵀB)⁻¹BᵀRB)
+// (lsq.hpp noise_take_up): dof N − T, and an order is significant when it lowers χ² by more
+// than ΔT + order_sigmas·λ√(2Δp), λ = ΔT/Δp.
 #pragma once
 
 #include "shapesim/fits_io.hpp"
@@ -78,6 +84,10 @@ struct DecomposeOptions {
     /// its aperture flux). Well-fitted models put ≤ 2% there (HDF: none above 0.1).
     double max_unsupported = 0.2;
     double noise_correlation = 1.0;///< F for the effective degrees of freedom (see above)
+    /// The noise's measured pixel-to-pixel correlation (shapesim-detect's noise model). When
+    /// given, every order's fit counts its exact noise take-up (lsq.hpp noise_take_up) in its
+    /// degrees of freedom, χ²_r and order test, instead of p·F² (see "Correlated noise").
+    std::optional<NoiseCorrelation> correlation;
     /// Where the order search ends at n_max 0 (a round Gaussian), try an elliptical Gaussian
     /// (see "The elliptical lowest order" above) and keep it when significant.
     bool elliptical = true;
@@ -143,6 +153,7 @@ struct BandStamp {
     /// Its weight in the stack whose centroid recentring follows: 1/σ of its pixel noise, so
     /// the stack is S/N-weighted like a χ² detection image.
     double signal_weight = 1.0;
+    std::optional<NoiseCorrelation> correlation;  ///< the band's ξ (else DecomposeOptions')
 };
 
 /// The order an elliptical lowest-order model is expanded to.

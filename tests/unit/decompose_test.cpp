@@ -181,6 +181,62 @@ TEST(DecomposeChi2, CorrelatedNoiseNeedsTheEffectiveDof) {
     EXPECT_NEAR(effective, 1.0, 0.15);
 }
 
+// Galaxies (truth n_max 6, peak S/N 30) in noise smoothed by [1, 2, 1] ⊗ [1, 2, 1] (F² = 7.1,
+// a correlation as smooth as a PSF-matched image's). Given the measured correlation, each fit
+// counts its exact take-up: χ²_r averages 1 where the fits reach the truth's order. The p·F²
+// rule overstates the take-up of the higher orders, and its χ²_r comes out above 1.
+TEST(DecomposeChi2, MeasuredCorrelationGivesTheExactDegreesOfFreedom) {
+    const int side = 31, trials = 12;
+    NoiseCorrelation xi;
+    xi.radius = 2;
+    const double auto1d[5] = {1.0, 4.0, 6.0, 4.0, 1.0};  // [1, 2, 1] ⋆ [1, 2, 1]
+    for (int dy = 0; dy < 5; ++dy)
+        for (int dx = 0; dx < 5; ++dx) xi.values.push_back(auto1d[dy] * auto1d[dx] / 36.0);
+    DecomposeOptions rule, exact;
+    rule.noise_correlation = exact.noise_correlation = 16.0 / 6.0;  // F = Σk/√Σk²
+    exact.correlation = xi;
+    double chi2r_rule = 0.0, chi2r_exact = 0.0;
+    for (int t = 0; t < trials; ++t) {
+        const ShapeletModel truth = test::centred_galaxy(6, 2.8, side, 90 + t, 1.0);
+        const double sigma = render_stamp(truth, side, side).maxCoeff() / 30.0;
+        RandomStream r(23, std::uint64_t(t), "smoothed");
+        ImageArray white(side + 2, side + 2);
+        for (Eigen::Index k = 0; k < white.size(); ++k) white.data()[k] = r.gaussian();
+        ImageArray image = render_stamp(truth, side, side);
+        const double taps[3] = {1.0, 2.0, 1.0};
+        for (int j = 0; j < side; ++j)
+            for (int i = 0; i < side; ++i)
+                for (int b = 0; b < 3; ++b)
+                    for (int a = 0; a < 3; ++a)
+                        image(j, i) += sigma * taps[b] * taps[a] * white(j + b, i + a) / 6.0;
+        const ImageArray weight = ImageArray::Constant(side, side, 1.0 / (sigma * sigma));
+        const Decomposition d_rule = decompose(image, weight, nullptr, truth.x, truth.y, 2.8, rule);
+        const Decomposition d_exact = decompose(image, weight, nullptr, truth.x, truth.y, 2.8, exact);
+        chi2r_rule += d_rule.chi2r / trials;
+        chi2r_exact += d_exact.chi2r / trials;
+    }
+    report("smooth_noise_chi2r_f2_rule", chi2r_rule);
+    report("smooth_noise_chi2r_exact", chi2r_exact);
+    EXPECT_NEAR(chi2r_exact, 1.0, 0.08);
+    EXPECT_GT(chi2r_rule, chi2r_exact + 0.04);  // 1.08 against 1.01
+}
+
+// White noise given as a measured correlation (ξ = δ) is the textbook fit: the same model.
+TEST(DecomposeChi2, AWhiteCorrelationIsTheTextbookFit) {
+    const int side = 25;
+    const ShapeletModel truth = test::centred_galaxy(4, 2.5, side, 7, 1.0);
+    const double sigma = render_stamp(truth, side, side).maxCoeff() / 20.0;
+    const ImageArray image = test::noisy_stamp(truth, side, sigma, 3, std::uint64_t(side));
+    const ImageArray weight = ImageArray::Constant(side, side, 1.0 / (sigma * sigma));
+    DecomposeOptions white;
+    white.correlation = NoiseCorrelation{0, {1.0}};
+    const Decomposition a = decompose(image, weight, nullptr, truth.x, truth.y, 2.5, {});
+    const Decomposition b = decompose(image, weight, nullptr, truth.x, truth.y, 2.5, white);
+    EXPECT_EQ(a.fit.model.n_max, b.fit.model.n_max);
+    EXPECT_DOUBLE_EQ(a.fit.model.beta_pix, b.fit.model.beta_pix);
+    EXPECT_NEAR(a.chi2r, b.chi2r, 1e-12);
+}
+
 TEST(DecomposeErrors, AllMaskedOrBadStartThrows) {
     const int side = 15;
     const ImageArray image = ImageArray::Ones(side, side);

@@ -64,6 +64,17 @@ expect_error "$rc" 2 '^shapesim-decompose: .*--ids.*(see --help)$'
 [ ! -s out ] || fail "--ids without --models wrote to stdout"
 run_error 2 '^shapesim-decompose: .*--beta-tolerance.*(see --help)$' four.jsonl --beta-tolerance 2
 run_error 2 '^shapesim-decompose: .*--n-max-cap.*(see --help)$' four.jsonl --n-max-cap 101
+run_error 2 '^shapesim-decompose: --band-noise-model wants NAME=FILE.*(see --help)$' four.jsonl \
+  --band-noise-model f814w
+run_error 2 '^shapesim-decompose: --white-noise and a noise model exclude.*(see --help)$' \
+  four.jsonl --white-noise --noise-model noise.jsonl
+# A measured correlation (the sky's noise record) runs: the same objects, each its exact
+# noise take-up; a missing record is an input error.
+"$BIN/shapesim-detect" -q "$HDF_IMAGE" --weight "$HDF_DATA/hdfn_f814w_v2_weight.fits" \
+  --noise-model noise.jsonl >/dev/null || fail "shapesim-detect --noise-model failed"
+"$BIN/$prog" -q --noise-model noise.jsonl <four.jsonl >exact.jsonl || fail "--noise-model fails"
+[ "$(wc -l <exact.jsonl)" -eq 4 ] || fail "--noise-model: $(wc -l <exact.jsonl) records, expected 4"
+run_error 1 '^shapesim-decompose: nosuch\.jsonl: cannot open' four.jsonl --noise-model nosuch.jsonl
 # An unwritable --models path fails before any work.
 rc=0
 "$BIN/$prog" --models nosuch/models.fits <four.jsonl >out 2>err || rc=$?
