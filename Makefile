@@ -107,13 +107,26 @@ colour: deps all examples
 slurm-test: all
 	tests/slurm/survey.sh
 
-install: all
+# Man pages from each program's --help and --version; the NAME line is SUMMARY.<prog> in its
+# module.mk, the date the last commit's (SOURCE_DATE_EPOCH), so a rebuild gives the same page.
+MANPAGES := $(PROGRAMS:%=$(BUILD)/man/%.1)
+$(BUILD)/man/%.1: $(BIN)/% | deps
+	@mkdir -p $(@D)
+	$(if $(Q),@echo "  MAN  $@")
+	$(Q)SOURCE_DATE_EPOCH=$$(git log -1 --format=%ct 2>/dev/null || date +%s) \
+	  help2man --no-info --name='$(SUMMARY.$*)' --output=$@.tmp $< && mv $@.tmp $@
+.PHONY: man
+man: $(MANPAGES)
+
+install: all man
 	install -d $(DESTDIR)$(PREFIX)/bin $(DESTDIR)$(PREFIX)/lib \
-	  $(DESTDIR)$(PREFIX)/include/shapesim/app $(DESTDIR)$(PREFIX)/share/shapesim
+	  $(DESTDIR)$(PREFIX)/include/shapesim/app $(DESTDIR)$(PREFIX)/share/shapesim \
+	  $(DESTDIR)$(PREFIX)/share/man/man1
 	install -m 755 $(PROGRAMS:%=$(BIN)/%) $(DESTDIR)$(PREFIX)/bin/
 	install -m 644 $(LIB) $(DESTDIR)$(PREFIX)/lib/
 	install -m 644 share/shapesim/*.hpp $(DESTDIR)$(PREFIX)/include/shapesim/
 	install -m 644 share/shapesim/app/*.hpp $(DESTDIR)$(PREFIX)/include/shapesim/app/
+	install -m 644 $(MANPAGES) $(DESTDIR)$(PREFIX)/share/man/man1/
 	if [ -d share/data ]; then cp -R share/data/. $(DESTDIR)$(PREFIX)/share/shapesim/; fi
 
 clean:
