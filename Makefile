@@ -13,7 +13,8 @@
 #   make colour          the multi-colour simulation of the shipped ten-band XDF cutout into
 #                        out/colour/ (pipelines/colour.mk; OUT=, SEED=, AREA=, MAG_LIMIT=)
 #   make slurm-test      a 4-tile survey through a one-node Slurm cluster = make -j (root; CI)
-#   make install PREFIX=/usr/local
+#   make install         programs, libshapesim.a, public headers, shapesim.pc and man pages
+#                        into PREFIX (/usr/local); DESTDIR= stages them
 #   make WERROR=1        warnings are errors (CI)
 #   make test SAN=1      unit tests under AddressSanitizer + UBSan (objects in build-san/)
 #   make V=1             echo commands
@@ -107,13 +108,29 @@ colour: deps all examples
 slurm-test: all
 	tests/slurm/survey.sh
 
-install: all
-	install -d $(DESTDIR)$(PREFIX)/bin $(DESTDIR)$(PREFIX)/lib \
-	  $(DESTDIR)$(PREFIX)/include/shapesim/app $(DESTDIR)$(PREFIX)/share/shapesim
+# Man pages from each program's --help and --version; the NAME line is SUMMARY.<prog> in its
+# module.mk, the date the last commit's (SOURCE_DATE_EPOCH), so a rebuild gives the same page.
+MANPAGES := $(PROGRAMS:%=$(BUILD)/man/%.1)
+$(BUILD)/man/%.1: $(BIN)/% | deps
+	@mkdir -p $(@D)
+	$(if $(Q),@echo "  MAN  $@")
+	$(Q)SOURCE_DATE_EPOCH=$$(git log -1 --format=%ct 2>/dev/null || date +%s) \
+	  help2man --no-info --name='$(SUMMARY.$*)' --output=$@.tmp $< && mv $@.tmp $@
+.PHONY: man
+man: $(MANPAGES)
+
+# The programs, the library, its public headers (not app/: program plumbing that pulls in
+# Boost), shapesim.pc (share/shapesim.pc.in with this PREFIX), the man pages and the data.
+install: all man
+	install -d $(DESTDIR)$(PREFIX)/bin $(DESTDIR)$(PREFIX)/lib/pkgconfig \
+	  $(DESTDIR)$(PREFIX)/include/shapesim $(DESTDIR)$(PREFIX)/share/shapesim \
+	  $(DESTDIR)$(PREFIX)/share/man/man1
 	install -m 755 $(PROGRAMS:%=$(BIN)/%) $(DESTDIR)$(PREFIX)/bin/
 	install -m 644 $(LIB) $(DESTDIR)$(PREFIX)/lib/
 	install -m 644 share/shapesim/*.hpp $(DESTDIR)$(PREFIX)/include/shapesim/
-	install -m 644 share/shapesim/app/*.hpp $(DESTDIR)$(PREFIX)/include/shapesim/app/
+	sed -e 's|@PREFIX@|$(PREFIX)|' -e 's|@VERSION@|$(VERSION)|' share/shapesim.pc.in \
+	  >$(DESTDIR)$(PREFIX)/lib/pkgconfig/shapesim.pc
+	install -m 644 $(MANPAGES) $(DESTDIR)$(PREFIX)/share/man/man1/
 	if [ -d share/data ]; then cp -R share/data/. $(DESTDIR)$(PREFIX)/share/shapesim/; fi
 
 clean:

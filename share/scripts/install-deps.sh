@@ -17,6 +17,7 @@ packages=(
   source-extractor          # SExtractor, the cross-check of shapesim-detect (tests, bench)
   gnuplot-nox               # shapesim-measure --compare figures
   netpbm                    # make reproduce: the figures as PNG (pnmtopng, pnmscale)
+  help2man                  # make install: man pages from --help and --version
   clang libclang-rt-14-dev  # make fuzz: libFuzzer harnesses
 )
 
