@@ -155,6 +155,13 @@ void Wcs::validate() const {
     if (det_cd(*this) == 0.0) throw Error("CD matrix is singular", {}, 0, "CD1_1");
 }
 
+Wcs Wcs::cutout(long x0, long y0) const {
+    Wcs w = *this;
+    w.crpix1 -= double(x0 - 1);
+    w.crpix2 -= double(y0 - 1);
+    return w;
+}
+
 Wcs tan_wcs(double ra, double dec, double pixel_scale_arcsec, double crpix1, double crpix2,
             double rotation_deg) {
     require(pixel_scale_arcsec > 0.0, "tan_wcs: pixel scale must be > 0");

@@ -64,6 +64,9 @@ struct Wcs {
     PixelPosition sky_to_pixel(double ra, double dec) const;
     /// Pixel scale √|det CD|, arcsec per pixel.
     double pixel_scale_arcsec() const;
+    /// The WCS of a cutout whose first pixel is this one's pixel (`x0`, `y0`): CRPIX moved by
+    /// (x0 − 1, y0 − 1). SIP terms are in offsets from CRPIX, so they move with it unchanged.
+    Wcs cutout(long x0, long y0) const;
     /// Throws Error (field = keyword) unless finite, CTYPE is RA---TAN/DEC--TAN (with -SIP
     /// exactly when it has SIP terms) and det CD ≠ 0.
     void validate() const;

@@ -195,6 +195,9 @@ void put_bands(Json& j, const std::vector<BandCoefficients>& bands) {
 }
 const Names morph_fields = {"id", "x",       "y", "mag",   "fwhm", "a",    "b",   "theta", "e1",
                             "e2", "r_petro", "c", "a_sym", "s",    "gini", "m20", "flags"};
+const Names truth_fields = {"id",     "kind", "ra",           "dec",  "x",  "y",
+                            "flux",   "mag",  "clipped_flux", "e1",   "e2", "rms_radius",
+                            "lensing_error",  "n_max",        "stamp_radius"};
 const Names convolution_fields = {"galaxy_id", "psf", "hdu",  "x",     "y",
                                   "nx",        "ny",  "flux", "result"};
 
@@ -563,6 +566,67 @@ Json MorphRecord::to_json() const {
     for (const auto& [field, value] : values) put(j, field, *value);
     j["flags"] = flags;
     put_extra(j, extra, morph_fields);
+    return j;
+}
+
+// ------------------------------------------------------------------------------ TruthRecord
+
+TruthRecord TruthRecord::from_json(const Json& j) {
+    check_schema(j, schema);
+    TruthRecord r;
+    r.id = read_id(j);
+    r.kind = required_string(j, "kind");
+    r.ra = required_double(j, "ra");
+    r.dec = required_double(j, "dec");
+    r.x = required_double(j, "x");
+    r.y = required_double(j, "y");
+    r.flux = required_double(j, "flux");
+    r.mag = optional_double(j, "mag");
+    r.clipped_flux = optional_double(j, "clipped_flux");
+    // A galaxy's shape always carries its lensing error; e1, e2, rms_radius may be null.
+    if (j.contains("lensing_error")) {
+        r.shape = Shape{optional_double(j, "e1"), optional_double(j, "e2"),
+                        optional_double(j, "rms_radius"), required_double(j, "lensing_error")};
+    }
+    r.n_max = read_n_max(j);
+    r.stamp_radius = required_double(j, "stamp_radius");
+    r.extra = extra_fields(j, truth_fields);
+    r.validate();
+    return r;
+}
+
+void TruthRecord::validate() const {
+    if (id.empty()) throw Error("must not be empty", {}, 0, "id");
+    if (kind != "galaxy" && kind != "star")
+        throw Error("must be \"galaxy\" or \"star\", got \"" + kind + "\"", {}, 0, "kind");
+    check_dec("dec", dec);
+    check_non_negative("clipped_flux", clipped_flux);
+    check_non_negative("stamp_radius", stamp_radius);
+    if (shape) check_non_negative("lensing_error", shape->lensing_error);
+}
+
+Json TruthRecord::to_json() const {
+    Json j;
+    j["schema"] = schema;
+    j["id"] = id;
+    j["kind"] = kind;
+    j["ra"] = ra;
+    j["dec"] = dec;
+    j["x"] = x;
+    j["y"] = y;
+    j["flux"] = flux;
+    put(j, "mag", mag);
+    put(j, "clipped_flux", clipped_flux);
+    if (shape) {
+        auto or_null = [](const std::optional<double>& v) { return v ? Json(*v) : Json(nullptr); };
+        j["e1"] = or_null(shape->e1);
+        j["e2"] = or_null(shape->e2);
+        j["rms_radius"] = or_null(shape->rms_radius);
+        j["lensing_error"] = shape->lensing_error;
+    }
+    j["n_max"] = n_max;
+    j["stamp_radius"] = stamp_radius;
+    put_extra(j, extra, truth_fields);
     return j;
 }
 

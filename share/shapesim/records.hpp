@@ -3,6 +3,7 @@
 //   SourceRecord    shapesim.source/1    detect     what was found, where, how bright
 //   ShapeletRecord  shapesim.shapelet/1  decompose  a shapelet model (galaxies and the PSF)
 //   ObjectRecord    shapesim.object/1    sample     a simulated object placed on the sky
+//   TruthRecord     shapesim.truth/1     render     what was drawn into an image
 //   MorphRecord     shapesim.morph/1     measure    morphology diagnostics
 //   BandRecord      shapesim.band/1      the user  one band of a multi-band field (issue 17)
 //   ReferenceConvolutionRecord           the exact convolution fixtures (tests/data/reference)
@@ -154,6 +155,35 @@ struct ObjectRecord {
     /// This record as seen in band `name`: coefficients, flux and mag of that band (stars and
     /// galaxies alike); `bands` emptied. Error when the record has no such band.
     ObjectRecord in_band(const std::string& name) const;
+};
+
+/// What shapesim-render drew of one object (`shapesim.truth/1`, its --truth): the position, the
+/// light drawn and, for a galaxy, its shape after lensing and before the PSF.
+struct TruthRecord {
+    static constexpr const char* schema = "shapesim.truth/1";
+    std::string id;
+    std::string kind = "galaxy";   ///< "galaxy" or "star", as the object record says
+    double ra = 0.0, dec = 0.0;    ///< degrees, the object record's
+    double x = 0.0, y = 0.0;       ///< model centre, field FITS pixels
+    double flux = 0.0;             ///< the light drawn, image units (negative light clipped included)
+    std::optional<double> mag;     ///< the record's mag moved by the flux drawn
+    std::optional<double> clipped_flux;  ///< negative light set to zero (written when > 0)
+    /// A galaxy's lensed shape before the PSF (moments.hpp; absent for stars). e1, e2 and
+    /// rms_radius are undefined (null) when the model's second moments are not positive.
+    struct Shape {
+        std::optional<double> e1, e2, rms_radius;
+        double lensing_error = 0.0;  ///< relative truncation of the lensed projection
+    };
+    std::optional<Shape> shape;
+    int n_max = 0;                 ///< the drawn (convolved) model's order
+    double stamp_radius = 0.0;     ///< R, pixels (scene.hpp stamp_radius())
+    Json extra = Json::object();
+
+    static TruthRecord from_json(const Json& record);
+    /// Writes what it holds, unvalidated: the truth of what was drawn (JsonlWriter still
+    /// refuses a non-finite number, naming the field).
+    Json to_json() const;
+    void validate() const;
 };
 
 /// Morphology of one object (`shapesim.morph/1`, from shapesim-measure). Statistics that

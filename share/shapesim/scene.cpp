@@ -4,14 +4,17 @@
 #include "shapesim/constants.hpp"
 #include "shapesim/convolve.hpp"
 #include "shapesim/error.hpp"
+#include "shapesim/jsonl.hpp"
 #include "shapesim/parallel.hpp"
 #include "shapesim/pixel_noise.hpp"
 #include "shapesim/polar.hpp"
+#include "shapesim/psf.hpp"
 #include "shapesim/rng.hpp"
 
 #include <algorithm>
-#include <optional>
+#include <chrono>
 #include <cmath>
+#include <optional>
 #include <thread>
 
 namespace shapesim {
@@ -112,6 +115,78 @@ double truncation_threshold(const CartesianModel& model, const SceneOptions& opt
     return options.truncation * centre;
 }
 
+SceneKernels scene_kernels(const ShapeletModel& psf, const std::optional<ShapeletModel>& models_psf,
+                           int difference_order) {
+    SceneKernels kernels;
+    kernels.star = to_cartesian(psf);
+    if (!models_psf) {
+        kernels.galaxy = kernels.star;
+        kernels.galaxy_note = "the PSF";
+    } else if (models_psf->n_max == psf.n_max && models_psf->beta_pix == psf.beta_pix &&
+               models_psf->coeffs == psf.coeffs) {
+        kernels.galaxy_note = "none (the models hold this PSF)";
+    } else {
+        const int order = difference_order >= 0 ? difference_order : psf.n_max;
+        const DifferenceKernel k = difference_kernel(*models_psf, psf, order);
+        kernels.galaxy = to_cartesian(k.kernel);
+        kernels.galaxy_note = "difference kernel (relative residual " +
+                              std::to_string(k.report.relative_residual) + ")";
+    }
+    return kernels;
+}
+
+SceneKernels read_scene_kernels(const std::string& psf_path, const std::string& models_psf_path,
+                                double pixel_scale, int difference_order) {
+    if (psf_path.empty()) return SceneKernels{};
+    const ShapeletModel psf = read_psf_model(psf_path, pixel_scale);
+    if (models_psf_path.empty()) return scene_kernels(psf);
+    return scene_kernels(psf, read_psf_model(models_psf_path, pixel_scale), difference_order);
+}
+
+void use_sky_noise(SceneOptions& options, const NoiseRecord& noise) {
+    options.noise_rms = noise.rms;
+    options.noise_correlation = std::max(1.0, noise.noise_correlation);
+    options.noise_kernel = correlated_noise_kernel(noise.correlation);
+}
+
+ImageArray read_noise_scale(const std::string& path, long field_nx, long field_ny) {
+    const ImageArray weight = read_fits_image(path);
+    if (weight.cols() != field_nx || weight.rows() != field_ny)
+        throw Error("the weight map is " + std::to_string(weight.cols()) + " x " +
+                        std::to_string(weight.rows()) + " pixels, the field " +
+                        std::to_string(field_nx) + " x " + std::to_string(field_ny),
+                    path);
+    try {
+        return noise_scale_from_weight(weight);
+    } catch (const Error& e) {
+        throw Error(e.what(), path);
+    }
+}
+
+std::vector<ObjectRecord> read_objects(const std::string& path, const Wcs& wcs,
+                                       const std::string& band, bool have_psf, int threads) {
+    JsonlReader reader(path, {ObjectRecord::schema});
+    std::vector<long> lines;
+    std::vector<ObjectRecord> records = reader.read_all<ObjectRecord>(threads, &lines);
+    for (std::size_t k = 0; k < records.size(); ++k) {
+        ObjectRecord& r = records[k];
+        if (!band.empty()) {
+            try {
+                r = r.in_band(band);
+            } catch (const Error& e) {
+                throw Error(e.message(), reader.name(), lines[k], e.field());
+            }
+        }
+        const PixelPosition p = wcs.sky_to_pixel(r.ra, r.dec);
+        r.x = p.x;
+        r.y = p.y;
+        if (!r.has_shape() && !have_psf)
+            throw Error("object " + r.id + " is a point source: give --psf", reader.name(),
+                        lines[k], "kind");
+    }
+    return records;
+}
+
 PreparedObject prepare_object(const ObjectRecord& record, double field_pixel_scale,
                               const SceneKernels& kernels, const SceneOptions& options,
                               ConvolveWorkspace* workspace) {
@@ -183,6 +258,12 @@ PreparedObject prepare_object(const ObjectRecord& record, double field_pixel_sca
     return p;
 }
 
+bool stamp_reaches(const PixelWindow& stamp, const Tile& window) {
+    // Columns column0 … column0 + nx − 1 (0-based) against x0 − 1 … x1 − 1; rows alike.
+    return stamp.column0 + stamp.nx > window.x0 - 1 && stamp.column0 < window.x1 &&
+           stamp.row0 + stamp.ny > window.y0 - 1 && stamp.row0 < window.y1;
+}
+
 std::vector<PreparedObject> prepare_scene(const std::vector<ObjectRecord>& records,
                                           double field_pixel_scale, const SceneKernels& kernels,
                                           const SceneOptions& options, const Tile& window) {
@@ -201,12 +282,8 @@ std::vector<PreparedObject> prepare_scene(const std::vector<ObjectRecord>& recor
     for (std::size_t k = 0; k < records.size(); ++k)
         if (!errors[k].empty()) throw Error("object " + records[k].id + ": " + errors[k]);
     std::vector<PreparedObject> in_window;
-    for (auto& p : prepared) {
-        const PixelWindow& w = p.window;
-        if (p.drawn && w.column0 + w.nx > window.x0 - 1 && w.column0 < window.x1 &&
-            w.row0 + w.ny > window.y0 - 1 && w.row0 < window.y1)
-            in_window.push_back(std::move(p));
-    }
+    for (auto& p : prepared)
+        if (p.drawn && stamp_reaches(p.window, window)) in_window.push_back(std::move(p));
     return in_window;
 }
 
@@ -309,6 +386,127 @@ void add_noise(ImageArray& image, const Tile& window, long field_nx, const Scene
             }
         }
     });
+}
+
+RenderedScene render_field(const std::vector<ObjectRecord>& records, const FieldGeometry& field,
+                           const SceneKernels& kernels, const SceneOptions& options,
+                           const Tile& window, const std::string& source) {
+    using clock = std::chrono::steady_clock;
+    auto seconds = [](auto a, auto b) { return std::chrono::duration<double>(b - a).count(); };
+    RenderedScene scene;
+    scene.field = field;
+    scene.window = window;
+    const auto t_prepare = clock::now();
+    try {
+        scene.objects = prepare_scene(records, field.pixel_scale, kernels, options, window);
+    } catch (const Error& e) {
+        throw e.at(source);
+    }
+    const auto t_paint = clock::now();
+    scene.image = paint(scene.objects, window, options, &scene.clipped);
+    const auto t_noise = clock::now();
+    add_noise(scene.image, window, field.nx, options);
+    const auto t_end = clock::now();
+    scene.prepare_seconds = seconds(t_prepare, t_paint);
+    scene.paint_seconds = seconds(t_paint, t_noise);
+    scene.noise_seconds = seconds(t_noise, t_end);
+    return scene;
+}
+
+TruthRecord truth_record(const PreparedObject& object, const ObjectRecord& record,
+                         const ClippedLight& clipped) {
+    TruthRecord t;
+    t.id = object.id;
+    t.kind = object.kind;
+    t.ra = record.ra;
+    t.dec = record.dec;
+    t.x = object.model.x;
+    t.y = object.model.y;
+    // The light drawn: the model's, plus the negative light clipped away.
+    t.flux = object.flux + clipped.flux;
+    if (record.mag) t.mag = *record.mag - 2.5 * std::log10(t.flux / record.flux);
+    if (clipped.flux > 0.0) t.clipped_flux = clipped.flux;
+    if (object.intrinsic) {
+        // Undefined (null) for a model whose second moments are not positive.
+        auto defined = [](double v) { return std::isfinite(v) ? std::optional(v) : std::nullopt; };
+        const Complex e = object.intrinsic->epsilon;
+        t.shape = TruthRecord::Shape{defined(e.real()), defined(e.imag()),
+                                     defined(object.intrinsic->rms_radius), object.lensing_error};
+    }
+    t.n_max = object.model.n_max;
+    t.stamp_radius = object.radius;
+    return t;
+}
+
+std::vector<TruthRecord> truth_records(const RenderedScene& scene,
+                                       const std::vector<ObjectRecord>& records) {
+    std::vector<TruthRecord> truths;
+    for (std::size_t i = 0; i < scene.objects.size(); ++i) {
+        const PreparedObject& p = scene.objects[i];
+        if (scene.window.owns(p.model.x, p.model.y))
+            truths.push_back(truth_record(p, records[p.index], scene.clipped[i]));
+    }
+    return truths;
+}
+
+std::optional<double> objects_zero_point(const std::vector<ObjectRecord>& records) {
+    std::optional<double> zero_point;
+    for (const ObjectRecord& r : records) {
+        if (!r.mag || !(r.flux > 0.0)) continue;
+        const double zp = *r.mag + 2.5 * std::log10(r.flux);
+        if (!zero_point) zero_point = zp;
+        else if (std::abs(zp - *zero_point) > 1e-6) return std::nullopt;
+    }
+    return zero_point;
+}
+
+ClippedSummary summarise_clipped(const RenderedScene& scene) {
+    ClippedSummary summary;
+    for (std::size_t i = 0; i < scene.clipped.size(); ++i) {
+        const ClippedLight& c = scene.clipped[i];
+        if (!(c.flux > 0.0)) continue;
+        ++summary.galaxies;
+        summary.largest = std::max(summary.largest, c.flux / std::abs(scene.objects[i].flux));
+        summary.deepest = std::min(summary.deepest, c.deepest);
+    }
+    return summary;
+}
+
+FitsImageSpec scene_image_spec(const RenderedScene& scene, const std::vector<ObjectRecord>& records,
+                               const SceneOptions& o, const SceneKernels& kernels,
+                               const SceneLabels& labels, int bitpix) {
+    FitsImageSpec spec;
+    spec.extname = "SCI";
+    spec.bitpix = bitpix;
+    spec.bunit = scene.field.bunit;  // a field made --like an image keeps its units
+    spec.wcs = scene.field.wcs.cutout(scene.window.x0, scene.window.y0);
+    const Tile& w = scene.window;
+    spec.keywords = {
+        FitsKeyword("SEED", std::to_string(labels.seed), "run seed (shapesim)"),
+        FitsKeyword("NOBJ", (long long)(scene.objects.size()), "objects drawn in this image"),
+        FitsKeyword("TRUNC", o.truncation, "stamp truncation, fraction of noise rms or peak"),
+        FitsKeyword("NOISERMS", o.noise_free ? 0.0 : o.noise_rms, "Gaussian background rms"),
+        FitsKeyword("NOISECOR", o.noise_correlation, "correlated-noise factor F (4x4 blocks)"),
+        FitsKeyword("NOISEMOD", labels.noise, "background noise correlation"),
+        FitsKeyword("GAIN", o.noise_free ? 0.0 : o.gain, "electrons per image unit (photon noise)"),
+        FitsKeyword("SKY", o.sky, "sky level added"),
+        FitsKeyword("NOISEFRE", o.noise_free, "noise-free image"),
+        FitsKeyword("G1", o.lensing ? o.lensing->g1 : 0.0, "reduced shear applied"),
+        FitsKeyword("G2", o.lensing ? o.lensing->g2 : 0.0, "reduced shear applied"),
+        FitsKeyword("KAPPA", o.lensing ? o.lensing->kappa : 0.0, "convergence applied"),
+        FitsKeyword("LENSTOL", o.lensing_tolerance, "lensing projection tolerance"),
+        FitsKeyword("PSF", labels.psf, "PSF record"),
+        FitsKeyword("GALKERN", kernels.galaxy_note, "what galaxies were convolved with"),
+        FitsKeyword("TILEX0", (long long)w.x0, "first field column of this image"),
+        FitsKeyword("TILEY0", (long long)w.y0, "first field row of this image"),
+        FitsKeyword("FIELDNX", (long long)scene.field.nx, "field width, pixels"),
+        FitsKeyword("FIELDNY", (long long)scene.field.ny, "field height, pixels"),
+    };
+    if (!labels.band.empty()) spec.keywords.emplace_back("BAND", labels.band, "band of the objects drawn");
+    if (const std::optional<double> zero_point = objects_zero_point(records))
+        spec.keywords.emplace_back("MAGZERO", std::round(*zero_point * 1e6) / 1e6,
+                                   "AB zero point: mag = MAGZERO - 2.5 log10(value)");
+    return spec;
 }
 
 std::uint64_t band_seed(std::uint64_t seed, const std::string& band) {

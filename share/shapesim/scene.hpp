@@ -32,9 +32,15 @@
 //     [e, 1, e]⊗[e, 1, e] whose 4×4 block sums have the correlated-noise factor F
 //     (shapesim-detect's `noise_correlation`). Each output pixel sums the same white values
 //     in the same order whatever the band or tile: bit-identical across threads and tiles.
+//
+// A render end to end (shapesim-render is its options around these): read_objects() places
+// the records through the field's WCS, read_scene_kernels() reads the PSF records,
+// render_field() draws the window, truth_records() lists the objects centred in it once over
+// a grid of tiles, scene_image_spec() writes how the image was made into its header.
 #pragma once
 
 #include "shapesim/convolve.hpp"
+#include "shapesim/fits_io.hpp"
 #include "shapesim/geometry.hpp"
 #include "shapesim/model.hpp"
 #include "shapesim/moments.hpp"
@@ -84,7 +90,29 @@ struct SceneOptions {
 struct SceneKernels {
     std::optional<CartesianModel> galaxy;  ///< none: galaxies drawn as they are
     std::optional<CartesianModel> star;    ///< the PSF stars are drawn as (required for stars)
+    std::string galaxy_note = "none";      ///< `galaxy` in words (the image's GALKERN card)
 };
+
+/// The kernels of an image whose PSF is `psf` (unit flux, field pixels), the galaxy models
+/// already holding `models_psf` (none: no PSF): stars are drawn as `psf`; galaxies convolved
+/// with it, with nothing when `models_psf` is the same model, else with the difference kernel
+/// psf ⊘ models_psf (convolve.hpp) of order `difference_order` (< 0: the PSF's n_max).
+SceneKernels scene_kernels(const ShapeletModel& psf,
+                           const std::optional<ShapeletModel>& models_psf = std::nullopt,
+                           int difference_order = -1);
+
+/// The kernels of the PSF record at `psf_path` and, when not empty, the models' PSF record at
+/// `models_psf_path` (read_psf_model() at the field's `pixel_scale`); none without a PSF.
+SceneKernels read_scene_kernels(const std::string& psf_path, const std::string& models_psf_path,
+                                double pixel_scale, int difference_order);
+
+/// Take the background from the real sky's measured noise (noise.hpp): its rms, its F (at
+/// least 1) and the kernel that draws its correlation.
+void use_sky_noise(SceneOptions& options, const NoiseRecord& noise);
+
+/// The noise_scale of the weight map at `path` (noise_scale_from_weight), which must be the
+/// field's size, `field_nx` × `field_ny`; Error naming the file otherwise.
+ImageArray read_noise_scale(const std::string& path, long field_nx, long field_ny);
 
 /// One object ready to paint.
 struct PreparedObject {
@@ -121,10 +149,21 @@ constexpr int max_noise_kernel_radius = int(WhiteNoise::margin);
 /// value at its centre (one pixel's worth) when the image is noise-free or noiseless.
 double truncation_threshold(const CartesianModel& model, const SceneOptions& options);
 
+/// The object records at `path` (JSON lines; "-": stdin), read on `threads` threads and placed
+/// on the field: each as it is in band `band` (empty: as written), x, y from its ra, dec
+/// through `wcs`. Error at the file, line and field of the first bad record, or of the first
+/// star when `have_psf` is false (a point source is drawn as the PSF).
+std::vector<ObjectRecord> read_objects(const std::string& path, const Wcs& wcs,
+                                       const std::string& band, bool have_psf, int threads);
+
 /// Prepare one object record (x, y in field FITS pixels required).
 PreparedObject prepare_object(const ObjectRecord& record, double field_pixel_scale,
                               const SceneKernels& kernels, const SceneOptions& options,
                               ConvolveWorkspace* workspace = nullptr);
+
+/// Whether a stamp (0-based field columns and rows) shares a pixel with `window` (FITS pixels,
+/// inclusive): the overlap paint() adds.
+bool stamp_reaches(const PixelWindow& stamp, const Tile& window);
 
 /// Every record prepared (on options.threads threads), keeping those drawn whose stamps reach
 /// `window`, in input order; each one's `index` is its record's. Error naming the first object
@@ -147,5 +186,62 @@ ImageArray paint(const std::vector<PreparedObject>& objects, const Tile& window,
 /// Add the noise of `options` to `image` — on entry the noise-free image, whose signal the
 /// photon noise follows — the window `window` of a field `field_nx` pixels wide (pixel keys).
 void add_noise(ImageArray& image, const Tile& window, long field_nx, const SceneOptions& options);
+
+/// A rendered window of a field: the objects drawn into it, what clipping took from each,
+/// the noisy image, and the time each step took.
+struct RenderedScene {
+    FieldGeometry field;                  ///< the field the window is of
+    Tile window;                          ///< its pixels drawn (FITS, inclusive)
+    std::vector<PreparedObject> objects;  ///< prepare_scene()'s, in input order
+    std::vector<ClippedLight> clipped;    ///< clipped[i]: what objects[i] lost (paint())
+    ImageArray image;                     ///< the window's pixels, noise included
+    double prepare_seconds = 0.0, paint_seconds = 0.0, noise_seconds = 0.0;
+};
+
+/// The window `window` of the field `field` holding `records` (x, y set): prepare_scene(),
+/// paint(), add_noise(). An object's failure is an Error at `source`, the records' file.
+RenderedScene render_field(const std::vector<ObjectRecord>& records, const FieldGeometry& field,
+                           const SceneKernels& kernels, const SceneOptions& options,
+                           const Tile& window, const std::string& source);
+
+/// The truth of object `object` drawn from `record` (what paint() drew, with the negative
+/// light `clipped` took away added back: flux, and mag moved by it).
+TruthRecord truth_record(const PreparedObject& object, const ObjectRecord& record,
+                         const ClippedLight& clipped);
+
+/// The truths of the objects of `scene` centred in its window (Tile::owns), in input order:
+/// the truths of a grid of tiles hold every object once (stamps reaching in from outside are
+/// drawn, not listed). `records` are those the scene was rendered from.
+std::vector<TruthRecord> truth_records(const RenderedScene& scene,
+                                       const std::vector<ObjectRecord>& records);
+
+/// The objects' own zero point, mag + 2.5 log₁₀ flux, when every object with a mag and a
+/// positive flux agrees on it to 1e-6 (nullopt when they disagree or none has both): a
+/// simulation measured without --zero-point gets its true magnitudes.
+std::optional<double> objects_zero_point(const std::vector<ObjectRecord>& records);
+
+/// What clip_negative took from a scene's galaxies, over all of them.
+struct ClippedSummary {
+    long galaxies = 0;     ///< galaxies that lost light
+    double largest = 0.0;  ///< the largest fraction of a galaxy's |flux| lost
+    double deepest = 0.0;  ///< the most negative pixel (≤ 0)
+};
+ClippedSummary summarise_clipped(const RenderedScene& scene);
+
+/// What a rendered image's header names besides SceneOptions: the run's seed (a band's noise
+/// seed is drawn from it), the PSF record ("none"), the background's correlation in words, the
+/// band drawn (empty: none).
+struct SceneLabels {
+    std::uint64_t seed = 0;
+    std::string psf = "none", noise, band;
+};
+
+/// The image HDU of a rendered scene: EXTNAME SCI, `bitpix`, the field's BUNIT and its WCS moved
+/// to the window, and cards saying how it was made (seed, truncation, noise, gain, sky,
+/// lensing, PSF, galaxy kernel, window, field size, band, objects drawn) and, when they agree
+/// (objects_zero_point()), the objects' zero point MAGZERO to 1e-6.
+FitsImageSpec scene_image_spec(const RenderedScene& scene, const std::vector<ObjectRecord>& records,
+                               const SceneOptions& options, const SceneKernels& kernels,
+                               const SceneLabels& labels, int bitpix);
 
 }  // namespace shapesim

@@ -1,8 +1,12 @@
 #include "shapesim/sources.hpp"
 
 #include "shapesim/fits_io.hpp"
+#include "shapesim/jsonl.hpp"
+#include "shapesim/statistics.hpp"
 
+#include <algorithm>
 #include <cmath>
+#include <vector>
 
 namespace shapesim {
 
@@ -75,6 +79,24 @@ std::optional<double> header_zero_point(FitsReader& fits) {
     if (flam && plam && *flam > 0.0 && *plam > 0.0)
         return -2.5 * std::log10(*flam) - 5.0 * std::log10(*plam) - 2.408;
     return std::nullopt;
+}
+
+FieldNoise read_field_noise(const std::string& path) {
+    JsonlReader reader(path, {SourceRecord::schema});
+    SourceRecord r;
+    std::vector<double> rms, field_rms, factor;
+    while (reader.next_record(r)) {
+        try {
+            if (auto v = optional_double(r.extra, "background_rms"); v && *v > 0.0) field_rms.push_back(*v);
+            if (auto v = optional_double(r.extra, "noise_rms")) rms.push_back(*v);
+            if (auto v = optional_double(r.extra, "noise_correlation")) factor.push_back(*v);
+        } catch (const Error& e) {
+            throw reader.locate(e);
+        }
+    }
+    if (rms.empty() && field_rms.empty()) throw Error("no background_rms or noise_rms in the records", path);
+    return {median_of_values(field_rms.empty() ? rms : field_rms),
+            factor.empty() ? 1.0 : std::max(1.0, median_of_values(factor))};
 }
 
 }  // namespace shapesim

@@ -40,6 +40,17 @@ SourceRecord source_record(const Detection& object, const CoreFraction& core,
                            double stellarity_value, const CutStamp* cut,
                            const SourceContext& context);
 
+/// A field's background noise as shapesim-detect measured it.
+struct FieldNoise {
+    double rms = 0.0;          ///< image units
+    double correlation = 1.0;  ///< correlated-noise factor F (≥ 1)
+};
+
+/// The field's noise from the records at `path`: their background_rms (the median of the
+/// stamps' noise_rms when no record has one), and the median noise_correlation (1 when none
+/// has one). Error (file and line) on a bad record, or when no record has either rms.
+FieldNoise read_field_noise(const std::string& path);
+
 /// A photometric zero point (AB magnitude of one image unit) from the header: MAGZPT,
 /// MAGZERO, ZEROPNT, ZP or PHOTZP as given; else HST's PHOTFLAM/PHOTPLAM as AB,
 /// ZP = −2.5 log₁₀ PHOTFLAM − 5 log₁₀ PHOTPLAM − 2.408. nullopt when none is there.

@@ -1422,3 +1422,44 @@ TEST(DualImage, ABandKeepsItsOwnFluxAndNoise) {
     outside.x0 = 90;
     EXPECT_THROW(cut_band_stamp(band, detection.objects[0], "A", outside, StampOptions{}), Error);
 }
+
+// The field's noise from shapesim-detect's records (render --noise-like): the field's
+// background_rms when records carry one (not the stamps' noise_rms), else the median stamp
+// noise_rms; the median noise_correlation, never below 1; a record of another schema or with
+// neither rms is an error naming the file.
+TEST(DetectSourceRecord, FieldNoiseFromTheRecords) {
+    const std::string path = ::testing::TempDir() + "field-noise.jsonl";
+    auto write = [&](const std::vector<std::string>& extras) {
+        std::ofstream out(path);
+        int id = 0;
+        for (const std::string& e : extras)
+            out << R"({"schema":"shapesim.source/1","id":")" << id++
+                << R"(","x":1,"y":2,"flux":3,"flags":[])" << e << "}\n";
+    };
+    write({R"(,"background_rms":0.2,"noise_rms":5,"noise_correlation":1.5)",
+           R"(,"background_rms":0.2,"noise_rms":7,"noise_correlation":1.9)",
+           R"(,"background_rms":0.2,"noise_rms":9,"noise_correlation":1.6)"});
+    FieldNoise noise = read_field_noise(path);
+    EXPECT_EQ(noise.rms, 0.2);
+    EXPECT_EQ(noise.correlation, 1.6);
+    write({R"(,"noise_rms":5)", R"(,"noise_rms":9,"noise_correlation":0.8)", R"(,"noise_rms":7)"});
+    noise = read_field_noise(path);
+    EXPECT_EQ(noise.rms, 7.0);
+    EXPECT_EQ(noise.correlation, 1.0);
+    write({R"(,"flux_iso":1)"});
+    try {
+        read_field_noise(path);
+        ADD_FAILURE() << "no error";
+    } catch (const Error& e) {
+        EXPECT_EQ(e.file(), path);
+        EXPECT_EQ(e.message(), "no background_rms or noise_rms in the records");
+    }
+    write({R"(,"noise_rms":"high")"});
+    try {
+        read_field_noise(path);
+        ADD_FAILURE() << "no error";
+    } catch (const Error& e) {
+        EXPECT_EQ(e.line(), 1);
+        EXPECT_EQ(e.field(), "noise_rms");
+    }
+}

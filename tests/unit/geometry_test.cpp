@@ -301,3 +301,33 @@ TEST_F(GeometryTest, SipWithoutOrdersAndOtherProjectionsAreRefused) {
                   .find("CTYPE1: expected 'RA---TAN' (TAN, with SIP or without), got 'RA---TPV'"),
               std::string::npos);
 }
+
+TEST(Wcs, CutoutSeesTheSameSkyAtItsOwnPixels) {
+    // A cutout whose first pixel is the field's (x0, y0): its pixel (x − x0 + 1, y − y0 + 1)
+    // is the field's (x, y) on the sky, with and without SIP distortion (its terms are in
+    // offsets from CRPIX). Shifts are whole pixels, so agreement is to rounding (1e-12 px).
+    Wcs field = tan_wcs(189.2, 62.2, 0.04, 256.5, 256.5, 30.0);
+    Wcs sip = field;
+    sip.ctype1 = "RA---TAN-SIP";
+    sip.ctype2 = "DEC--TAN-SIP";
+    sip.sip_order = 2;
+    sip.sip_a = {{0.0, 0.0, 2e-6}, {0.0, -1e-6, 0.0}, {3e-6, 0.0, 0.0}};
+    sip.sip_b = {{0.0, 0.0, -2e-6}, {0.0, 4e-6, 0.0}, {1e-6, 0.0, 0.0}};
+    for (const Wcs& w : {field, sip}) {
+        const long x0 = 301, y0 = 17;
+        const Wcs cut = w.cutout(x0, y0);
+        EXPECT_EQ(cut.crpix1, w.crpix1 - 300.0);
+        EXPECT_EQ(cut.crpix2, w.crpix2 - 16.0);
+        EXPECT_EQ(cut.sip_a, w.sip_a);
+        for (const auto& [x, y] : {std::pair{301.0, 17.0}, {400.25, 90.5}, {1000.0, -40.0}}) {
+            const SkyPosition a = w.pixel_to_sky(x, y);
+            const PixelPosition p = cut.sky_to_pixel(a.ra, a.dec);
+            EXPECT_NEAR(p.x, x - double(x0 - 1), 1e-9);
+            EXPECT_NEAR(p.y, y - double(y0 - 1), 1e-9);
+        }
+        // Its own first pixel: a cutout from (1, 1) is the WCS itself.
+        const Wcs same = w.cutout(1, 1);
+        EXPECT_EQ(same.crpix1, w.crpix1);
+        EXPECT_EQ(same.crpix2, w.crpix2);
+    }
+}

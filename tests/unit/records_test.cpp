@@ -420,3 +420,65 @@ TEST(BandRecord, ReadsTheBandsFileAndRefusesRepeats) {
     EXPECT_THROW(BandRecord::read_all(path), Error);
     std::remove(path.c_str());
 }
+
+TEST(TruthRecord, WritesRendersKeyOrderAndRoundTrips) {
+    // The line shapesim-render has always written: schema, id, kind, ra, dec, x, y, flux,
+    // mag, clipped_flux, the galaxy's shape (null where undefined), n_max, stamp_radius.
+    TruthRecord t;
+    t.id = "g7";
+    t.ra = 189.2;
+    t.dec = 62.25;
+    t.x = 10.5;
+    t.y = -3.25;
+    t.flux = 0.125;
+    t.mag = 24.5;
+    t.clipped_flux = 0.0625;
+    t.shape = TruthRecord::Shape{0.25, std::nullopt, 1.5, 1e-9};
+    t.n_max = 12;
+    t.stamp_radius = 7.5;
+    const Json j = t.to_json();
+    EXPECT_EQ(j.dump(),
+              R"({"schema":"shapesim.truth/1","id":"g7","kind":"galaxy","ra":189.2,"dec":62.25,)"
+              R"("x":10.5,"y":-3.25,"flux":0.125,"mag":24.5,"clipped_flux":0.0625,"e1":0.25,)"
+              R"("e2":null,"rms_radius":1.5,"lensing_error":1e-09,"n_max":12,"stamp_radius":7.5})");
+    const TruthRecord back = TruthRecord::from_json(j);
+    EXPECT_EQ(back.to_json().dump(), j.dump());
+    ASSERT_TRUE(back.shape);
+    EXPECT_EQ(back.shape->e1, 0.25);
+    EXPECT_FALSE(back.shape->e2);
+    EXPECT_EQ(back.shape->lensing_error, 1e-9);
+
+    // A star: no mag, nothing clipped, no shape; unknown fields carried at the end.
+    TruthRecord star;
+    star.id = "s1";
+    star.kind = "star";
+    star.flux = 2.0;
+    star.n_max = 6;
+    star.stamp_radius = 3.0;
+    star.extra["tile"] = "a";
+    const std::string line = star.to_json().dump();
+    EXPECT_EQ(line, R"({"schema":"shapesim.truth/1","id":"s1","kind":"star","ra":0.0,"dec":0.0,)"
+                    R"("x":0.0,"y":0.0,"flux":2.0,"n_max":6,"stamp_radius":3.0,"tile":"a"})");
+    EXPECT_EQ(TruthRecord::from_json(Json::parse(line)).to_json().dump(), line);
+    EXPECT_FALSE(TruthRecord::from_json(Json::parse(line)).shape);
+}
+
+TEST(TruthRecord, ValidationErrorsNameTheField) {
+    auto error = [](const std::string& text) {
+        try {
+            TruthRecord::from_json(Json::parse(text));
+        } catch (const Error& e) {
+            return e.field();
+        }
+        return std::string("no error");
+    };
+    const std::string head = R"({"schema":"shapesim.truth/1","id":"g","ra":1,"dec":2,"x":3,"y":4,)";
+    EXPECT_EQ(error(head + R"("kind":"planet","flux":1,"n_max":0,"stamp_radius":1})"), "kind");
+    EXPECT_EQ(error(head + R"("kind":"star","flux":1,"n_max":0,"stamp_radius":-1})"), "stamp_radius");
+    EXPECT_EQ(error(head + R"("kind":"star","n_max":0,"stamp_radius":1})"), "flux");
+    EXPECT_EQ(error(head + R"("kind":"galaxy","flux":1,"e1":0.1,"lensing_error":-1,"n_max":0,)"
+                           R"("stamp_radius":1})"), "lensing_error");
+    EXPECT_EQ(error(head + R"("kind":"star","flux":1,"clipped_flux":-1,"n_max":0,"stamp_radius":1})"),
+              "clipped_flux");
+    EXPECT_EQ(error(head + R"("kind":"star","flux":1,"n_max":0,"stamp_radius":1})"), "no error");
+}

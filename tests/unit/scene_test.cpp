@@ -9,8 +9,11 @@
 
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
+#include <fstream>
 #include <iostream>
+#include <map>
 
 using namespace shapesim;
 
@@ -451,4 +454,378 @@ TEST(Scene, IntrinsicModelsThroughThePsfNeverSharperThanSeen) {
     EXPECT_NEAR(flux(to_polar(p.model)), flux(g), 1e-9 * flux(g));  // unit-flux kernels
     // Without a PSF an intrinsic model is refused.
     EXPECT_THROW(prepare_object(r, 0.04, SceneKernels{}, o), Error);
+}
+
+namespace {
+
+// The crowded field's records (crowded() prepares the same objects one by one).
+std::vector<ObjectRecord> crowded_records() {
+    std::vector<ObjectRecord> records;
+    for (int i = 0; i < 70; ++i) {
+        RandomStream r(5, std::uint64_t(i), "test object");
+        const double x = r.uniform(-5.0, 205.0), y = r.uniform(-5.0, 155.0);
+        ObjectRecord rec;
+        if (i % 7 == 6) {
+            rec.id = "s" + std::to_string(i);
+            rec.kind = "star";
+            rec.x = x;
+            rec.y = y;
+            rec.flux = r.uniform(5.0, 500.0);
+            rec.mag = 25.0 - 2.5 * std::log10(rec.flux);
+        } else {
+            ShapeletModel m = test::random_model(i % 11, r.uniform(1.0, 4.0), 0.0, 0.0, 300 + unsigned(i), true, 0.2);
+            m.coeffs[0] = r.uniform(1.0, 50.0);
+            rec = galaxy_record(m, x, y, "g" + std::to_string(i));
+            if (rec.flux > 0.0) rec.mag = 25.0 - 2.5 * std::log10(rec.flux);
+        }
+        records.push_back(rec);
+    }
+    return records;
+}
+
+// Whether any pixel of `stamp` (0-based field columns/rows) lies in `window` (FITS), pixel by
+// pixel.
+bool shares_a_pixel(const PixelWindow& stamp, const Tile& window) {
+    for (long j = stamp.row0; j < stamp.row0 + stamp.ny; ++j)
+        for (long i = stamp.column0; i < stamp.column0 + stamp.nx; ++i)
+            if (i + 1 >= window.x0 && i + 1 <= window.x1 && j + 1 >= window.y0 && j + 1 <= window.y1)
+                return true;
+    return false;
+}
+
+std::string temp_file(const std::string& name, const std::string& text) {
+    const std::string path = ::testing::TempDir() + name;
+    std::ofstream(path) << text;
+    return path;
+}
+
+}  // namespace
+
+// The window filter: a stamp reaches a window exactly when they share a pixel (pixel by
+// pixel over random stamps and windows, overhanging the field's edges and touching corners).
+TEST(Scene, StampReachesAWindowExactlyWhenTheyShareAPixel) {
+    RandomStream r(3, 0, "stamps");
+    long reached = 0;
+    for (int k = 0; k < 20000; ++k) {
+        const PixelWindow stamp{int(r.uniform(-12.0, 40.0)), int(r.uniform(-12.0, 40.0)),
+                                1 + int(r.uniform(0.0, 12.0)), 1 + int(r.uniform(0.0, 12.0))};
+        const long x0 = 1 + long(r.uniform(0.0, 25.0)), y0 = 1 + long(r.uniform(0.0, 25.0));
+        const Tile window{x0, y0, x0 + long(r.uniform(0.0, 10.0)), y0 + long(r.uniform(0.0, 10.0))};
+        const bool expect = shares_a_pixel(stamp, window);
+        ASSERT_EQ(stamp_reaches(stamp, window), expect)
+            << "stamp " << stamp.column0 << "," << stamp.row0 << " " << stamp.nx << "x" << stamp.ny
+            << " window " << window.x0 << "," << window.y0 << "-" << window.x1 << "," << window.y1;
+        reached += expect;
+    }
+    EXPECT_GT(reached, 500);  // both outcomes exercised (920 of 20000 here)
+    EXPECT_LT(reached, 19000);
+}
+
+// prepare_scene keeps exactly the drawn objects whose stamps share a pixel with the window,
+// in input order, each knowing its record.
+TEST(Scene, PrepareSceneKeepsTheObjectsReachingTheWindow) {
+    SceneOptions o;
+    o.noise_rms = 0.05;
+    SceneKernels k;
+    k.galaxy = k.star = to_cartesian(psf_model());
+    const std::vector<ObjectRecord> records = crowded_records();
+    const Tile window{61, 41, 140, 90};
+    const std::vector<PreparedObject> kept = prepare_scene(records, 0.04, k, o, window);
+    std::vector<std::size_t> expect;
+    for (std::size_t i = 0; i < records.size(); ++i) {
+        const PreparedObject p = prepare_object(records[i], 0.04, k, o);
+        if (p.drawn && shares_a_pixel(p.window, window)) expect.push_back(i);
+    }
+    ASSERT_EQ(kept.size(), expect.size());
+    EXPECT_GT(kept.size(), 5u);
+    EXPECT_LT(kept.size(), records.size());
+    for (std::size_t n = 0; n < kept.size(); ++n) {
+        EXPECT_EQ(kept[n].index, expect[n]);
+        EXPECT_EQ(kept[n].id, records[expect[n]].id);
+    }
+}
+
+// The kernels: stars as the PSF; galaxies through the PSF, through nothing when the models
+// hold this very PSF, else through the difference kernel of the requested order.
+TEST(Scene, KernelsFollowThePsfTheModelsHold) {
+    ShapeletModel old_psf(0.0, 0.0, 1.0, 2), psf(0.0, 0.0, 1.6, 2);
+    old_psf.at(0, 0) = 1.0 / (2.0 * std::sqrt(M_PI) * 1.0);
+    psf.at(0, 0) = 1.0 / (2.0 * std::sqrt(M_PI) * 1.6);
+    psf.at(2, 0) = 0.01;
+    const SceneKernels plain = scene_kernels(psf);
+    ASSERT_TRUE(plain.star && plain.galaxy);
+    EXPECT_TRUE((plain.star->b.array() == to_cartesian(psf).b.array()).all());
+    EXPECT_TRUE((plain.galaxy->b.array() == plain.star->b.array()).all());
+    EXPECT_EQ(plain.galaxy_note, "the PSF");
+
+    const SceneKernels same = scene_kernels(psf, psf, 4);
+    EXPECT_TRUE(same.star);
+    EXPECT_FALSE(same.galaxy);
+    EXPECT_EQ(same.galaxy_note, "none (the models hold this PSF)");
+
+    const SceneKernels diff = scene_kernels(psf, old_psf, 6);
+    const DifferenceKernel expect = difference_kernel(old_psf, psf, 6);
+    ASSERT_TRUE(diff.galaxy);
+    EXPECT_EQ(diff.galaxy->n_max, 6);
+    EXPECT_TRUE((diff.galaxy->b.array() == to_cartesian(expect.kernel).b.array()).all());
+    EXPECT_EQ(diff.galaxy_note, "difference kernel (relative residual " +
+                                    std::to_string(expect.report.relative_residual) + ")");
+    EXPECT_EQ(scene_kernels(psf, old_psf).galaxy->n_max, psf.n_max);  // the PSF's order
+    EXPECT_FALSE(read_scene_kernels("", "", 0.04, -1).star);
+    EXPECT_EQ(read_scene_kernels("", "", 0.04, -1).galaxy_note, "none");
+}
+
+// The measured sky's noise sets the rms, F (never below 1) and the kernel of its correlation.
+TEST(Scene, SkyNoiseSetsRmsFactorAndKernel) {
+    NoiseRecord noise;
+    noise.rms = 0.3;
+    noise.noise_correlation = 0.9;
+    noise.correlation.radius = 1;
+    noise.correlation.values = {0.0, 0.1, 0.0, 0.2, 1.0, 0.2, 0.0, 0.1, 0.0};
+    SceneOptions o;
+    use_sky_noise(o, noise);
+    EXPECT_EQ(o.noise_rms, 0.3);
+    EXPECT_EQ(o.noise_correlation, 1.0);
+    ASSERT_TRUE(o.noise_kernel);
+    const NoiseKernel expect = correlated_noise_kernel(noise.correlation);
+    EXPECT_EQ(o.noise_kernel->radius, expect.radius);
+    EXPECT_EQ(o.noise_kernel->columns, expect.columns);
+    noise.noise_correlation = 1.7;
+    use_sky_noise(o, noise);
+    EXPECT_EQ(o.noise_correlation, 1.7);
+}
+
+// A weight map of another size than the field is refused naming the file; one of the field's
+// size gives noise_scale_from_weight's map.
+TEST(Scene, NoiseScaleReadsAWeightMapOfTheFieldsSize) {
+    const std::string path = ::testing::TempDir() + "scene-weight.fits";
+    ImageArray weight = ImageArray::Constant(4, 6, 4.0);
+    weight(1, 2) = 1.0;
+    FitsWriter out(path, "test");
+    out.write_image(weight, {"SCI", -64, "", {}, {}, {}});
+    out.commit();
+    const ImageArray scale = read_noise_scale(path, 6, 4);
+    EXPECT_TRUE((scale == noise_scale_from_weight(weight)).all());
+    try {
+        read_noise_scale(path, 4, 6);
+        ADD_FAILURE() << "no error";
+    } catch (const Error& e) {
+        EXPECT_EQ(e.file(), path);
+        EXPECT_EQ(e.message(), "the weight map is 6 x 4 pixels, the field 4 x 6");
+    }
+}
+
+// Objects read and placed: x, y from ra, dec through the WCS, a band's coefficients and flux
+// when asked, and a star without a PSF refused at its line.
+TEST(Scene, ReadObjectsPlacesThemThroughTheWcs) {
+    const Wcs wcs = tan_wcs(189.2, 62.2, 0.04, 50.5, 40.5, 15.0);
+    ShapeletModel m(0.0, 0.0, 2.0, 2);
+    m.coeffs[0] = 3.0;
+    ObjectRecord g = galaxy_record(m, 0.0, 0.0, "g1");
+    g.x.reset();
+    g.y.reset();
+    const SkyPosition sky = wcs.pixel_to_sky(12.25, 30.5);
+    g.ra = sky.ra;
+    g.dec = sky.dec;
+    BandCoefficients a{"a", m.coeffs, g.flux, std::nullopt, std::nullopt, std::nullopt, Json::object()};
+    BandCoefficients b = a;
+    b.band = "b";
+    for (auto& c : b.coeffs) c *= 0.5;
+    b.flux = 0.5 * g.flux;
+    g.bands = {a, b};
+    ObjectRecord star;
+    star.id = "s1";
+    star.kind = "star";
+    star.ra = 189.2;
+    star.dec = 62.2;
+    star.flux = 4.0;
+    const std::string path = temp_file("scene-objects.jsonl", g.to_json().dump() + "\n\n" +
+                                                                  star.to_json().dump() + "\n");
+    const std::vector<ObjectRecord> records = read_objects(path, wcs, "", true, 2);
+    ASSERT_EQ(records.size(), 2u);
+    const PixelPosition p = wcs.sky_to_pixel(g.ra, g.dec);
+    EXPECT_EQ(*records[0].x, p.x);
+    EXPECT_EQ(*records[0].y, p.y);
+    EXPECT_NEAR(*records[0].x, 12.25, 1e-9);
+    EXPECT_NEAR(*records[1].x, 50.5, 1e-9);
+    EXPECT_NEAR(*records[1].y, 40.5, 1e-9);
+    EXPECT_EQ(records[0].coeffs, g.coeffs);
+
+    // Band b: only the galaxy has bands, so the star's line is where it fails.
+    try {
+        read_objects(path, wcs, "b", true, 1);
+        ADD_FAILURE() << "no error";
+    } catch (const Error& e) {
+        EXPECT_EQ(e.file(), path);
+        EXPECT_EQ(e.line(), 3);
+        EXPECT_EQ(e.field(), "bands");
+    }
+    const std::string galaxy_only = temp_file("scene-galaxy.jsonl", g.to_json().dump() + "\n");
+    const ObjectRecord in_b = read_objects(galaxy_only, wcs, "b", false, 1).at(0);
+    EXPECT_EQ(in_b.flux, 0.5 * g.flux);
+    EXPECT_EQ(in_b.coeffs, b.coeffs);
+    try {
+        read_objects(path, wcs, "", false, 1);
+        ADD_FAILURE() << "no error";
+    } catch (const Error& e) {
+        EXPECT_EQ(e.line(), 3);
+        EXPECT_EQ(e.field(), "kind");
+        EXPECT_EQ(e.message(), "object s1 is a point source: give --psf");
+    }
+}
+
+// A rendered field is prepare_scene + paint + add_noise; its truths are the objects centred in
+// the window, so a grid of tiles lists every drawn object once, with the flux drawn (clipped
+// light added back), the mag moved by it and the galaxies' intrinsic shape.
+TEST(Scene, TruthListsEachObjectOnceAcrossTiles) {
+    SceneOptions o;
+    o.noise_rms = 0.05;
+    o.seed = 4;
+    o.clip_negative = true;
+    SceneKernels k;
+    k.galaxy = k.star = to_cartesian(psf_model());
+    const std::vector<ObjectRecord> records = crowded_records();
+    FieldGeometry field;
+    field.nx = 200;
+    field.ny = 150;
+    field.pixel_scale = 0.04;
+    const RenderedScene whole = render_field(records, field, k, o, Tile{1, 1, 200, 150}, "x.jsonl");
+    ImageArray expect = paint(whole.objects, whole.window, o);
+    add_noise(expect, whole.window, 200, o);
+    EXPECT_TRUE((whole.image == expect).all());
+    std::map<std::string, int> listed;
+    for (const Tile& t : tile_grid(200, 150, 64, 64)) {
+        const RenderedScene tile = render_field(records, field, k, o, t, "x.jsonl");
+        for (const TruthRecord& truth : truth_records(tile, records)) {
+            ++listed[truth.id];
+            EXPECT_TRUE(t.owns(truth.x, truth.y)) << truth.id;
+        }
+    }
+    const std::vector<TruthRecord> truths = truth_records(whole, records);
+    long clipped = 0;
+    for (std::size_t i = 0; i < whole.objects.size(); ++i) {
+        const PreparedObject& p = whole.objects[i];
+        if (!whole.window.owns(p.model.x, p.model.y)) continue;
+        EXPECT_EQ(listed[p.id], 1) << p.id;
+        const TruthRecord t = truth_record(p, records[p.index], whole.clipped[i]);
+        EXPECT_EQ(t.flux, p.flux + whole.clipped[i].flux);
+        EXPECT_EQ(t.clipped_flux.has_value(), whole.clipped[i].flux > 0.0);
+        clipped += t.clipped_flux.has_value();
+        EXPECT_EQ(t.shape.has_value(), p.kind == "galaxy");
+        const ObjectRecord& r = records[p.index];
+        if (r.mag) {
+            EXPECT_NEAR(*t.mag, *r.mag - 2.5 * std::log10(t.flux / r.flux), 1e-12);
+        }
+    }
+    EXPECT_EQ(long(truths.size()), long(listed.size()));
+    EXPECT_GT(clipped, 0);
+    // The summary: every drawn galaxy that lost light, listed or not.
+    const ClippedSummary summary = summarise_clipped(whole);
+    long lost = 0;
+    double largest = 0.0, deepest = 0.0;
+    for (std::size_t i = 0; i < whole.objects.size(); ++i) {
+        if (!(whole.clipped[i].flux > 0.0)) continue;
+        ++lost;
+        largest = std::max(largest, whole.clipped[i].flux / std::abs(whole.objects[i].flux));
+        deepest = std::min(deepest, whole.clipped[i].deepest);
+    }
+    EXPECT_GE(lost, clipped);
+    EXPECT_EQ(summary.galaxies, lost);
+    EXPECT_EQ(summary.largest, largest);
+    EXPECT_EQ(summary.deepest, deepest);
+    EXPECT_LT(summary.deepest, 0.0);
+
+    // An object's failure names the records' file.
+    SceneKernels none;
+    try {
+        render_field(records, field, none, o, Tile{1, 1, 200, 150}, "x.jsonl");
+        ADD_FAILURE() << "no error";
+    } catch (const Error& e) {
+        EXPECT_EQ(e.file(), "x.jsonl");
+        EXPECT_EQ(e.message().rfind("object s6: ", 0), 0u) << e.message();
+    }
+}
+
+// A galaxy whose second moments are not positive has no e1, e2, rms_radius (null), but its
+// lensing error; a star has no shape.
+TEST(Scene, TruthOfUndefinedShapesIsNull) {
+    PreparedObject p;
+    p.id = "g";
+    p.kind = "galaxy";
+    p.flux = 2.0;
+    p.intrinsic = Moments{};
+    p.intrinsic->epsilon = Complex(std::nan(""), 0.1);
+    p.intrinsic->rms_radius = std::nan("");
+    p.lensing_error = 1e-9;
+    ObjectRecord r;
+    r.flux = 4.0;
+    r.mag = 20.0;
+    const TruthRecord t = truth_record(p, r, ClippedLight{});
+    ASSERT_TRUE(t.shape);
+    EXPECT_FALSE(t.shape->e1);
+    EXPECT_EQ(t.shape->e2, 0.1);
+    EXPECT_FALSE(t.shape->rms_radius);
+    EXPECT_EQ(t.shape->lensing_error, 1e-9);
+    EXPECT_DOUBLE_EQ(*t.mag, 20.0 + 2.5 * std::log10(2.0));
+    EXPECT_FALSE(t.clipped_flux);
+    p.intrinsic.reset();
+    EXPECT_FALSE(truth_record(p, r, ClippedLight{}).shape);
+}
+
+// The objects' zero point: mag + 2.5 log₁₀ flux when all agree to 1e-6; none otherwise.
+TEST(Scene, ObjectsZeroPointWhenTheyAgree) {
+    std::vector<ObjectRecord> records(3);
+    records[0].flux = 10.0;
+    records[0].mag = 22.08 - 2.5;
+    records[1].flux = 100.0;
+    records[1].mag = 22.08 - 5.0 + 4e-7;
+    records[2].flux = -1.0;  // no positive flux: not counted
+    records[2].mag = 30.0;
+    ASSERT_TRUE(objects_zero_point(records));
+    EXPECT_NEAR(*objects_zero_point(records), 22.08, 1e-12);
+    records[1].mag = 22.08 - 5.0 + 2e-6;
+    EXPECT_FALSE(objects_zero_point(records));
+    EXPECT_FALSE(objects_zero_point({records[2]}));
+    EXPECT_FALSE(objects_zero_point({}));
+}
+
+// The image HDU: SCI, the WCS moved to the window, the run's cards, MAGZERO to 1e-6 and BAND
+// only when there is one.
+TEST(Scene, ImageSpecCarriesTheWindowsWcsAndTheRunsCards) {
+    RenderedScene scene;
+    scene.field = make_field(1.0, 1.0, 0.05, 189.2, 62.2);
+    scene.field.bunit = "ELECTRONS/S";
+    scene.window = Tile{101, 51, 300, 200};
+    SceneOptions o;
+    o.noise_rms = 0.5;
+    o.lensing = Lensing{0.1, -0.05, 0.2};
+    SceneKernels k;
+    k.galaxy_note = "the PSF";
+    std::vector<ObjectRecord> records(1);
+    records[0].flux = 10.0;
+    records[0].mag = 25.12345678 - 2.5;
+    const FitsImageSpec spec = scene_image_spec(scene, records, o, k, {7, "psf.jsonl", "white", "f814w"}, -64);
+    EXPECT_EQ(spec.extname, "SCI");
+    EXPECT_EQ(spec.bitpix, -64);
+    EXPECT_EQ(spec.bunit, "ELECTRONS/S");
+    ASSERT_TRUE(spec.wcs);
+    EXPECT_EQ(spec.wcs->crpix1, scene.field.wcs.crpix1 - 100.0);
+    EXPECT_EQ(spec.wcs->crpix2, scene.field.wcs.crpix2 - 50.0);
+    std::map<std::string, FitsKeyword> cards;
+    for (const FitsKeyword& c : spec.keywords) cards.emplace(c.name, c);
+    EXPECT_EQ(std::get<std::string>(cards.at("SEED").value), "7");
+    EXPECT_EQ(std::get<double>(cards.at("NOISERMS").value), 0.5);
+    EXPECT_EQ(std::get<double>(cards.at("G2").value), -0.05);
+    EXPECT_EQ(std::get<std::string>(cards.at("GALKERN").value), "the PSF");
+    EXPECT_EQ(std::get<long long>(cards.at("TILEX0").value), 101);
+    EXPECT_EQ(std::get<long long>(cards.at("FIELDNX").value), scene.field.nx);
+    EXPECT_EQ(std::get<std::string>(cards.at("BAND").value), "f814w");
+    EXPECT_EQ(std::get<double>(cards.at("MAGZERO").value), 25.123457);
+    EXPECT_EQ(spec.keywords.back().name, "MAGZERO");
+    records[0].mag.reset();
+    const FitsImageSpec plain = scene_image_spec(scene, records, o, k, {7, "none", "white", ""}, -32);
+    for (const FitsKeyword& c : plain.keywords) {
+        EXPECT_NE(c.name, "BAND");
+        EXPECT_NE(c.name, "MAGZERO");
+    }
 }
