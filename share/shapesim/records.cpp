@@ -338,6 +338,15 @@ ShapeletRecord ShapeletRecord::from_model(const ShapeletModel& model, double pix
 
 // ---------------------------------------------------------------------------- ObjectRecord
 
+namespace {
+// An object's id (not empty) and kind (galaxy or star), as objects and truths carry them.
+void check_id_and_kind(const std::string& id, const std::string& kind) {
+    if (id.empty()) throw Error("must not be empty", {}, 0, "id");
+    if (kind != "galaxy" && kind != "star")
+        throw Error("must be \"galaxy\" or \"star\", got \"" + kind + "\"", {}, 0, "kind");
+}
+}  // namespace
+
 ObjectRecord ObjectRecord::from_json(const Json& j) {
     check_schema(j, schema);
     ObjectRecord r;
@@ -365,9 +374,7 @@ ObjectRecord ObjectRecord::from_json(const Json& j) {
 }
 
 void ObjectRecord::validate() const {
-    if (id.empty()) throw Error("must not be empty", {}, 0, "id");
-    if (kind != "galaxy" && kind != "star")
-        throw Error("must be \"galaxy\" or \"star\", got \"" + kind + "\"", {}, 0, "kind");
+    check_id_and_kind(id, kind);
     check_finite("ra", ra);
     check_dec("dec", dec);
     check_finite("flux", flux);
@@ -596,9 +603,7 @@ TruthRecord TruthRecord::from_json(const Json& j) {
 }
 
 void TruthRecord::validate() const {
-    if (id.empty()) throw Error("must not be empty", {}, 0, "id");
-    if (kind != "galaxy" && kind != "star")
-        throw Error("must be \"galaxy\" or \"star\", got \"" + kind + "\"", {}, 0, "kind");
+    check_id_and_kind(id, kind);
     check_dec("dec", dec);
     check_non_negative("clipped_flux", clipped_flux);
     check_non_negative("stamp_radius", stamp_radius);
