@@ -14,6 +14,7 @@
 #include <cstdlib>
 #include <filesystem>
 #include <fstream>
+#include <memory>
 #include <sstream>
 #include <thread>
 #include <unistd.h>
@@ -288,4 +289,73 @@ TEST(ProgramOptions, HelpPrintsDefaultsAsWritten) {
     EXPECT_EQ(app::defaults_as_written("(=0.039800000000000002)\n(=1e-08) (=2.5) (=weight)"),
               "(=0.0398)\n(=1e-08) (=2.5) (=weight)");
     EXPECT_EQ(app::defaults_as_written("(=-2.3396949999999999)"), "(=-2.339695)");
+}
+
+TEST(ProgramOptions, OldNamesAreAliasesOfTheNewOnes) {
+    const auto table = [] {
+        auto t = std::make_unique<Table>();
+        t->options.alias("threshold", "detect-thresh");
+        t->options.alias("weight-map", "weight");
+        return t;
+    };
+    {
+        auto t = table();
+        testing::internal::CaptureStderr();
+        ASSERT_TRUE(t->parse({"hdf.fits", "--threshold", "2.5", "--weight-map=w.fits"}));
+        const std::string warnings = testing::internal::GetCapturedStderr();
+        EXPECT_EQ(t->thresh, 2.5);
+        EXPECT_EQ(t->options.values()["weight"].as<std::string>(), "w.fits");
+        EXPECT_TRUE(t->options.given("detect-thresh"));
+        ASSERT_EQ(t->options.aliases_used().size(), 2u);
+        EXPECT_EQ(warnings,
+                  "shapesim-test: warning: --threshold is now --detect-thresh; the old name goes "
+                  "in a later release\n"
+                  "shapesim-test: warning: --weight-map is now --weight; the old name goes in a "
+                  "later release\n");
+    }
+    {  // -q keeps stderr for errors; the new name warns of nothing
+        auto t = table();
+        testing::internal::CaptureStderr();
+        ASSERT_TRUE(t->parse({"hdf.fits", "--threshold", "2", "-q"}));
+        ASSERT_TRUE(table()->parse({"hdf.fits", "--detect-thresh", "2"}));
+        EXPECT_EQ(testing::internal::GetCapturedStderr(), "");
+    }
+    {  // after "--" an argument is a value, even one spelled like an old name
+        auto t = table();
+        testing::internal::CaptureStderr();
+        ASSERT_TRUE(t->parse({"--", "--threshold"}));
+        testing::internal::GetCapturedStderr();
+        EXPECT_EQ(t->options.values()["image"].as<std::string>(), "--threshold");
+        EXPECT_EQ(t->thresh, 1.3);
+    }
+    {  // in a --config file too, and --print-params gives the new name
+        const std::string config = temp_file("# old names\nthreshold = 3.5\n  weight-map=w.fits\n");
+        auto t = table();
+        testing::internal::CaptureStderr();
+        testing::internal::CaptureStdout();
+        EXPECT_FALSE(t->parse({"hdf.fits", "--config", config.c_str(), "--print-params"}));
+        const std::string params = testing::internal::GetCapturedStdout();
+        testing::internal::GetCapturedStderr();
+        std::remove(config.c_str());
+        EXPECT_EQ(t->thresh, 3.5);
+        EXPECT_NE(params.find("detect-thresh = 3.5\n"), std::string::npos);
+        EXPECT_NE(params.find("weight = w.fits\n"), std::string::npos);
+        EXPECT_EQ(params.find("threshold ="), std::string::npos);
+    }
+    {  // old and new together are the same option given twice
+        auto t = table();
+        testing::internal::CaptureStderr();
+        EXPECT_THROW(t->parse({"hdf.fits", "--threshold", "2", "--detect-thresh", "3"}), po::error);
+        testing::internal::GetCapturedStderr();
+    }
+    {
+        auto t = table();
+        testing::internal::CaptureStdout();
+        EXPECT_FALSE(t->parse({"--help"}));
+        const std::string help = testing::internal::GetCapturedStdout();
+        EXPECT_NE(help.find("Old option names, still accepted for this release:\n"
+                            "  --threshold (now --detect-thresh)\n"
+                            "  --weight-map (now --weight)\n"),
+                  std::string::npos);
+    }
 }

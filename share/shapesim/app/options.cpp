@@ -3,6 +3,7 @@
 
 #include "shapesim/error.hpp"
 
+#include <algorithm>
 #include <cctype>
 #include <cerrno>
 #include <cstdio>
@@ -128,9 +129,39 @@ po::options_description ProgramOptions::all_options(bool for_config) const {
     return all;
 }
 
+void ProgramOptions::alias(const std::string& old_name, const std::string& name) {
+    aliases_.emplace_back(old_name, name);
+}
+
+std::string ProgramOptions::renamed(const std::string& name) {
+    for (const auto& [old_name, new_name] : aliases_) {
+        if (name != old_name) continue;
+        if (std::find(aliases_used_.begin(), aliases_used_.end(),
+                      std::pair(old_name, new_name)) == aliases_used_.end())
+            aliases_used_.emplace_back(old_name, new_name);
+        return new_name;
+    }
+    return name;
+}
+
 bool ProgramOptions::parse(int argc, const char* const argv[]) {
+    // Old names become new ones before Boost sees them (so they need no typed declaration of
+    // their own); after "--" every argument is a value.
+    std::vector<std::string> args(argv, argv + argc);
+    for (std::size_t i = 1; i < args.size() && args[i] != "--"; ++i) {
+        if (args[i].rfind("--", 0) != 0) continue;
+        const std::size_t eq = args[i].find('=');
+        const std::string name = args[i].substr(2, eq == std::string::npos ? eq : eq - 2);
+        const std::string to = renamed(name);
+        if (to != name) args[i] = "--" + to + (eq == std::string::npos ? "" : args[i].substr(eq));
+    }
+    std::vector<const char*> arg_pointers;
+    for (const std::string& a : args) arg_pointers.push_back(a.c_str());
+
     const po::options_description all = all_options(false);
-    auto parser = po::command_line_parser(argc, argv).options(all).positional(positional_);
+    auto parser = po::command_line_parser(int(arg_pointers.size()), arg_pointers.data())
+                      .options(all)
+                      .positional(positional_);
     if (allow_unregistered_) parser.allow_unregistered();
     const po::parsed_options parsed = parser.run();
     if (allow_unregistered_)
@@ -149,6 +180,10 @@ bool ProgramOptions::parse(int argc, const char* const argv[]) {
     if (values_.count("config")) read_config(values_["config"].as<std::string>());
     po::notify(values_);
     resolve_common();
+    if (common_.verbosity != Verbosity::quiet)
+        for (const auto& [old_name, new_name] : aliases_used_)
+            std::cerr << program_ << ": warning: --" << old_name << " is now --" << new_name
+                      << "; the old name goes in a later release\n";
     if (values_.count("print-params")) {
         std::cout << params();
         return false;
@@ -157,8 +192,23 @@ bool ProgramOptions::parse(int argc, const char* const argv[]) {
 }
 
 void ProgramOptions::read_config(const std::string& path) {
-    std::ifstream in(path);
-    if (!in) throw Error(std::string("cannot open: ") + std::strerror(errno), path);
+    std::ifstream file(path);
+    if (!file) throw Error(std::string("cannot open: ") + std::strerror(errno), path);
+    // `old = value` lines take the new name, as on the command line.
+    std::string text, line;
+    while (std::getline(file, line)) {
+        const std::size_t start = line.find_first_not_of(" \t");
+        const std::size_t eq = line.find('=');
+        if (start != std::string::npos && eq != std::string::npos && line[start] != '#') {
+            std::size_t end = eq;
+            while (end > start && (line[end - 1] == ' ' || line[end - 1] == '\t')) --end;
+            const std::string name = line.substr(start, end - start);
+            const std::string to = renamed(name);
+            if (to != name) line = line.substr(0, start) + to + line.substr(end);
+        }
+        text += line + "\n";
+    }
+    std::istringstream in(text);
     try {
         po::store(po::parse_config_file(in, all_options(true)), values_);
     } catch (const po::error& e) {
@@ -244,6 +294,12 @@ std::string ProgramOptions::help() const {
     s << "Usage: " << program_ << " " << synopsis_ << "\n" << description_ << "\n\n";
     for (const auto& group : groups_) s << *group.second << "\n";
     s << common_options_;
+    if (!aliases_.empty()) {
+        s << "\nOld option names, still accepted for this release:";
+        for (const auto& [old_name, new_name] : aliases_)
+            s << "\n  --" << old_name << " (now --" << new_name << ")";
+        s << "\n";
+    }
     if (!epilog_.empty()) s << "\n" << epilog_ << "\n";
     return defaults_as_written(s.str());
 }

@@ -88,6 +88,10 @@ public:
     void epilog(std::string text) { epilog_ = std::move(text); }
     /// Keep unknown options and extra arguments instead of failing (placeholder programs).
     void allow_unregistered() { allow_unregistered_ = true; }
+    /// Accept `old_name` as another name of option `name`, on the command line (--old,
+    /// --old=value) and in --config files, for a release after a rename: the value goes to
+    /// `name`, --help lists the old name, and a warning on stderr (unless -q) gives the new one.
+    void alias(const std::string& old_name, const std::string& name);
 
     /// Parse the command line (then --config). Returns false when the program's work is done:
     /// --help, --version or --print-params was printed on stdout. Throws po::error for usage
@@ -98,6 +102,10 @@ public:
     const CommonValues& common() const { return common_; }
     /// True when option `name` was given on the command line or in --config.
     bool given(const std::string& name) const;
+    /// The old names used in this run, as (old, new) pairs (see alias()).
+    const std::vector<std::pair<std::string, std::string>>& aliases_used() const {
+        return aliases_used_;
+    }
     /// Unknown options and arguments (only with allow_unregistered()).
     const std::vector<std::string>& unrecognized() const { return unrecognized_; }
 
@@ -113,6 +121,7 @@ public:
 private:
     void declare_common(unsigned common);
     void read_config(const std::string& path);
+    std::string renamed(const std::string& name);
     void resolve_common();
     po::options_description all_options(bool for_config) const;
 
@@ -126,15 +135,16 @@ private:
     CommonValues common_;
     std::string seed_text_;
     std::vector<std::string> unrecognized_;
+    std::vector<std::pair<std::string, std::string>> aliases_, aliases_used_;
     bool allow_unregistered_ = false;
 };
 
-/// The items of a comma-separated option value ("a, b,,c" → a b c): spaces dropped, empty
-/// items skipped.
 /// `help` with every 17-digit double default, e.g. (=0.96999999999999997), printed as the
 /// shortest text that reads back as the same double, (=0.97) (Boost prints the former).
 std::string defaults_as_written(const std::string& help);
 
+/// The items of a comma-separated option value ("a, b,,c" → a b c): spaces dropped, empty
+/// items skipped.
 std::vector<std::string> split_list(const std::string& list);
 
 /// NAME=FILE option values (--compare, --compare-sky) split at the first '='; po::error
