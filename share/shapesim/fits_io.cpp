@@ -257,7 +257,7 @@ ImageArray FitsReader::read_image() {
                         " bytes of pixels, the file holds " +
                         std::to_string(std::max<LONGLONG>(0, file_size - data_start)),
                     impl_->place);
-    ImageArray image(size.ny, size.nx);
+    ImageArray image = large_image(size.ny, size.nx);
     // FITS stores x fastest, rows of constant y one after another: the ImageArray layout.
     // A NaN null value makes cfitsio turn BLANK integers and NaN floats into NaN.
     double null_value = std::numeric_limits<double>::quiet_NaN();

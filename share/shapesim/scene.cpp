@@ -294,7 +294,7 @@ ImageArray paint(const std::vector<PreparedObject>& objects, const Tile& window,
     // Each band zeroes its own rows: pages first touched by a write are mapped writable at
     // once, where calloc's zero pages fault again, copy on write, and flush the TLB of every
     // other thread (painting on two threads was slower than on one).
-    ImageArray image(ny, nx);
+    ImageArray image = large_image(ny, nx);
     if (clipped) clipped->assign(objects.size(), ClippedLight{});
     in_bands(ny, options.threads, [&](long first, long last) {
         std::fill(&image(first, 0), &image(first, 0) + (last - first) * nx, 0.0);
@@ -341,7 +341,7 @@ ImageArray noise_scale_from_weight(const ImageArray& weight) {
     }
     require(good > 0, "the noise weight map has no pixel with a positive weight");
     const double mean_variance = sum / double(good);
-    ImageArray scale(weight.rows(), weight.cols());
+    ImageArray scale = large_image(weight.rows(), weight.cols());
     for (Eigen::Index k = 0; k < weight.size(); ++k) {
         const double w = weight.data()[k];
         scale.data()[k] = w > 0.0 && std::isfinite(w) ? 1.0 / std::sqrt(w * mean_variance) : 1.0;
