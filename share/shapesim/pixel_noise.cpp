@@ -341,6 +341,10 @@ const float* CorrelatedNoise::row(long row) {
     for (long r = from; r <= row + K; ++r) white_.row(r, first_ - K, nx_ + 2 * K, white(r));
     last_row_ = row;
     started_ = true;
+    // White noise (one central tap of weight 1) is its own row: the sum would copy it (and
+    // turn a −0 into +0, the one difference).
+    if (taps_.size() == 1 && taps_[0].dx == 0 && taps_[0].dy == 0 && taps_[0].weight == 1.0f)
+        return white(row) + K;
     for (std::size_t t = 0; t < taps_.size(); ++t) {
         const Tap& tap = taps_[t];
         a_[t] = white(row + tap.dy) + K + tap.dx;

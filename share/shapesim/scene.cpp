@@ -373,7 +373,8 @@ void add_noise(ImageArray& image, const Tile& window, long field_nx, const Scene
             const long row = window.y0 - 1 + j;  // field 0-based
             double* pixels = &image(j, 0);
             // Photon noise (and the sky level) first: it follows the noise-free signal.
-            for (long i = 0; i < nx; ++i) pixels[i] += options.sky;
+            if (options.sky != 0.0)
+                for (long i = 0; i < nx; ++i) pixels[i] += options.sky;
             if (photons) photon.row(row, window.x0 - 1, nx, options.gain, photon_signal, pixels);
             if (!(sigma > 0.0)) continue;
             // The background's local σ: the scale map's, keyed by the field pixel.
