@@ -14,6 +14,7 @@
 #include <algorithm>
 #include <array>
 #include <cmath>
+#include <functional>
 #include <limits>
 #include <optional>
 
@@ -283,25 +284,10 @@ public:
             left = u[std::max(best - 1, 0)];
             right = u[std::min(best + 1, coarse - 1)];
         }
-        constexpr double golden = 0.6180339887498949;
-        double c = right - golden * (right - left), d = left + golden * (right - left);
-        double fc = score(x, y, std::exp(c)), fd = score(x, y, std::exp(d));
-        while (right - left > options_.beta_tolerance) {
-            if (fc < fd) {
-                right = d;
-                d = c;
-                fd = fc;
-                c = right - golden * (right - left);
-                fc = score(x, y, std::exp(c));
-            } else {
-                left = c;
-                c = d;
-                fc = fd;
-                d = left + golden * (right - left);
-                fd = score(x, y, std::exp(d));
-            }
-        }
-        return fc < fd ? std::exp(c) : std::exp(d);
+        const auto bracket = golden_section(
+            [&](double u) { return score(x, y, std::exp(u)); }, left, right,
+            options_.beta_tolerance, std::less<double>(), [](double) {});
+        return bracket.fc < bracket.fd ? std::exp(bracket.c) : std::exp(bracket.d);
     }
 
     const std::optional<JointFit>& best() const { return best_; }

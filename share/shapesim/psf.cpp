@@ -7,6 +7,7 @@
 #include "shapesim/jsonl.hpp"
 #include "shapesim/lsq.hpp"
 #include "shapesim/moments.hpp"
+#include "shapesim/optimize.hpp"
 #include "shapesim/resample.hpp"
 #include "shapesim/transform.hpp"
 
@@ -53,28 +54,12 @@ public:
     // Golden-section search for the smallest RSS on [a, b] (ln β), to width `tolerance`;
     // returns the best trial seen, including `best` passed in.
     Trial golden(double a, double b, double tolerance, PixelPosition centre, Trial best) {
-        const double g = 0.5 * (std::sqrt(5.0) - 1.0);
-        double x1 = b - g * (b - a), x2 = a + g * (b - a);
-        Trial f1 = evaluate(x1, centre), f2 = evaluate(x2, centre);
-        while (b - a > tolerance) {
-            if (f1.rss < f2.rss) {
-                keep_better(best, f2);
-                b = x2;
-                x2 = x1;
-                f2 = std::move(f1);
-                x1 = b - g * (b - a);
-                f1 = evaluate(x1, centre);
-            } else {
-                keep_better(best, f1);
-                a = x1;
-                x1 = x2;
-                f1 = std::move(f2);
-                x2 = a + g * (b - a);
-                f2 = evaluate(x2, centre);
-            }
-        }
-        keep_better(best, f1);
-        keep_better(best, f2);
+        auto bracket = golden_section(
+            [&](double ln_beta) { return evaluate(ln_beta, centre); }, a, b, tolerance,
+            [](const Trial& p, const Trial& q) { return p.rss < q.rss; },
+            [&](Trial& dropped) { keep_better(best, dropped); });
+        keep_better(best, bracket.fc);
+        keep_better(best, bracket.fd);
         return best;
     }
 
