@@ -14,6 +14,7 @@
 #include <algorithm>
 #include <array>
 #include <cmath>
+#include <functional>
 #include <limits>
 #include <optional>
 
@@ -283,25 +284,10 @@ public:
             left = u[std::max(best - 1, 0)];
             right = u[std::min(best + 1, coarse - 1)];
         }
-        constexpr double golden = 0.6180339887498949;
-        double c = right - golden * (right - left), d = left + golden * (right - left);
-        double fc = score(x, y, std::exp(c)), fd = score(x, y, std::exp(d));
-        while (right - left > options_.beta_tolerance) {
-            if (fc < fd) {
-                right = d;
-                d = c;
-                fd = fc;
-                c = right - golden * (right - left);
-                fc = score(x, y, std::exp(c));
-            } else {
-                left = c;
-                c = d;
-                fc = fd;
-                d = left + golden * (right - left);
-                fd = score(x, y, std::exp(d));
-            }
-        }
-        return fc < fd ? std::exp(c) : std::exp(d);
+        const auto bracket = golden_section(
+            [&](double u) { return score(x, y, std::exp(u)); }, left, right,
+            options_.beta_tolerance, std::less<double>(), [](double) {});
+        return bracket.fc < bracket.fd ? std::exp(bracket.c) : std::exp(bracket.d);
     }
 
     const std::optional<JointFit>& best() const { return best_; }
@@ -309,10 +295,6 @@ public:
     void forget() {
         best_.reset();
         best_chi2r_ = infinite;
-    }
-    void keep(JointFit fit, double chi2r) {
-        best_ = std::move(fit);
-        best_chi2r_ = chi2r;
     }
 
 private:
@@ -412,9 +394,11 @@ Decomposition decompose(const ImageArray& image, const ImageArray& weight, const
     return out;
 }
 
-Decomposition decompose_bands(const std::vector<BandStamp>& bands, double x, double y,
-                              double beta_start, const DecomposeOptions& options) {
-    options.validate();
+namespace {
+
+// What decompose_bands() refuses: no band, a band without image or weight, stamps of
+// different sizes, a start centre outside the stamp, a start β ≤ 0.
+void check_bands(const std::vector<BandStamp>& bands, double x, double y, double beta_start) {
     require(!bands.empty(), "no band to fit");
     for (const BandStamp& b : bands) require(b.image && b.weight, "a band has no image or weight");
     const ImageArray& image = *bands.front().image;
@@ -431,18 +415,81 @@ Decomposition decompose_bands(const std::vector<BandStamp>& bands, double x, dou
                 y <= ny + 0.5,
             "start centre lies outside the stamp");
     require(beta_start > 0.0 && std::isfinite(beta_start), "start β must be > 0");
-    const JointProblem problem(bands, options);
+}
 
-    Decomposition out;
-    JointFit kept;
-    bool have_kept = false;
-    double kept_chi2r = infinite;
-    double beta = beta_start;
-    const double x_start = x, y_start = y;
-    // Largest scale inside the stamp, measured from the start centre (the centre moves by a
-    // fraction of a pixel, the bound need not follow it).
-    const double reach = std::min(std::min(x_start - 0.5, nx + 0.5 - x_start),
-                                  std::min(y_start - 0.5, ny + 0.5 - y_start));
+// A fit with the χ²_r it was chosen by.
+struct ScoredFit {
+    JointFit fit;
+    double chi2r = infinite;
+};
+
+// A centre in stamp FITS coordinates.
+struct Centre {
+    double x = 0.0, y = 0.0;
+};
+
+// Recentre order n's fit on the model's own centroid; after a large move, search β again. The
+// iteration can wander at a galaxy's own top order (the centroid of a fit that is just short
+// of the data moves off it): the best (χ²_r) position seen is returned, `seen` at first.
+std::optional<ScoredFit> recentre(const JointProblem& problem, OrderSearch& search,
+                                  std::optional<ScoredFit> seen, Centre at, double beta,
+                                  Centre start, double lo, double hi,
+                                  const DecomposeOptions& options) {
+    for (int iteration = 0; iteration < options.centre_iterations && search.best(); ++iteration) {
+        const Moments m = moments(problem.centroid_model(*search.best()));
+        if (!std::isfinite(m.x) || !std::isfinite(m.y)) break;
+        // Stay within a few pixels of the detection: a centroid dragged further is a fit
+        // to a neighbour's or the noise's light.
+        const double new_x = std::clamp(m.x, start.x - 3.0, start.x + 3.0);
+        const double new_y = std::clamp(m.y, start.y - 3.0, start.y + 3.0);
+        const double shift = std::hypot(new_x - at.x, new_y - at.y);
+        if (shift < options.centre_tolerance) break;
+        at = {new_x, new_y};
+        search.forget();
+        // A large move may change which dip in χ²_r(β) is deepest: scan again; a small
+        // one only moves the minimum: search ±10% about the current β.
+        if (shift > 0.25) beta = search.best_beta(at.x, at.y, lo, hi);
+        else
+            beta = search.best_beta(at.x, at.y, std::max(lo, beta / 1.1),
+                                    std::min(hi, beta * 1.1), false);
+        if (!search.best() || !(search.best_chi2r() < seen->chi2r)) break;
+        seen = ScoredFit{*search.best(), search.best_chi2r()};
+    }
+    return seen;
+}
+
+// Order n's best fit (least χ²_r) from centre `at`: β scanned within [lo, hi], the centre moved to
+// the model's centroid (recentre()), and the detection's centre `start` tried as a second start
+// (the previous order's centre may already have wandered). Empty when no fit of this order is
+// possible.
+std::optional<ScoredFit> best_of_order(const JointProblem& problem, OrderSearch& search,
+                                       Centre at, Centre start, double lo, double hi,
+                                       const DecomposeOptions& options) {
+    const double beta = search.best_beta(at.x, at.y, lo, hi);
+    std::optional<ScoredFit> seen;
+    if (search.best()) seen = ScoredFit{*search.best(), search.best_chi2r()};
+    seen = recentre(problem, search, std::move(seen), at, beta, start, lo, hi, options);
+    if (seen && std::hypot(seen->fit.model().x - start.x, seen->fit.model().y - start.y) >
+                    options.centre_tolerance) {
+        search.forget();
+        const double b = seen->fit.model().beta_pix;
+        search.best_beta(start.x, start.y, std::max(lo, b / 1.1), std::min(hi, b * 1.1), false);
+        if (search.best() && search.best_chi2r() < seen->chi2r)
+            seen = ScoredFit{*search.best(), search.best_chi2r()};
+    }
+    return seen;
+}
+
+// The orders n_max_min, n_max_min + 1, … each fitted from the previous order's centre
+// (best_of_order(); each order scans β afresh); an order becomes the candidate when it takes up
+// significantly more χ² than the noise would over the candidate's, and the search stops two orders
+// beyond the candidate, at the cap or when the stamp is too small. Each order's trial, the fits
+// made and why the search stopped go to `out`; the candidate is returned. `reach` is the largest
+// scale inside the stamp.
+ScoredFit search_orders(const JointProblem& problem, Centre start, double reach,
+                        const DecomposeOptions& options, Decomposition& out) {
+    std::optional<ScoredFit> kept;
+    Centre at = start;
     for (int n = options.n_max_min; n <= options.n_max_cap; ++n) {
         const double root = std::sqrt(n + 1.0);
         const double lo = options.theta_min * root, hi = reach / root;
@@ -451,98 +498,60 @@ Decomposition decompose_bands(const std::vector<BandStamp>& bands, double x, dou
             break;
         }
         OrderSearch search(problem, n, options, out.fits);
-        beta = search.best_beta(x, y, lo, hi);
-        // Recentre on the model's own centroid; after a large move, search β again. The
-        // iteration can wander at a galaxy's own top order (the centroid of a fit that is
-        // just short of the data moves off it): the best (χ²_r) position seen is kept.
-        std::optional<JointFit> best_seen = search.best();
-        double best_seen_chi2r = search.best_chi2r();
-        for (int iteration = 0; iteration < options.centre_iterations && search.best(); ++iteration) {
-            const Moments m = moments(problem.centroid_model(*search.best()));
-            if (!std::isfinite(m.x) || !std::isfinite(m.y)) break;
-            // Stay within a few pixels of the detection: a centroid dragged further is a fit
-            // to a neighbour's or the noise's light.
-            const double new_x = std::clamp(m.x, x_start - 3.0, x_start + 3.0);
-            const double new_y = std::clamp(m.y, y_start - 3.0, y_start + 3.0);
-            const double shift = std::hypot(new_x - x, new_y - y);
-            if (shift < options.centre_tolerance) break;
-            x = new_x;
-            y = new_y;
-            search.forget();
-            // A large move may change which dip in χ²_r(β) is deepest: scan again; a small
-            // one only moves the minimum: search ±10% about the current β.
-            if (shift > 0.25) beta = search.best_beta(x, y, lo, hi);
-            else
-                beta = search.best_beta(x, y, std::max(lo, beta / 1.1), std::min(hi, beta * 1.1),
-                                        false);
-            if (!search.best() || !(search.best_chi2r() < best_seen_chi2r)) break;
-            best_seen = search.best();
-            best_seen_chi2r = search.best_chi2r();
-        }
-        // The detection's centre as a second start: the previous order's centre may already
-        // have wandered.
-        if (best_seen && std::hypot(best_seen->model().x - x_start,
-                                    best_seen->model().y - y_start) > options.centre_tolerance) {
-            search.forget();
-            const double b = best_seen->model().beta_pix;
-            search.best_beta(x_start, y_start, std::max(lo, b / 1.1), std::min(hi, b * 1.1),
-                             false);
-            if (search.best() && search.best_chi2r() < best_seen_chi2r) {
-                best_seen = search.best();
-                best_seen_chi2r = search.best_chi2r();
-            }
-        }
-        search.forget();
-        if (best_seen) search.keep(std::move(*best_seen), best_seen_chi2r);
-        if (!search.best()) {
-            if (!have_kept) throw Error("no usable fit: too few usable pixels in the stamp");
+        std::optional<ScoredFit> order =
+            best_of_order(problem, search, at, start, lo, hi, options);
+        if (!order) {
+            if (!kept) throw Error("no usable fit: too few usable pixels in the stamp");
             out.stop = "stamp_small";
             break;
         }
         // With a measured correlation the order's fit is scored by its exact take-up (the β
         // search's p·F² is a constant per order: the same minimum).
-        JointFit best = *search.best();
+        JointFit best = std::move(order->fit);
         if (problem.exact()) problem.account(best);
-        const double chi2r = problem.exact() ? best.chi2 / problem.dof(best) : search.best_chi2r();
+        const double chi2r = problem.exact() ? best.chi2 / problem.dof(best) : order->chi2r;
         out.trials.push_back({n, best.model().beta_pix, chi2r});
-        x = best.model().x;
-        y = best.model().y;
-        beta = best.model().beta_pix;
-        // This order becomes the candidate when it takes up significantly more χ² than the
-        // noise would over the candidate's.
-        const double uptake = !have_kept ? 0.0
-                              : problem.exact() ? problem.uptake(kept, best, options)
-                                                : problem.uptake(kept.model().n_max, n, options);
-        if (!have_kept || kept.chi2 - best.chi2 > uptake) {
-            kept = best;
-            have_kept = true;
-            kept_chi2r = chi2r;
-        }
-        if (n >= kept.model().n_max + 2) {  // two orders beyond it brought nothing significant
-            out.stop = problem.within_target(kept_chi2r, problem.dof(kept), options)
+        at = {best.model().x, best.model().y};
+        const int kept_n = kept ? kept->fit.model().n_max : 0;
+        const double uptake = !kept            ? 0.0
+                              : problem.exact() ? problem.uptake(kept->fit, best, options)
+                                                : problem.uptake(kept_n, n, options);
+        if (!kept || kept->fit.chi2 - best.chi2 > uptake) kept = ScoredFit{best, chi2r};
+        if (n >= kept->fit.model().n_max + 2) {  // two orders beyond it brought nothing
+            out.stop = problem.within_target(kept->chi2r, problem.dof(kept->fit), options)
                            ? "chi2_target"
                            : "flattened";
             break;
         }
         if (n == options.n_max_cap) out.stop = "n_max_cap";
     }
-    if (!have_kept) throw Error("no usable fit: the stamp is too small for the lowest order");
-    if (options.elliptical && kept.model().n_max == 0 && options.n_max_cap >= elliptical_order) {
-        const std::optional<EllipticalFit> e =
-            fit_elliptical(problem, kept, reach, options, out.fits);
-        // Two more parameters (the shear) than the round Gaussian, in every band's χ².
-        if (e && kept.chi2 - e->fit.chi2 > problem.shear_uptake(options)) {
-            kept = e->fit;
-            kept_chi2r = kept.chi2 / problem.elliptical_dof(kept);
-            out.elliptical = true;
-            out.g1 = e->g1;
-            out.g2 = e->g2;
-        }
+    if (!kept) throw Error("no usable fit: the stamp is too small for the lowest order");
+    return std::move(*kept);
+}
+
+// The elliptical lowest order in place of a round n_max 0 candidate when its two more
+// parameters (the shear) take up more χ² than the noise would, in every band.
+void try_elliptical(const JointProblem& problem, ScoredFit& kept, double reach,
+                    const DecomposeOptions& options, Decomposition& out) {
+    const std::optional<EllipticalFit> e =
+        fit_elliptical(problem, kept.fit, reach, options, out.fits);
+    if (e && kept.fit.chi2 - e->fit.chi2 > problem.shear_uptake(options)) {
+        kept.fit = e->fit;
+        kept.chi2r = kept.fit.chi2 / problem.elliptical_dof(kept.fit);
+        out.elliptical = true;
+        out.g1 = e->g1;
+        out.g2 = e->g2;
     }
-    out.chi2r = kept_chi2r;
-    out.converged = problem.within_target(out.chi2r, problem.dof(kept), options);
+}
+
+// The kept fit's verdicts: χ²_r, converged, why the search stopped, bad_fit, holes and
+// unsupported light.
+void judge(const JointProblem& problem, const ScoredFit& kept, const DecomposeOptions& options,
+           Decomposition& out) {
+    out.chi2r = kept.chi2r;
+    out.converged = problem.within_target(out.chi2r, problem.dof(kept.fit), options);
     // The cap only stopped the search if the orders it cut off were still wanted.
-    if (out.stop == "n_max_cap" && kept.model().n_max < options.n_max_cap)
+    if (out.stop == "n_max_cap" && kept.fit.model().n_max < options.n_max_cap)
         out.stop = out.converged ? "chi2_target" : "flattened";
     out.bad_fit = out.chi2r > options.bad_fit_chi2r;
     // In the frame the data see: an intrinsic model through its PSF (ringing finer than the
@@ -550,19 +559,21 @@ Decomposition decompose_bands(const std::vector<BandStamp>& bands, double x, dou
     // Several bands: the S/N-weighted stack's, the model the joint fit constrains best (a
     // faint band's own coefficients ring with its noise at the order the bright bands chose).
     const auto& psf = problem.options(0).psf;
-    const ShapeletModel judged = problem.centroid_model(kept);
+    const ShapeletModel judged = problem.centroid_model(kept.fit);
     const CartesianModel seen = psf ? convolve(to_cartesian(judged), *psf) : to_cartesian(judged);
     const PixelHoles holes = pixel_holes(seen);
     out.hole = holes.depth;
     out.negative_light = holes.negative_light;
     out.holes = !(out.hole <= options.max_hole && out.negative_light <= options.max_hole);
-    out.unsupported_light = unsupported_light(seen, bands.front());
+    out.unsupported_light = unsupported_light(seen, problem.band(0));
     out.unsupported = out.unsupported_light > options.max_unsupported;
+}
 
-    // Each band's flux error: the fixed-β error, β's share from the joint profile χ² at
-    // ln β ± h, and truncation's share.
-    std::vector<double> fixed(problem.size()), errors(problem.size());
-    for (std::size_t b = 0; b < problem.size(); ++b) errors[b] = fixed[b] = flux_error(kept.bands[b]);
+// Each band's flux error with β's share: the fixed-β error `fixed` plus β's share from the
+// joint profile χ² at ln β ± h (the fixed-β error alone where that cannot be had).
+std::vector<double> beta_flux_errors(const JointProblem& problem, const JointFit& kept,
+                                     const std::vector<double>& fixed, Decomposition& out) {
+    std::vector<double> errors = fixed;
     constexpr double h = 0.05;
     try {
         const ShapeletModel& m = kept.model();
@@ -585,15 +596,22 @@ Decomposition decompose_bands(const std::vector<BandStamp>& bands, double x, dou
     } catch (const Error&) {
         // β at a constraint edge with too few pixels beyond it: keep the fixed-β error.
     }
-    // Truncation's share: the flux the orders above n_max would still move, estimated from
-    // the fit four orders up at the same centre and β (two more flux-carrying even orders),
-    // less the noise variance those extra coefficients add to the difference (nested
-    // least-squares fits: Var(F' − F) = σ'² − σ²).
+    return errors;
+}
+
+// Truncation's share of each band's flux error, added to `errors`: the flux the orders above
+// n_max would still move, estimated from the fit four orders up at the same centre and β (two
+// more flux-carrying even orders), less the noise variance those extra coefficients add to
+// the difference (nested least-squares fits: Var(F' − F) = σ'² − σ²). Zero when there are
+// too few pixels for the higher order.
+std::vector<double> truncation_errors(const JointProblem& problem, const JointFit& kept,
+                                      const std::vector<double>& fixed,
+                                      std::vector<double>& errors, long& fits) {
     std::vector<double> truncation(problem.size(), 0.0);
     try {
         const ShapeletModel& m = kept.model();
         const JointFit up = problem.fit(m.x, m.y, m.beta_pix, m.n_max + truncation_orders);
-        out.fits += long(problem.size());
+        fits += long(problem.size());
         for (std::size_t b = 0; b < problem.size(); ++b) {
             const double change = flux(up.bands[b].model) - flux(kept.bands[b].model);
             const double up_error = flux_error(up.bands[b]);
@@ -604,39 +622,71 @@ Decomposition decompose_bands(const std::vector<BandStamp>& bands, double x, dou
     } catch (const Error&) {
         // Too few pixels for the higher order: no truncation estimate.
     }
-    // Several bands: a band whose own structure the noise could hold is the stack's shape
-    // times an amplitude (its colour), not a copy of its noise (see decompose_bands()).
+    return truncation;
+}
+
+// Several bands: a band whose own structure the noise could hold is the stack's shape times
+// an amplitude (its colour), not a copy of its noise (see decompose_bands()). Such bands'
+// fits in `kept` are replaced; which ones is returned.
+std::vector<bool> template_noisy_bands(const JointProblem& problem, JointFit& kept,
+                                       const DecomposeOptions& options, Decomposition& out) {
     std::vector<bool> templated(problem.size(), false);
-    if (problem.size() > 1 && !out.elliptical) {
-        const ShapeletModel stack = problem.centroid_model(kept);
-        const double extra = double(real_count(stack.n_max) - 1);
-        for (std::size_t b = 0; b < problem.size() && extra > 0.0; ++b) {
-            try {
-                ShapeletFit shaped = problem.fit_band_shape(b, stack);
-                ++out.fits;
-                const double F = problem.options(b).noise_correlation;
-                const double uptake = F * F * (extra + options.order_sigmas * std::sqrt(2.0 * extra));
-                if (shaped.chi2 - kept.bands[b].chi2 <= uptake) {
-                    kept.bands[b] = std::move(shaped);
-                    templated[b] = true;
-                }
-            } catch (const Error&) {
-                // The stack's shape leaves the band no light: keep its own fit.
+    if (problem.size() == 1 || out.elliptical) return templated;
+    const ShapeletModel stack = problem.centroid_model(kept);
+    const double extra = double(real_count(stack.n_max) - 1);
+    for (std::size_t b = 0; b < problem.size() && extra > 0.0; ++b) {
+        try {
+            ShapeletFit shaped = problem.fit_band_shape(b, stack);
+            ++out.fits;
+            const double F = problem.options(b).noise_correlation;
+            const double uptake = F * F * (extra + options.order_sigmas * std::sqrt(2.0 * extra));
+            if (shaped.chi2 - kept.bands[b].chi2 <= uptake) {
+                kept.bands[b] = std::move(shaped);
+                templated[b] = true;
             }
+        } catch (const Error&) {
+            // The stack's shape leaves the band no light: keep its own fit.
         }
     }
+    return templated;
+}
+
+}  // namespace
+
+Decomposition decompose_bands(const std::vector<BandStamp>& bands, double x, double y,
+                              double beta_start, const DecomposeOptions& options) {
+    options.validate();
+    check_bands(bands, x, y, beta_start);
+    const JointProblem problem(bands, options);
+    Decomposition out;
+    // Largest scale inside the stamp, measured from the start centre (the centre moves by a
+    // fraction of a pixel, the bound need not follow it).
+    const double nx = double(bands.front().image->cols()), ny = double(bands.front().image->rows());
+    const double reach = std::min(std::min(x - 0.5, nx + 0.5 - x), std::min(y - 0.5, ny + 0.5 - y));
+    ScoredFit kept = search_orders(problem, {x, y}, reach, options, out);
+    if (options.elliptical && kept.fit.model().n_max == 0 &&
+        options.n_max_cap >= elliptical_order)
+        try_elliptical(problem, kept, reach, options, out);
+    judge(problem, kept, options, out);
+
+    std::vector<double> fixed(problem.size());
+    for (std::size_t b = 0; b < problem.size(); ++b) fixed[b] = flux_error(kept.fit.bands[b]);
+    std::vector<double> errors = beta_flux_errors(problem, kept.fit, fixed, out);
+    const std::vector<double> truncation =
+        truncation_errors(problem, kept.fit, fixed, errors, out.fits);
+    const std::vector<bool> templated = template_noisy_bands(problem, kept.fit, options, out);
     out.flux_error = errors.front();
     out.truncation_error = truncation.front();
     for (std::size_t b = 0; b < problem.size(); ++b) {
         BandFit f;
-        f.fit = kept.bands[b];
+        f.fit = kept.fit.bands[b];
         f.flux_error = errors[b];  // the band's own fit's: the larger
         f.truncation_error = truncation[b];
-        f.chi2r = kept.bands[b].chi2 / problem.band_dof(kept, b);
+        f.chi2r = kept.fit.bands[b].chi2 / problem.band_dof(kept.fit, b);
         f.templated = templated[b];
         out.bands.push_back(std::move(f));
     }
-    out.fit = std::move(kept.bands.front());
+    out.fit = std::move(kept.fit.bands.front());
     return out;
 }
 
@@ -683,29 +733,16 @@ double masked_fraction(const Stamp& stamp, double x, double y, double radius) {
     return inside > 0 ? double(masked) / double(inside) : 0.0;
 }
 
-}  // namespace
+// The frame of a model fitted through a PSF: intrinsic, and the PSF's scale and order.
+void add_frame(ShapeletRecord& r, const CartesianModel& psf, double pixel_scale) {
+    r.extra["frame"] = "intrinsic";
+    r.extra["psf_beta"] = psf.beta_pix * pixel_scale;
+    r.extra["psf_n_max"] = psf.n_max;
+}
 
-ShapeletRecord shapelet_record(const SourceRecord& source, const Decomposition& decomposition,
-                               const Stamp& stamp, double pixel_scale,
-                               std::optional<double> zero_point, const CartesianModel* psf,
-                               const std::vector<BandLabel>& bands) {
-    require(bands.size() == decomposition.bands.size(),
-            "the band names do not match the joint fit's bands");
-    const ShapeletFit& fit = decomposition.fit;
-    ShapeletModel model = fit.model;
-    model.x += stamp.x0 - 1;
-    model.y += stamp.y0 - 1;
-    ShapeletRecord r = ShapeletRecord::from_model(model, pixel_scale, source.id);
-    if (psf) {
-        r.extra["frame"] = "intrinsic";
-        r.extra["psf_beta"] = psf->beta_pix * pixel_scale;
-        r.extra["psf_n_max"] = psf->n_max;
-    }
-    r.chi2r = decomposition.chi2r;
-    if (zero_point && r.flux && *r.flux > 0.0)
-        r.mag = *zero_point - 2.5 * std::log10(*r.flux);
-    const double sigma_flux = decomposition.flux_error;
-
+// The fit's own verdicts as flags (converged or not, n_max_cap, elliptical, bad_fit, holes,
+// unsupported) and the measures behind holes and unsupported.
+void add_fit_flags(ShapeletRecord& r, const Decomposition& decomposition) {
     r.flags.push_back(decomposition.converged ? "converged" : "not_converged");
     if (decomposition.stop == "n_max_cap") r.flags.push_back("n_max_cap");
     if (decomposition.elliptical) r.flags.push_back("elliptical");
@@ -717,6 +754,12 @@ ShapeletRecord shapelet_record(const SourceRecord& source, const Decomposition& 
     r.extra["hole_depth"] = finite_or_null(decomposition.hole);
     r.extra["negative_light"] = finite_or_null(decomposition.negative_light);
     r.extra["unsupported_light"] = finite_or_null(decomposition.unsupported_light);
+}
+
+// The flags that need the source and its stamp: neighbour, edge and noise.
+void add_source_flags(ShapeletRecord& r, const SourceRecord& source, const Stamp& stamp,
+                      const Decomposition& decomposition) {
+    const ShapeletFit& fit = decomposition.fit;
     const double reach = fit.model.beta_pix * std::sqrt(fit.model.n_max + 1.0);
     if (has(source.flags, "blended") ||
         masked_fraction(stamp, fit.model.x, fit.model.y, reach) > 0.05)
@@ -731,12 +774,15 @@ ShapeletRecord shapelet_record(const SourceRecord& source, const Decomposition& 
         const double noise = std::sqrt(std::max(0.0, error * error - truncation * truncation));
         return std::isfinite(noise) && flux > 3.0 * noise;
     };
-    bool detected = r.flux && significant(*r.flux, sigma_flux, decomposition.truncation_error);
+    bool detected = r.flux && significant(*r.flux, decomposition.flux_error,
+                                          decomposition.truncation_error);
     for (const BandFit& b : decomposition.bands)
         detected = detected || significant(flux(b.fit.model), b.flux_error, b.truncation_error);
     if (!detected) r.flags.push_back("noise");
+}
 
-    // The source's own fields first, renamed where the shapelet schema reuses the name.
+// The source's own fields, renamed source_<key> where the shapelet schema reuses the name.
+void add_source_fields(ShapeletRecord& r, const SourceRecord& source) {
     const Json src = source.to_json();
     for (const auto& [key, value] : src.items()) {
         if (key == "schema" || key == "id") continue;
@@ -746,9 +792,13 @@ ShapeletRecord shapelet_record(const SourceRecord& source, const Decomposition& 
                             key == "n_max" || key == "coeffs" || key == "chi2r";
         r.extra[reused ? "source_" + key : key] = value;
     }
-    Json& e = r.extra;
-    e["beta_pix"] = fit.model.beta_pix;
-    if (std::isfinite(sigma_flux)) e["flux_err"] = sigma_flux;
+}
+
+// The fit's numbers: β in pixels, the flux error and truncation's share, why the search
+// stopped, the shear, the fits made, each order's trial and the coefficients' errors.
+void add_fit_fields(Json& e, const Decomposition& decomposition) {
+    e["beta_pix"] = decomposition.fit.model.beta_pix;
+    if (std::isfinite(decomposition.flux_error)) e["flux_err"] = decomposition.flux_error;
     e["flux_err_truncation"] = decomposition.truncation_error;
     e["stop"] = decomposition.stop;
     if (decomposition.elliptical) e["shear"] = Json::array({decomposition.g1, decomposition.g2});
@@ -757,23 +807,48 @@ ShapeletRecord shapelet_record(const SourceRecord& source, const Decomposition& 
     for (const OrderTrial& t : decomposition.trials)
         trials.push_back(Json::array({t.n_max, t.beta_pix, t.chi2r}));
     e["trials"] = trials;
-    e["coeff_errors"] = coefficient_errors(fit);
-    for (std::size_t k = 0; k < bands.size(); ++k) {
-        const BandFit& fit_b = decomposition.bands[k];
-        BandCoefficients b;
-        b.band = bands[k].band;
-        b.coeffs = fit_b.fit.model.coeffs;
-        b.flux = flux(fit_b.fit.model);
-        b.flux_err = fit_b.flux_error;
-        if (bands[k].zero_point && *b.flux > 0.0)
-            b.mag = *bands[k].zero_point - 2.5 * std::log10(*b.flux);
-        b.chi2r = fit_b.chi2r;
-        b.extra["flux_err_truncation"] = fit_b.truncation_error;
-        b.extra["coeff_errors"] = coefficient_errors(fit_b.fit);
-        if (fit_b.templated) b.extra["shape"] = "stack";
-        if (bands[k].zero_point) b.extra["zero_point"] = *bands[k].zero_point;
-        r.bands.push_back(std::move(b));
-    }
+    e["coeff_errors"] = coefficient_errors(decomposition.fit);
+}
+
+// A band's coefficients, flux, magnitude and errors for the record's "bands" list.
+BandCoefficients band_coefficients(const BandFit& fit, const BandLabel& label) {
+    BandCoefficients b;
+    b.band = label.band;
+    b.coeffs = fit.fit.model.coeffs;
+    b.flux = flux(fit.fit.model);
+    b.flux_err = fit.flux_error;
+    if (label.zero_point && *b.flux > 0.0) b.mag = *label.zero_point - 2.5 * std::log10(*b.flux);
+    b.chi2r = fit.chi2r;
+    b.extra["flux_err_truncation"] = fit.truncation_error;
+    b.extra["coeff_errors"] = coefficient_errors(fit.fit);
+    if (fit.templated) b.extra["shape"] = "stack";
+    if (label.zero_point) b.extra["zero_point"] = *label.zero_point;
+    return b;
+}
+
+}  // namespace
+
+ShapeletRecord shapelet_record(const SourceRecord& source, const Decomposition& decomposition,
+                               const Stamp& stamp, double pixel_scale,
+                               std::optional<double> zero_point, const CartesianModel* psf,
+                               const std::vector<BandLabel>& bands) {
+    require(bands.size() == decomposition.bands.size(),
+            "the band names do not match the joint fit's bands");
+    ShapeletModel model = decomposition.fit.model;
+    model.x += stamp.x0 - 1;
+    model.y += stamp.y0 - 1;
+    ShapeletRecord r = ShapeletRecord::from_model(model, pixel_scale, source.id);
+    if (psf) add_frame(r, *psf, pixel_scale);
+    r.chi2r = decomposition.chi2r;
+    if (zero_point && r.flux && *r.flux > 0.0)
+        r.mag = *zero_point - 2.5 * std::log10(*r.flux);
+    add_fit_flags(r, decomposition);
+    add_source_flags(r, source, stamp, decomposition);
+    add_source_fields(r, source);
+    Json& e = r.extra;
+    add_fit_fields(e, decomposition);
+    for (std::size_t k = 0; k < bands.size(); ++k)
+        r.bands.push_back(band_coefficients(decomposition.bands[k], bands[k]));
     if (!bands.empty()) {
         e["band"] = bands.front().band;
         // The record's magnitudes are the reference band's: so is its zero point.

@@ -1,7 +1,8 @@
 // Derivative-free minimisation: Nelder–Mead as scipy.optimize.fmin (non-adaptive: reflection 1,
 // expansion 2, contraction ½, shrink ½; outside and inside contraction told apart), over N
 // parameters. Morphometry's asymmetry centre (statmorph's choice, so its defaults are scipy's)
-// and decompose's elliptical Gaussians use it.
+// and decompose's elliptical Gaussians use it. Golden-section search in one variable: the β
+// searches of decompose (χ²_r) and of the PSF fit (residual sum of squares).
 #pragma once
 
 #include <algorithm>
@@ -9,6 +10,7 @@
 #include <cmath>
 #include <cstddef>
 #include <numeric>
+#include <utility>
 
 namespace shapesim {
 
@@ -105,6 +107,45 @@ std::array<double, N> nelder_mead(const F& f, const std::array<double, N>& start
         ++iterations;
     }
     return v[0];
+}
+
+/// The last bracket of golden_section(): its inner points c < d and their values.
+template <class Value>
+struct GoldenBracket {
+    double c = 0.0, d = 0.0;
+    Value fc, fd;
+};
+
+/// Golden-section search for a minimum of f (double → Value) on [a, b], until the bracket is
+/// no wider than `tolerance`. The inner points are b − g(b − a) and a + g(b − a), g = (√5 − 1)/2;
+/// the bracket keeps the side of the point `less` finds lower (the upper one on a tie). f is
+/// called once per point, in order; `drop(value)` is given each point's value as the point
+/// leaves the bracket (a caller keeping every trial's best). Returns the last inner points.
+template <class F, class Less, class Drop>
+auto golden_section(const F& f, double a, double b, double tolerance, const Less& less,
+                    const Drop& drop) -> GoldenBracket<decltype(f(a))> {
+    constexpr double g = 0.6180339887498949;
+    double c = b - g * (b - a), d = a + g * (b - a);
+    auto fc = f(c);
+    auto fd = f(d);
+    while (b - a > tolerance) {
+        if (less(fc, fd)) {
+            drop(fd);
+            b = d;
+            d = c;
+            fd = std::move(fc);
+            c = b - g * (b - a);
+            fc = f(c);
+        } else {
+            drop(fc);
+            a = c;
+            c = d;
+            fc = std::move(fd);
+            d = a + g * (b - a);
+            fd = f(d);
+        }
+    }
+    return {c, d, std::move(fc), std::move(fd)};
 }
 
 }  // namespace shapesim

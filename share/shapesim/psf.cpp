@@ -7,6 +7,7 @@
 #include "shapesim/jsonl.hpp"
 #include "shapesim/lsq.hpp"
 #include "shapesim/moments.hpp"
+#include "shapesim/optimize.hpp"
 #include "shapesim/resample.hpp"
 #include "shapesim/transform.hpp"
 
@@ -53,28 +54,12 @@ public:
     // Golden-section search for the smallest RSS on [a, b] (ln β), to width `tolerance`;
     // returns the best trial seen, including `best` passed in.
     Trial golden(double a, double b, double tolerance, PixelPosition centre, Trial best) {
-        const double g = 0.5 * (std::sqrt(5.0) - 1.0);
-        double x1 = b - g * (b - a), x2 = a + g * (b - a);
-        Trial f1 = evaluate(x1, centre), f2 = evaluate(x2, centre);
-        while (b - a > tolerance) {
-            if (f1.rss < f2.rss) {
-                keep_better(best, f2);
-                b = x2;
-                x2 = x1;
-                f2 = std::move(f1);
-                x1 = b - g * (b - a);
-                f1 = evaluate(x1, centre);
-            } else {
-                keep_better(best, f1);
-                a = x1;
-                x1 = x2;
-                f1 = std::move(f2);
-                x2 = a + g * (b - a);
-                f2 = evaluate(x2, centre);
-            }
-        }
-        keep_better(best, f1);
-        keep_better(best, f2);
+        auto bracket = golden_section(
+            [&](double ln_beta) { return evaluate(ln_beta, centre); }, a, b, tolerance,
+            [](const Trial& p, const Trial& q) { return p.rss < q.rss; },
+            [&](Trial& dropped) { keep_better(best, dropped); });
+        keep_better(best, bracket.fc);
+        keep_better(best, bracket.fd);
         return best;
     }
 
@@ -131,107 +116,107 @@ void check_options(const PsfFitOptions& o) {
     require(o.centre_tolerance > 0.0, "PSF fit: centre_tolerance must be > 0");
 }
 
-}  // namespace
-
-PsfModel fit_psf_image(const ImageArray& image, const PsfFitOptions& options) {
-    check_options(options);
+// The PSF image's peak, after refusing an image fit_psf_image() cannot use: empty, not
+// finite, no positive pixel.
+double checked_peak(const ImageArray& image) {
     if (image.size() == 0) throw Error("PSF image is empty");
     if (!image.allFinite()) throw Error("PSF image has NaN or infinite pixels");
     const double data_peak = image.maxCoeff();
     if (!(data_peak > 0.0)) throw Error("PSF image has no positive pixel");
-    const PixelPosition start_centre = flux_centroid(image);  // throws when Σ ≤ 0
+    return data_peak;
+}
 
-    const int nx = int(image.cols()), ny = int(image.rows());
-    const double half_stamp = 0.5 * std::min(nx, ny);
-    const ImageArray weight = ImageArray::Ones(ny, nx);
-
-    std::vector<PsfFitStep> steps;
-    std::optional<ShapeletFit> chosen;
-    double chosen_max = std::numeric_limits<double>::infinity();
-    for (int n = options.n_max_min; n <= options.n_max_cap; ++n) {
-        const double root = std::sqrt(n + 1.0);
-        const double ln_lo = std::log(options.min_resolution_pixels * root);
-        const double ln_hi = std::log(half_stamp / root);
-        if (ln_lo > ln_hi) break;  // the basis can no longer be both resolved and in the stamp
-        // Every n_max starts from the flux centroid: a lower order's model centroid can be far
-        // off (a poor model's centroid is), and re-centring from there need not come back.
-        PixelPosition centre = start_centre;
-        BetaSearch search(image, weight, n);
-        Trial best = search.scan_and_refine(ln_lo, ln_hi, options.beta_grid,
-                                            options.beta_tolerance, centre);
-        if (!best.fit) break;  // no fit possible (too few pixels for the coefficients)
-        const double step = (ln_hi - ln_lo) / (options.beta_grid - 1);
-        // β search at a new centre: from scratch after a large move (the RSS minimum may have
-        // jumped), else within one scan step of the current β.
-        auto search_at = [&](PixelPosition c, double moved, double ln_beta) {
-            if (moved > 0.05)
-                return search.scan_and_refine(ln_lo, ln_hi, options.beta_grid,
-                                              options.beta_tolerance, c);
-            const double a = std::max(ln_lo, ln_beta - step), b = std::min(ln_hi, ln_beta + step);
-            Trial start = search.evaluate(ln_beta, c);
-            return b - a > options.beta_tolerance
-                       ? search.golden(a, b, options.beta_tolerance, c, std::move(start))
-                       : start;
-        };
-        Eigen::Vector2d offset = centroid_offset(best, centre);
-        for (int it = 0; it < options.centre_iterations; ++it) {
-            if (!offset.allFinite() || offset.norm() < options.centre_tolerance) break;
-            // Newton on g(c) = centroid(fit at c) − c with the Jacobian by forward differences
-            // at fixed β: the plain iteration c ← centroid can overshoot and diverge (a
-            // truncated basis follows a shift of its centre only in part).
-            const double h = 1e-3;
-            Eigen::Matrix2d jacobian;
-            for (int axis = 0; axis < 2; ++axis) {
-                const PixelPosition c{centre.x + (axis == 0 ? h : 0.0),
-                                      centre.y + (axis == 1 ? h : 0.0)};
-                const Eigen::Vector2d o = centroid_offset(search.evaluate(best.ln_beta, c), c);
-                jacobian.col(axis) = (o - offset) / h;
-            }
-            Eigen::Vector2d move = -offset;  // the plain step when the Jacobian is unusable
-            if (jacobian.allFinite() && std::abs(jacobian.determinant()) > 1e-6)
-                move = -jacobian.partialPivLu().solve(offset);
-            if (!move.allFinite()) break;
-            if (move.norm() > 0.5) move *= 0.5 / move.norm();  // trust region, pixels
-            // Accept the step (halved up to three times) only if it shrinks the offset at the
-            // current β; then search β at the new centre.
-            bool accepted = false;
-            for (int halving = 0; halving < 4 && !accepted; ++halving, move *= 0.5) {
-                const PixelPosition c{centre.x + move.x(), centre.y + move.y()};
-                const Eigen::Vector2d o = centroid_offset(search.evaluate(best.ln_beta, c), c);
-                if (!(o.allFinite() && o.norm() < offset.norm())) continue;
-                Trial trial = search_at(c, move.norm(), best.ln_beta);
-                if (!trial.fit) continue;
-                centre = c;
-                best = std::move(trial);
-                offset = centroid_offset(best, centre);
-                accepted = true;
-            }
-            if (!accepted) break;
-        }
-        if (!best.fit) break;
-        const ShapeletFit& fit = *best.fit;
-        PsfFitStep s;
-        s.n_max = n;
-        s.beta_pix = fit.model.beta_pix;
-        s.x = fit.model.x;
-        s.y = fit.model.y;
-        s.max_residual_fraction = fit.residual.abs().maxCoeff() / data_peak;
-        s.rms_residual_fraction = std::sqrt(fit.residual.square().mean()) / data_peak;
-        s.centroid_offset = offset.norm();
-        s.fits = search.fits();
-        steps.push_back(s);
-        if (s.max_residual_fraction < chosen_max) {
-            chosen_max = s.max_residual_fraction;
-            chosen = std::move(best.fit);
-        }
-        if (s.max_residual_fraction <= options.residual_target) break;
+// One Newton step on g(c) = centroid(fit at c) − c from `centre`, where g is `offset`, with
+// the Jacobian by forward differences at the fit's β: the plain iteration c ← centroid can
+// overshoot and diverge (a truncated basis follows a shift of its centre only in part). The
+// plain step −g when the Jacobian is unusable; at most 0.5 pixel (a trust region).
+Eigen::Vector2d newton_move(BetaSearch& search, const Trial& best, PixelPosition centre,
+                            const Eigen::Vector2d& offset) {
+    const double h = 1e-3;
+    Eigen::Matrix2d jacobian;
+    for (int axis = 0; axis < 2; ++axis) {
+        const PixelPosition c{centre.x + (axis == 0 ? h : 0.0), centre.y + (axis == 1 ? h : 0.0)};
+        const Eigen::Vector2d o = centroid_offset(search.evaluate(best.ln_beta, c), c);
+        jacobian.col(axis) = (o - offset) / h;
     }
-    if (!chosen)
-        throw Error("PSF fit: no n_max admits a beta for a " + std::to_string(nx) + "x" +
-                    std::to_string(ny) + " stamp");
+    Eigen::Vector2d move = -offset;
+    if (jacobian.allFinite() && std::abs(jacobian.determinant()) > 1e-6)
+        move = -jacobian.partialPivLu().solve(offset);
+    if (move.allFinite() && move.norm() > 0.5) move *= 0.5 / move.norm();
+    return move;
+}
 
+// One n_max's best fit and its centroid offset (fit empty when no fit is possible).
+struct PsfOrderFit {
+    Trial best;
+    Eigen::Vector2d offset;
+};
+
+// Order n's best fit with β in [ln_lo, ln_hi]: β scanned at `start`, then the basis centre
+// moved by Newton steps (newton_move()) until it is the model's own centroid.
+PsfOrderFit fit_psf_order(BetaSearch& search, PixelPosition start, double ln_lo, double ln_hi,
+                          const PsfFitOptions& options) {
+    PixelPosition centre = start;
+    Trial best =
+        search.scan_and_refine(ln_lo, ln_hi, options.beta_grid, options.beta_tolerance, centre);
+    if (!best.fit) return {std::move(best), {}};
+    const double step = (ln_hi - ln_lo) / (options.beta_grid - 1);
+    // β search at a new centre: from scratch after a large move (the RSS minimum may have
+    // jumped), else within one scan step of the current β.
+    auto search_at = [&](PixelPosition c, double moved, double ln_beta) {
+        if (moved > 0.05)
+            return search.scan_and_refine(ln_lo, ln_hi, options.beta_grid, options.beta_tolerance,
+                                          c);
+        const double a = std::max(ln_lo, ln_beta - step), b = std::min(ln_hi, ln_beta + step);
+        Trial start_trial = search.evaluate(ln_beta, c);
+        return b - a > options.beta_tolerance
+                   ? search.golden(a, b, options.beta_tolerance, c, std::move(start_trial))
+                   : start_trial;
+    };
+    Eigen::Vector2d offset = centroid_offset(best, centre);
+    for (int it = 0; it < options.centre_iterations; ++it) {
+        if (!offset.allFinite() || offset.norm() < options.centre_tolerance) break;
+        Eigen::Vector2d move = newton_move(search, best, centre, offset);
+        if (!move.allFinite()) break;
+        // Accept the step (halved up to three times) only if it shrinks the offset at the
+        // current β; then search β at the new centre.
+        bool accepted = false;
+        for (int halving = 0; halving < 4 && !accepted; ++halving, move *= 0.5) {
+            const PixelPosition c{centre.x + move.x(), centre.y + move.y()};
+            const Eigen::Vector2d o = centroid_offset(search.evaluate(best.ln_beta, c), c);
+            if (!(o.allFinite() && o.norm() < offset.norm())) continue;
+            Trial trial = search_at(c, move.norm(), best.ln_beta);
+            if (!trial.fit) continue;
+            centre = c;
+            best = std::move(trial);
+            offset = centroid_offset(best, centre);
+            accepted = true;
+        }
+        if (!accepted) break;
+    }
+    return {std::move(best), offset};
+}
+
+// The record of order n's fit: its β, centre, residuals (of the data's peak), centroid
+// offset and the fits it took.
+PsfFitStep psf_step(int n, const ShapeletFit& fit, double data_peak,
+                    const Eigen::Vector2d& offset, int fits) {
+    PsfFitStep s;
+    s.n_max = n;
+    s.beta_pix = fit.model.beta_pix;
+    s.x = fit.model.x;
+    s.y = fit.model.y;
+    s.max_residual_fraction = fit.residual.abs().maxCoeff() / data_peak;
+    s.rms_residual_fraction = std::sqrt(fit.residual.square().mean()) / data_peak;
+    s.centroid_offset = offset.norm();
+    s.fits = fits;
+    return s;
+}
+
+// The chosen fit as a unit-flux PSF model, with its residuals.
+PsfModel unit_flux_psf(const ShapeletFit& fit, const ImageArray& image, double data_peak,
+                       const PsfFitOptions& options) {
     PsfModel out;
-    const ShapeletFit& fit = *chosen;
     out.model_flux = flux(fit.model);
     if (!(out.model_flux > 0.0) || !std::isfinite(out.model_flux))
         throw Error("PSF fit: the fitted model has no positive flux");
@@ -245,19 +230,64 @@ PsfModel fit_psf_image(const ImageArray& image, const PsfFitOptions& options) {
     out.max_residual_fraction = fit.residual.abs().maxCoeff() / data_peak;
     out.rms_residual_fraction = std::sqrt(fit.residual.square().mean()) / data_peak;
     out.reached_target = out.max_residual_fraction <= options.residual_target;
+    return out;
+}
 
-    // What lies beyond the model's reach r > β√(n_max+1).
+// What lies beyond the model's reach r > β√(n_max+1): the data's flux there (of the total)
+// and the largest |residual| (of the peak).
+void measure_beyond_reach(PsfModel& out, const ImageArray& image, const ImageArray& residual,
+                          double data_peak) {
     const double reach = out.model.beta_pix * std::sqrt(out.n_max + 1.0);
     double beyond_flux = 0.0, beyond_max = 0.0;
-    for (int j = 0; j < ny; ++j)
-        for (int i = 0; i < nx; ++i)
+    for (int j = 0; j < int(image.rows()); ++j)
+        for (int i = 0; i < int(image.cols()); ++i)
             if (std::hypot(fits_x_of_column(i) - out.model.x, fits_y_of_row(j) - out.model.y) >
                 reach) {
                 beyond_flux += image(j, i);
-                beyond_max = std::max(beyond_max, std::abs(fit.residual(j, i)));
+                beyond_max = std::max(beyond_max, std::abs(residual(j, i)));
             }
     out.beyond_reach_flux_fraction = beyond_flux / out.data_flux;
     out.beyond_reach_max_residual_fraction = beyond_max / data_peak;
+}
+
+}  // namespace
+
+PsfModel fit_psf_image(const ImageArray& image, const PsfFitOptions& options) {
+    check_options(options);
+    const double data_peak = checked_peak(image);
+    const PixelPosition start_centre = flux_centroid(image);  // throws when Σ ≤ 0
+
+    const int nx = int(image.cols()), ny = int(image.rows());
+    const double half_stamp = 0.5 * std::min(nx, ny);
+    const ImageArray weight = ImageArray::Ones(ny, nx);
+
+    // n_max raised until the residual target is met; the order of least max |residual| kept.
+    std::vector<PsfFitStep> steps;
+    std::optional<ShapeletFit> chosen;
+    double chosen_max = std::numeric_limits<double>::infinity();
+    for (int n = options.n_max_min; n <= options.n_max_cap; ++n) {
+        const double root = std::sqrt(n + 1.0);
+        const double ln_lo = std::log(options.min_resolution_pixels * root);
+        const double ln_hi = std::log(half_stamp / root);
+        if (ln_lo > ln_hi) break;  // the basis can no longer be both resolved and in the stamp
+        // Every n_max starts from the flux centroid: a lower order's model centroid can be far
+        // off (a poor model's centroid is), and re-centring from there need not come back.
+        BetaSearch search(image, weight, n);
+        PsfOrderFit order = fit_psf_order(search, start_centre, ln_lo, ln_hi, options);
+        if (!order.best.fit) break;  // no fit possible (too few pixels for the coefficients)
+        const PsfFitStep s = psf_step(n, *order.best.fit, data_peak, order.offset, search.fits());
+        steps.push_back(s);
+        if (s.max_residual_fraction < chosen_max) {
+            chosen_max = s.max_residual_fraction;
+            chosen = std::move(order.best.fit);
+        }
+        if (s.max_residual_fraction <= options.residual_target) break;
+    }
+    if (!chosen)
+        throw Error("PSF fit: no n_max admits a beta for a " + std::to_string(nx) + "x" +
+                    std::to_string(ny) + " stamp");
+    PsfModel out = unit_flux_psf(*chosen, image, data_peak, options);
+    measure_beyond_reach(out, image, chosen->residual, data_peak);
     out.steps = std::move(steps);
     return out;
 }

@@ -1,6 +1,7 @@
 // Program plumbing: app/options (common options, --config, --print-params, range checks),
 // app/run_main (exceptions → one stderr line and an exit code) and app/log.
 #include "shapesim/version.hpp"
+#include "shapesim/app/decompose_options.hpp"
 #include "shapesim/app/log.hpp"
 #include "shapesim/app/options.hpp"
 #include "shapesim/app/progress.hpp"
@@ -106,6 +107,62 @@ TEST(ProgramOptions, UsageErrors) {
     EXPECT_NE(usage_error({}).find("image"), std::string::npos);  // the required input
     EXPECT_NE(usage_error({"hdf.fits", "--detect-thresh", "high"}).find("detect-thresh"),
               std::string::npos);
+}
+
+// shapesim-decompose's options parsed into DecomposeSettings.
+struct DecomposeTable {
+    app::DecomposeSettings s;
+    app::ProgramOptions options{"shapesim-decompose", "[OPTION]...", "Test.",
+                                app::Common::like | app::Common::threads};
+    explicit DecomposeTable(std::vector<const char*> args) {
+        s.declare(options);
+        args.insert(args.begin(), "shapesim-decompose");
+        EXPECT_TRUE(options.parse(int(args.size()), args.data()));
+    }
+};
+
+// The options checked together; the PSF mode's target scale and fit options.
+TEST(DecomposeSettings, ChecksAndPsfModeValues) {
+    const auto check_error = [&](std::vector<const char*> args) -> std::string {
+        DecomposeTable t(std::move(args));
+        try {
+            t.s.check();
+        } catch (const po::error& e) {
+            return e.what();
+        }
+        return "no error";
+    };
+    EXPECT_EQ(check_error({"--n-max-min", "5", "--n-max-cap", "3"}),
+              "--n-max-min must not exceed --n-max-cap");
+    EXPECT_EQ(check_error({"--ids", "1,2"}), "--ids needs --models");
+    EXPECT_EQ(check_error({"--white-noise", "--noise-model", "sky.jsonl"}),
+              "--white-noise and a noise model exclude each other");
+    EXPECT_EQ(check_error({"--white-noise", "--band-noise-model", "f435w=sky.jsonl"}),
+              "--white-noise and a noise model exclude each other");
+
+    DecomposeTable round({"--round-lowest"});
+    round.s.check();
+    EXPECT_FALSE(round.s.fit.elliptical);
+    DecomposeTable sheared({});
+    sheared.s.check();
+    EXPECT_TRUE(sheared.s.fit.elliptical);
+    EXPECT_EQ(sheared.s.fit.n_max_cap, 15);
+
+    DecomposeTable psf({"--pixel-scale", "0.06", "--psf-residual", "0.002", "--psf-n-max-cap", "9"});
+    EXPECT_EQ(psf.s.psf_target_scale(psf.options), 0.06);
+    EXPECT_EQ(psf.s.psf_fit().residual_target, 0.002);
+    EXPECT_EQ(psf.s.psf_fit().n_max_cap, 9);
+    DecomposeTable no_scale({});
+    EXPECT_THROW(no_scale.s.psf_target_scale(no_scale.options), po::error);
+
+    // A per-band option without NAME=FILE is a usage error.
+    DecomposeTable band({"--band-psf", "nofile"});
+    try {
+        band.s.job_reader(band.options);
+        ADD_FAILURE() << "--band-psf nofile was accepted";
+    } catch (const po::error& e) {
+        EXPECT_EQ(std::string(e.what()), "--band-psf wants NAME=FILE, got \"nofile\"");
+    }
 }
 
 TEST(ProgramOptions, HelpAndVersionStopTheProgram) {
