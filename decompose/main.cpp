@@ -2,6 +2,7 @@
 // with optimised centre, β and n_max (paper §2.2; DESIGN §1–3). The work is in the library:
 // decompose_job.hpp (each source's job), decompose.hpp (the optimiser and the record), lsq.hpp
 // (the linear fit), psf.hpp (PSF mode); the options in app/decompose_options.hpp.
+#include "shapesim/app/atomic_file.hpp"
 #include "shapesim/app/decompose_options.hpp"
 #include "shapesim/app/options.hpp"
 #include "shapesim/app/progress.hpp"
@@ -14,7 +15,6 @@
 #include "shapesim/psf.hpp"
 
 #include <algorithm>
-#include <iostream>
 #include <memory>
 #include <optional>
 #include <set>
@@ -24,14 +24,13 @@
 namespace {
 
 using namespace shapesim;
-namespace po = app::po;
 
 const char* const description =
     "Fit each postage stamp with a polar shapelet series, choosing the centre (the model's\n"
     "own centroid), the scale beta (a search on chi2_r within the resolution and stamp\n"
     "limits) and n_max (raised while two more orders take up more chi2 than the noise\n"
     "would, capped at 15; converged when chi2_r <= 1). Reads shapesim.source/1\n"
-    "records on stdin and the stamps shapesim-detect wrote; writes shapesim.shapelet/1.\n"
+    "records (stdin or FILE) and the stamps shapesim-detect wrote; writes shapesim.shapelet/1.\n"
     "\n"
     "PSF mode: with --psf-image, model an (oversampled) PSF image at the pixel scale of\n"
     "--like (or --pixel-scale) and write one shapesim.shapelet/1 record of unit flux.\n"
@@ -47,7 +46,7 @@ const char* const description =
 
 // PSF mode: one record of the PSF image's shapelet model at the target pixel scale.
 int run_psf(const app::DecomposeSettings& s, const app::ProgramOptions& options,
-            const app::Log& log) {
+            const app::Log& log, app::AtomicTextFile& file) {
     const double target = s.psf_target_scale(options);
     const PsfImage image = read_psf_image(
         s.psf_image,
@@ -55,8 +54,7 @@ int run_psf(const app::DecomposeSettings& s, const app::ProgramOptions& options,
     const int side = s.psf_stamp % 2 == 1 ? s.psf_stamp : s.psf_stamp + 1;
     const PsfModel psf =
         psf_from_oversampled(image.pixels, image.pixel_scale, target, s.psf_box, side, s.psf_fit());
-    JsonlWriter out(std::cout, "-");
-    out.write(psf_record(psf, target, "psf").to_json());
+    JsonlWriter(file.stream(), file.name()).write(psf_record(psf, target, "psf").to_json());
     log.info("PSF n_max ", psf.n_max, ", beta ", psf.model.beta_pix * target, "\" (",
              psf.model.beta_pix, " px): max |residual| ", psf.max_residual_fraction,
              " of the peak, rms ", psf.rms_residual_fraction, "; sky ", image.sky,
@@ -74,12 +72,13 @@ int run_psf(const app::DecomposeSettings& s, const app::ProgramOptions& options,
         models.write_image(psf.residual, {"psf.residual", -64, {}, {}, {}, {}});
         models.commit();
     }
+    file.commit();
     return 0;
 }
 
 int run(int argc, const char* const argv[]) {
-    app::ProgramOptions options("shapesim-decompose", "[OPTION]...", description,
-                                app::Common::quiet | app::Common::verbose | app::Common::threads |
+    app::ProgramOptions options("shapesim-decompose", "[OPTION]... [FILE]", description,
+                                app::Common::output | app::Common::quiet | app::Common::verbose | app::Common::threads |
                                     app::Common::like | app::Common::config |
                                     app::Common::print_params);
     app::DecomposeSettings s;
@@ -87,7 +86,8 @@ int run(int argc, const char* const argv[]) {
     if (!options.parse(argc, argv)) return 0;
     const app::Log log("shapesim-decompose", options.common().verbosity);
     s.check();
-    if (!s.psf_image.empty()) return run_psf(s, options, log);
+    app::AtomicTextFile file(options.common().output_or_stdout());
+    if (!s.psf_image.empty()) return run_psf(s, options, log, file);
 
     std::vector<SourceRecord> stars;
     if (!s.stars.empty()) {
@@ -117,7 +117,7 @@ int run(int argc, const char* const argv[]) {
     if (!s.models.empty()) models = std::make_unique<FitsWriter>(s.models, "shapesim-decompose");
     const std::vector<std::string> listed = app::split_list(s.ids);
     const std::set<std::string> wanted(listed.begin(), listed.end());
-    JsonlWriter out(std::cout, "-");
+    JsonlWriter out(file.stream(), file.name());
     long converged = 0, failed = 0;
     for (std::size_t k = 0; k < jobs.size(); ++k) {
         const DecomposeJob& job = jobs[k];
@@ -138,6 +138,7 @@ int run(int argc, const char* const argv[]) {
             write_fit_images(*models, job, o.decomposition->fit);
     }
     if (models) models->commit();
+    file.commit();
     log.info(out.count(), " models (", converged, " converged: chi2_r <= ", s.fit.chi2_target,
              " within ", s.fit.chi2_sigmas, " sigma), ", failed, " stamps not fitted, in ",
              log.elapsed(), " s");

@@ -27,7 +27,7 @@ void DecomposeSettings::declare(ProgramOptions& options) {
     DecomposeOptions& f = s.fit;
     options.group("Input").add_options()
         ("input,i", po::value(&s.input)->value_name("FILE")->default_value("-"),
-         "source records (default: stdin)")
+         "source records, or the first argument (default: stdin)")
         ("stamps", po::value(&s.stamps)->value_name("FILE"),
          "stamps file (default: each record's stamp_file)")
         ("stars", po::value(&s.stars)->value_name("FILE"),
@@ -116,6 +116,7 @@ void DecomposeSettings::declare(ProgramOptions& options) {
          "write data, model and residual images (<id>.data/.model/.residual) to this FITS file")
         ("ids", po::value(&s.ids)->value_name("LIST"),
          "with --models: only these ids (comma-separated; default all)");
+    options.positional("input", 1);
 }
 
 void DecomposeSettings::check() {

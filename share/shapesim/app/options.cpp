@@ -87,7 +87,8 @@ void ProgramOptions::declare_common(unsigned common) {
     add("version", "print the version and exit");
     if (common & Common::output)
         add("output,o", po::value<std::string>()->value_name("FILE"),
-            "output file; written as FILE.tmp.<pid> and renamed when complete");
+            "write the output to FILE instead of stdout (as FILE.tmp.<pid>, renamed when "
+            "complete)");
     if (common & Common::quiet) add("quiet,q", po::bool_switch(), "print only errors on stderr");
     if (common & Common::verbose)
         add("verbose,v", po::bool_switch(), "also print one line per object on stderr");

@@ -32,7 +32,7 @@ namespace po = boost::program_options;
 /// The common options a program offers (bits for ProgramOptions).
 struct Common {
     static constexpr unsigned none = 0;
-    static constexpr unsigned output = 1u << 0;        ///< -o/--output FILE
+    static constexpr unsigned output = 1u << 0;        ///< -o/--output FILE (else stdout)
     static constexpr unsigned quiet = 1u << 1;         ///< -q/--quiet
     static constexpr unsigned verbose = 1u << 2;       ///< -v/--verbose
     static constexpr unsigned threads = 1u << 3;       ///< -j/--threads N
@@ -52,6 +52,8 @@ struct CommonValues {
     bool seed_given = false;
     std::string like;    ///< --like; empty when not given
     std::string config;  ///< --config; empty when not given
+    /// The output's target for AtomicTextFile: -o's file, or "-" (stdout) when not given.
+    std::string output_or_stdout() const { return output.empty() ? "-" : output; }
 };
 
 /// A notifier that throws po::error unless lo ≤ value ≤ hi, e.g.
