@@ -7,8 +7,10 @@
 #include "shapesim/moments.hpp"
 #include "shapesim/render.hpp"
 #include "shapesim/transform.hpp"
+#include "shapesim/version.hpp"
 
 #include <algorithm>
+#include <cstdio>
 #include <map>
 #include <fstream>
 #include <iostream>
@@ -1111,6 +1113,140 @@ DrawnGalaxy draw_galaxy(const Morphology& morphology, const std::vector<double>&
 
 double model_reach(double beta_pix, int n_max) {
     return beta_pix * (std::sqrt(2.0 * n_max + 1.0) + 5.0);
+}
+
+std::string drop_reason(const ShapeletRecord& r, const RecordSelection& selection) {
+    // Counted under the first reason, in the order the options list them.
+    for (const auto& f : selection.required)
+        if (!has_any_flag(r.flags, f)) return "not " + f;
+    for (const auto& f : selection.rejected)
+        if (has_flag(r.flags, f)) return f;
+    if (!r.mag) return "no magnitude";
+    if (selection.mag_limit && *r.mag > *selection.mag_limit) return "fainter than --mag-limit";
+    if (!(r.coeffs[0].real() > 0.0)) return "a_00 <= 0";
+    return "";
+}
+
+namespace {
+
+// The parent-selection weight of a kept record: 1, or its selection.weight_field (≥ 0).
+double selection_weight(const ShapeletRecord& r, const RecordSelection& selection) {
+    if (selection.weight_field.empty()) return 1.0;
+    const auto w = optional_double(r.extra, selection.weight_field);
+    if (!w || !(*w >= 0.0))
+        throw Error("missing, or not a number ≥ 0", "", 0, selection.weight_field);
+    return *w;
+}
+
+}  // namespace
+
+SelectedRecords select_records(JsonlReader& reader, const RecordSelection& selection,
+                               std::vector<SourceField>& fields) {
+    SelectedRecords out;
+    const std::vector<std::string>& images = selection.images;
+    Json record;
+    while (reader.next(record)) {
+        ++out.read;
+        ShapeletRecord r;
+        try {
+            r = ShapeletRecord::from_json(record);
+        } catch (const Error& e) {
+            throw reader.locate(e);
+        }
+        out.hash ^= fnv1a_64(record.dump());
+        out.hash *= 0x100000001b3ULL;
+        std::size_t field = 0;
+        if (!images.empty()) {
+            const std::string image = record.value("image", std::string());
+            field = std::size_t(std::find(images.begin(), images.end(), image) - images.begin());
+            if (field == images.size())
+                throw reader.locate(Error(
+                    "record " + r.id + " comes from '" + image + "', none of the --field images",
+                    "", 0, "image"));
+        }
+        if (field < fields.size() && r.mag && record.value("kind", std::string("galaxy")) != "star")
+            fields[field].mags.push_back(*r.mag);
+        const std::string why = drop_reason(r, selection);
+        if (!why.empty()) {
+            ++out.dropped[why];
+            continue;
+        }
+        double weight = 1.0;
+        try {
+            weight = selection_weight(r, selection);
+        } catch (const Error& e) {
+            throw reader.locate(e);
+        }
+        out.kept.push_back(std::move(r));
+        out.weights.push_back(weight);
+        out.field.push_back(field);
+    }
+    return out;
+}
+
+void weight_by_counted_area(const std::vector<SourceField>& fields,
+                            const std::vector<ShapeletRecord>& kept,
+                            const std::vector<std::size_t>& field, std::vector<double>& weights) {
+    if (fields.size() <= 1) return;
+    for (std::size_t i = 0; i < weights.size(); ++i) {
+        if (field[i] >= fields.size()) continue;  // shape-only
+        double area = 0.0;
+        bool mine = false;
+        for (std::size_t k : fields_counted(fields, *kept[i].mag)) {
+            area += fields[k].area_arcmin2;
+            mine = mine || k == field[i];
+        }
+        weights[i] = mine ? weights[i] / area : 0.0;
+    }
+}
+
+std::vector<std::string> image_labels(const std::vector<std::string>& images) {
+    std::vector<std::string> labels;
+    for (const std::string& image : images) {
+        std::string label = image.substr(image.find_last_of('/') + 1);
+        const std::size_t fits = label.find(".fits");
+        if (fits != std::string::npos) label.erase(fits, 5);
+        labels.push_back(label);
+    }
+    for (std::size_t k = 0; k < labels.size(); ++k)
+        if (std::count(labels.begin(), labels.end(), labels[k]) > 1) labels[k] = images[k];
+    return labels;
+}
+
+long mark_point_fields(Morphology& morphology, const SelectedRecords& selected,
+                       const RecordSelection& selection, std::size_t counted_fields) {
+    const std::vector<std::string> labels = image_labels(selection.images);
+    long shape_only = 0;
+    for (std::size_t i = 0; i < selected.kept.size(); ++i) {
+        MorphologyPoint& point = morphology.points[i];
+        if (labels.size() > 1) point.id = labels[selected.field[i]] + ":" + point.id;
+        point.shape_only = !selection.images.empty() && selected.field[i] >= counted_fields;
+        point.weight = point.shape_only ? 0.0 : selected.weights[i];
+        shape_only += point.shape_only;
+    }
+    return shape_only;
+}
+
+Json smooth_provenance(const std::string& input, const SelectedRecords& selected,
+                       const RecordSelection& selection, const SmoothOptions& options) {
+    char hex[17];
+    std::snprintf(hex, sizeof hex, "%016llx", static_cast<unsigned long long>(selected.hash));
+    Json dropped = Json::object();
+    for (const auto& [why, n] : selected.dropped) dropped[why] = n;
+    return {{"program", "shapesim-smooth"},
+            {"version", version()},
+            {"input", input},
+            {"input_records", selected.read},
+            {"input_fnv1a64", hex},
+            {"dropped", dropped},
+            {"options",
+             {{"k", options.k},
+              {"lambda_phase", options.phase_deg},
+              {"delta", options.delta},
+              {"keep_colour_noise", options.keep_colour_noise},
+              {"lambda_colour", options.colour},
+              {"require", selection.required},
+              {"reject", selection.rejected}}}};
 }
 
 }  // namespace shapesim
