@@ -5,8 +5,10 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdio>
 #include <limits>
 #include <optional>
+#include <ostream>
 
 namespace shapesim {
 
@@ -93,6 +95,152 @@ TableRow table_row_from_json(const Json& row) {
         t.galaxies = row.at("n").get<long>();
     }
     return t;
+}
+
+namespace {
+
+// A Table cell: "v ± err", "v" without an error, "–" without a value.
+std::string table_cell(double v, double err, int digits = 3) {
+    char buf[64];
+    if (!std::isfinite(v)) return "–";
+    if (std::isfinite(err))
+        std::snprintf(buf, sizeof buf, "%.*f ± %.*f", digits, v, digits, err);
+    else
+        std::snprintf(buf, sizeof buf, "%.*f", digits, v);
+    return buf;
+}
+
+}  // namespace
+
+void write_table_markdown(std::ostream& o, const std::vector<TableRow>& rows,
+                          const std::string& band, const TableCuts& cuts) {
+    o << "| catalogue | N (" << band << " ≤ " << cuts.mag_counts
+      << ") | ⟨C⟩ | rms C | ⟨A⟩ | rms A | ⟨S⟩ | rms S"
+      << " | rms e | FWHM median (″) | FWHM sd (″) "
+         "|\n|---|---|---|---|---|---|---|---|---|---|---|\n";
+    for (const TableRow& t : rows) {
+        o << "| " << t.name << " | " << (t.galaxies >= 0 ? std::to_string(t.galaxies) : "–")
+          << " | " << table_cell(t.c_mean, t.c_mean_err) << " | "
+          << table_cell(t.c_rms, t.c_rms_err) << " | " << table_cell(t.a_mean, t.a_mean_err)
+          << " | " << table_cell(t.a_rms, t.a_rms_err) << " | "
+          << table_cell(t.s_mean, t.s_mean_err) << " | " << table_cell(t.s_rms, t.s_rms_err)
+          << " | " << table_cell(t.e_rms, t.e_rms_err) << " | "
+          << table_cell(t.fwhm_median, t.fwhm_median_err) << " | "
+          << table_cell(t.fwhm_sd, t.fwhm_sd_err) << " |\n";
+    }
+    o << "\nC and A for " << band << " ≤ " << cuts.mag_ca << ", S (×10, Conselice 2003) for "
+      << band << " ≤ " << cuts.mag_s << ", e and FWHM for " << band << " ≤ " << cuts.mag_counts
+      << "; errors: " << cuts.resamples << " bootstrap resamples.\n";
+}
+
+void write_distances_markdown(std::ostream& o, const std::vector<Catalogue>& catalogues,
+                              const TableCuts& cuts) {
+    o << "| statistic | catalogue | n | n (" << catalogues.at(0).name
+      << ") | KS D | KS p | Wasserstein |\n|---|---|---|---|---|---|---|\n";
+    const std::pair<const char*, double> stats[] = {
+        {"mag", cuts.mag_counts}, {"fwhm_arcsec", cuts.mag_counts},
+        {"e", cuts.mag_counts},   {"r_petro", cuts.mag_ca},
+        {"c", cuts.mag_ca},       {"a_sym", cuts.mag_ca},
+        {"s", cuts.mag_s},        {"gini", cuts.mag_ca},
+        {"m20", cuts.mag_ca}};
+    for (const auto& [field, limit] : stats) {
+        const std::vector<double> ref = catalogues[0].column(field, limit);
+        for (std::size_t k = 1; k < catalogues.size(); ++k) {
+            const std::vector<double> v = catalogues[k].column(field, limit);
+            o << "| " << field << " | " << catalogues[k].name << " | " << v.size() << " | "
+              << ref.size() << " | ";
+            if (v.empty() || ref.empty()) {
+                o << "– | – | – |\n";
+                continue;
+            }
+            const KsResult ks = ks_two_sample(ref, v);
+            char buf[128];
+            std::snprintf(buf, sizeof buf, "%.3f | %.3g | %.4g |\n", ks.d, ks.p_value,
+                          wasserstein_1d(ref, v));
+            o << buf;
+        }
+    }
+}
+
+void write_figure_data(std::ostream& o, const Catalogue& catalogue) {
+    o << "# mag fwhm_arcsec e c a_sym s r_petro_arcsec\n";
+    for (const Json& r : catalogue.records) {
+        if (r.contains("kind") && r.at("kind") != "galaxy") continue;
+        auto num = [&](const char* key) {
+            return r.contains(key) && r.at(key).is_number()
+                       ? r.at(key).get<double>()
+                       : std::numeric_limits<double>::quiet_NaN();
+        };
+        const double scale = num("pixel_scale");
+        const double values[] = {num("mag"),
+                                 num("fwhm") * scale,
+                                 std::hypot(num("e1"), num("e2")),
+                                 num("c"),
+                                 num("a_sym"),
+                                 num("s"),
+                                 num("r_petro") * scale};
+        for (double v : values) {
+            if (std::isfinite(v))
+                o << v << ' ';
+            else
+                o << "NaN ";
+        }
+        o << '\n';
+    }
+}
+
+void write_figures_script(std::ostream& o, const std::string& folder,
+                          const std::vector<Catalogue>& catalogues, const std::string& band,
+                          const TableCuts& cuts) {
+    o << "# gnuplot " << folder << "/figures.gp (run from the parent folder)\n"
+      << "set terminal pngcairo size 640,480 enhanced font 'DejaVu Sans,11'\nset key top left\n"
+      << "set datafile missing 'NaN'\nbin(x, w) = w * floor(x / w) + w / 2.0\n";
+    // One figure: its setup, then `each` once per catalogue with FILE and NAME filled in.
+    auto plot = [&](const char* name, const std::string& setup, const std::string& each) {
+        o << "set output '" << folder << "/" << name << ".png'\n" << setup << "\nplot ";
+        for (std::size_t k = 0; k < catalogues.size(); ++k) {
+            std::string line = each;
+            const std::string file = "'" + folder + "/" + catalogues[k].name + ".dat'";
+            for (std::size_t p; (p = line.find("FILE")) != std::string::npos;)
+                line.replace(p, 4, file);
+            for (std::size_t p; (p = line.find("NAME")) != std::string::npos;)
+                line.replace(p, 4, catalogues[k].name);
+            o << (k ? ", \\\n     " : "") << line;
+        }
+        o << "\nunset logscale\n";
+    };
+    const std::string mcut = std::to_string(cuts.mag_counts), ca = std::to_string(cuts.mag_ca),
+                      scut = std::to_string(cuts.mag_s);
+    plot("counts",
+         "set title 'Number counts (Fig. 5)'\nset xlabel 'I'\nset ylabel 'N per 0.5 mag'\nset "
+         "logscale y",
+         "FILE using (bin($1,0.5)):(1.0) smooth frequency with histeps title 'NAME'");
+    plot("size",
+         "set title 'Size distribution, " + band + " <= " + mcut +
+             " (Fig. 6)'\nset xlabel 'FWHM (arcsec)'\nset ylabel 'N'",
+         "FILE using ($1 <= " + mcut +
+             " ? bin($2,0.05) : NaN):(1.0) smooth frequency with histeps title 'NAME'");
+    plot("size_mag",
+         "set title 'Size against magnitude (Fig. 7)'\nset xlabel 'I'\nset ylabel 'FWHM "
+         "(arcsec)'\nset logscale y",
+         "FILE using 1:2 with points pt 7 ps 0.4 title 'NAME'");
+    plot("ellipticity",
+         "set title 'Ellipticity, " + band + " <= " + mcut +
+             " (Fig. 8)'\nset xlabel '|e|'\nset ylabel 'N'",
+         "FILE using ($1 <= " + mcut +
+             " ? bin($3,0.05) : NaN):(1.0) smooth frequency with histeps title 'NAME'");
+    plot("c_a",
+         "set title 'Concentration against asymmetry, " + band + " <= " + ca +
+             " (Fig. 9)'\nset xlabel 'A'\nset ylabel 'C'",
+         "FILE using ($1 <= " + ca + " ? $5 : NaN):4 with points pt 7 ps 0.6 title 'NAME'");
+    plot("c_rp",
+         "set title 'Concentration against Petrosian radius, " + band + " <= " + ca +
+             " (Fig. 10)'\nset xlabel 'r_p (arcsec)'\nset ylabel 'C'",
+         "FILE using ($1 <= " + ca + " ? $7 : NaN):4 with points pt 7 ps 0.6 title 'NAME'");
+    plot("a_s",
+         "set title 'Asymmetry against clumpiness, " + band + " <= " + scut +
+             " (Fig. 11)'\nset xlabel 'S'\nset ylabel 'A'",
+         "FILE using ($1 <= " + scut + " ? $6 : NaN):5 with points pt 7 ps 0.6 title 'NAME'");
 }
 
 }  // namespace shapesim

@@ -1,6 +1,7 @@
 // Comparing measured catalogues (shapesim-measure --compare; paper §5, its Table and
 // Figs. 5–11): the Table's summary statistics with bootstrap errors and the two-sample
-// distances of every statistic (the statistics themselves: statistics.hpp).
+// distances of every statistic (the statistics themselves: statistics.hpp), and the writers of
+// the report's files.
 #pragma once
 
 #include "shapesim/jsonl.hpp"
@@ -8,6 +9,7 @@
 
 #include <cstdint>
 #include <functional>
+#include <ostream>
 #include <string>
 #include <vector>
 
@@ -45,5 +47,27 @@ TableRow table_row(const Catalogue& catalogue, const TableCuts& cuts);
 /// and any of the TableRow value names ("n", "c_mean", "c_rms", …, "fwhm_sd"); what is absent,
 /// and every error, is NaN (n: −1). Throws Error naming the field on a wrong type.
 TableRow table_row_from_json(const Json& row);
+
+// The --compare report, one writer per file of its folder (the caller owns the files: written
+// atomically, they land whole or not at all).
+
+/// table.md: the Table's header, one line per row (galaxies < 0 and NaN values print "–"), and
+/// the cuts; `band` names the magnitudes ("I").
+void write_table_markdown(std::ostream& out, const std::vector<TableRow>& rows,
+                          const std::string& band, const TableCuts& cuts);
+/// distances.md: per statistic (mag, fwhm_arcsec, e under mag_counts; r_petro, c, a_sym, gini,
+/// m20 under mag_ca; s under mag_s), the KS statistic, its p-value and the 1D Wasserstein
+/// distance of every catalogue from the first.
+void write_distances_markdown(std::ostream& out, const std::vector<Catalogue>& catalogues,
+                              const TableCuts& cuts);
+/// NAME.dat, the figures' data: per galaxy "mag fwhm_arcsec e c a_sym s r_petro_arcsec" (NaN
+/// where absent).
+void write_figure_data(std::ostream& out, const Catalogue& catalogue);
+/// figures.gp: the gnuplot script of Figs. 5–11, one PNG each into `folder`, from the
+/// catalogues' `folder`/NAME.dat (paths as given: run from the folder's parent). `band` is
+/// written into quoted titles: the caller keeps it a plain name.
+void write_figures_script(std::ostream& out, const std::string& folder,
+                          const std::vector<Catalogue>& catalogues, const std::string& band,
+                          const TableCuts& cuts);
 
 }  // namespace shapesim

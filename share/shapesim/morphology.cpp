@@ -7,14 +7,16 @@
 #include "shapesim/moments.hpp"
 #include "shapesim/render.hpp"
 #include "shapesim/transform.hpp"
+#include "shapesim/version.hpp"
 
 #include <algorithm>
-#include <map>
+#include <cmath>
+#include <cstdio>
 #include <fstream>
 #include <iostream>
-#include <sstream>
-#include <cmath>
 #include <limits>
+#include <map>
+#include <sstream>
 
 namespace shapesim {
 
@@ -266,33 +268,33 @@ void set_colour_population(Morphology& out) {
 
 }  // namespace
 
-Morphology build_morphology(const std::vector<ShapeletRecord>& records,
-                            const SmoothOptions& options) {
-    options.validate();
-    Morphology out;
-    for (const ShapeletRecord& r : records) {
-        const ShapeletModel model = r.to_model();
-        const double a00 = model.coeffs[0].real();
-        if (!(a00 > 0.0)) throw Error("a_00 must be > 0 to normalise the shape", "", 0, r.id);
-        if (!r.mag) throw Error("no magnitude (give the zero point to shapesim-decompose)", "", 0, r.id);
-        MorphologyPoint p;
-        p.id = r.id;
-        p.n_max = r.n_max;
-        p.beta = r.beta;
-        p.mag = *r.mag;
-        p.psf_beta = number_or_none(r.extra, "psf_beta").value_or(0.0);
-        const ShapeletModel aligned = align(model, &p.alignment);
-        p.shape.resize(aligned.coeffs.size());
-        for (std::size_t k = 0; k < aligned.coeffs.size(); ++k) p.shape[k] = aligned.coeffs[k] / a00;
-        p.shape[0] = 1.0;
-        add_band_shapes(out, r, p, a00);
-        out.n_max = std::max(out.n_max, p.n_max);
-        out.points.push_back(std::move(p));
-    }
-    if (!out.bands.empty() && out.points.size() != records.size())
-        throw Error("internal: band points lost", "", 0, "bands");
-    if (!out.bands.empty()) out.reference_band = reference_band(records.front());
-    if (out.reference_band && !options.keep_colour_noise) denoise_colours(out, records);
+namespace {
+
+// A record's point: its shape aligned (ellipticity on x, a_42 phase positive) and normalised by
+// a_00; its bands' shapes join `out`'s.
+MorphologyPoint aligned_point(const ShapeletRecord& r, Morphology& out) {
+    const ShapeletModel model = r.to_model();
+    const double a00 = model.coeffs[0].real();
+    if (!(a00 > 0.0)) throw Error("a_00 must be > 0 to normalise the shape", "", 0, r.id);
+    if (!r.mag)
+        throw Error("no magnitude (give the zero point to shapesim-decompose)", "", 0, r.id);
+    MorphologyPoint p;
+    p.id = r.id;
+    p.n_max = r.n_max;
+    p.beta = r.beta;
+    p.mag = *r.mag;
+    p.psf_beta = number_or_none(r.extra, "psf_beta").value_or(0.0);
+    const ShapeletModel aligned = align(model, &p.alignment);
+    p.shape.resize(aligned.coeffs.size());
+    for (std::size_t k = 0; k < aligned.coeffs.size(); ++k) p.shape[k] = aligned.coeffs[k] / a00;
+    p.shape[0] = 1.0;
+    add_band_shapes(out, r, p, a00);
+    return p;
+}
+
+// λ of every axis: k × the mean nearest-neighbour separation of the points along it, unless
+// overridden; 0 for the delta-function PDF.
+void set_smoothing_lengths(Morphology& out, const SmoothOptions& options) {
     SmoothingLengths& l = out.lambda;
     const double k = options.delta ? 0.0 : options.k;
     l.phase_deg = options.delta ? 0.0 : options.phase_deg;
@@ -317,21 +319,23 @@ Morphology build_morphology(const std::vector<ShapeletRecord>& records,
                 axis.push_back(index[i].m == 0 ? p.shape[i].real() : std::abs(p.shape[i]));
         l.coefficient[i] = k * mean_nearest_neighbour_separation(axis);
     }
-    if (!out.bands.empty()) {
-        if (out.reference_band) set_colour_population(out);
-        l.colour = options.delta || !out.reference_band ? 0.0 : options.colour;
-    }
-    // One zero point when every record agrees.
+}
+
+// The records' zero point when every one has the same; none otherwise.
+std::optional<double> common_zero_point(const std::vector<ShapeletRecord>& records) {
     std::optional<double> zp;
-    bool agree = true;
     for (const ShapeletRecord& r : records) {
         const auto z = number_or_none(r.extra, "zero_point");
-        if (!z) agree = false;
-        else if (!zp) zp = z;
-        else if (*zp != *z) agree = false;
+        if (!z || (zp && *zp != *z)) return std::nullopt;
+        if (!zp) zp = z;
     }
-    if (agree) out.zero_point = zp;
-    // One frame: observed-frame models hold their image's PSF, intrinsic ones none.
+    return zp;
+}
+
+// The records' one frame: observed-frame models hold their image's PSF, intrinsic ones none;
+// a mix is an error.
+std::string common_frame(const std::vector<ShapeletRecord>& records) {
+    std::string first;
     for (std::size_t k = 0; k < records.size(); ++k) {
         const Json& e = records[k].extra;
         const std::string frame =
@@ -340,12 +344,39 @@ Morphology build_morphology(const std::vector<ShapeletRecord>& records,
         if (frame != "observed" && frame != "intrinsic")
             throw Error("must be \"observed\" or \"intrinsic\", got \"" + frame + "\" (record " +
                             records[k].id + ")", "", 0, "frame");
-        if (k == 0) out.frame = frame;
-        else if (frame != out.frame)
+        if (k == 0)
+            first = frame;
+        else if (frame != first)
             throw Error("record " + records[k].id + " is " + frame + ", record " + records[0].id +
-                            " " + out.frame + ": one morphology model holds one frame",
+                            " " + first + ": one morphology model holds one frame",
                         "", 0, "frame");
     }
+    return first;
+}
+
+}  // namespace
+
+Morphology build_morphology(const std::vector<ShapeletRecord>& records,
+                            const SmoothOptions& options) {
+    options.validate();
+    Morphology out;
+    for (const ShapeletRecord& r : records) {
+        MorphologyPoint p = aligned_point(r, out);
+        out.n_max = std::max(out.n_max, p.n_max);
+        out.points.push_back(std::move(p));
+    }
+    if (!out.bands.empty() && out.points.size() != records.size())
+        throw Error("internal: band points lost", "", 0, "bands");
+    if (!out.bands.empty()) out.reference_band = reference_band(records.front());
+    if (out.reference_band && !options.keep_colour_noise) denoise_colours(out, records);
+    set_smoothing_lengths(out, options);
+    if (!out.bands.empty()) {
+        if (out.reference_band) set_colour_population(out);
+        out.lambda.colour = options.delta || !out.reference_band ? 0.0 : options.colour;
+    }
+    out.zero_point = common_zero_point(records);
+    const std::string frame = common_frame(records);
+    if (!records.empty()) out.frame = frame;
     out.prepare();
     return out;
 }
@@ -633,21 +664,24 @@ void read_colour_population(Morphology& m, const Json& colours) {
 
 }  // namespace
 
-Morphology Morphology::from_json(const Json& doc) {
-    if (!doc.is_object() || !doc.contains("schema") || doc.at("schema") != schema)
-        throw Error(std::string("not a morphology model (expected schema \"") + schema + "\")",
-                    "", 0, "schema");
-    Morphology m;
-    m.n_max = int(number(doc, "n_max", ""));
-    if (m.n_max < 0 || m.n_max > 100) throw Error("must be in [0, 100]", "", 0, "n_max");
-    if (doc.contains("zero_point") && !doc.at("zero_point").is_null())
-        m.zero_point = number(doc, "zero_point", "");
-    if (doc.contains("frame")) {
-        if (!doc.at("frame").is_string() ||
-            (doc.at("frame") != "observed" && doc.at("frame") != "intrinsic"))
-            throw Error("must be \"observed\" or \"intrinsic\"", "", 0, "frame");
-        m.frame = doc.at("frame").get<std::string>();
+namespace {
+
+// Shape coefficients as [re, im] pairs of finite numbers; errors name `field`.
+std::vector<Complex> read_complex_pairs(const Json& list, const std::string& field) {
+    std::vector<Complex> shape;
+    for (const Json& c : list) {
+        if (!c.is_array() || c.size() != 2 || !c[0].is_number() || !c[1].is_number())
+            throw Error("must hold [re, im] pairs of numbers", "", 0, field);
+        const Complex v(c[0].get<double>(), c[1].get<double>());
+        if (!std::isfinite(v.real()) || !std::isfinite(v.imag()))
+            throw Error("not finite", "", 0, field);
+        shape.push_back(v);
     }
+    return shape;
+}
+
+// "lambda": the smoothing lengths (its colour width is the bands', read with them).
+void read_lambda(const Json& doc, Morphology& m) {
     if (!doc.contains("lambda")) throw Error("missing", "", 0, "lambda");
     const Json& lam = doc.at("lambda");
     m.lambda.phase_deg = number(lam, "phase_deg", "lambda.");
@@ -663,114 +697,107 @@ Morphology Morphology::from_json(const Json& doc) {
     }
     if (m.lambda.phase_deg < 0 || m.lambda.beta < 0 || m.lambda.mag < 0)
         throw Error("smoothing lengths must be ≥ 0", "", 0, "lambda");
-    if (doc.contains("bands")) {
-        const Json& list = doc.at("bands");
-        if (!list.is_array() || list.empty()) throw Error("must be a non-empty array", "", 0, "bands");
-        for (std::size_t b = 0; b < list.size(); ++b) {
-            const std::string where = "bands[" + std::to_string(b) + "]";
-            if (!list[b].is_object() || !list[b].contains("band") || !list[b].at("band").is_string())
-                throw Error("missing or not a string", "", 0, where + ".band");
-            m.bands.push_back(list[b].at("band").get<std::string>());
-            m.band_zero_points.push_back(list[b].contains("zero_point")
-                                             ? std::optional(number(list[b], "zero_point", where + "."))
-                                             : std::nullopt);
-        }
-        if (lam.contains("colour") && lam.at("colour").is_array())
-            throw Error("is one width per band: a model of an older shapesim-smooth (smooth its "
-                        "records again)",
-                        "", 0, "lambda.colour");
-        m.lambda.colour = number(lam, "colour", "lambda.");
-        if (m.lambda.colour < 0.0) throw Error("must be ≥ 0", "", 0, "lambda.colour");
-        if (doc.contains("colours")) read_colour_population(m, doc.at("colours"));
+}
+
+// A multi-band model's "bands", their colour kernel's width and the colour population.
+void read_bands(const Json& doc, Morphology& m) {
+    const Json& list = doc.at("bands");
+    const Json& lam = doc.at("lambda");
+    if (!list.is_array() || list.empty()) throw Error("must be a non-empty array", "", 0, "bands");
+    for (std::size_t b = 0; b < list.size(); ++b) {
+        const std::string where = "bands[" + std::to_string(b) + "]";
+        if (!list[b].is_object() || !list[b].contains("band") || !list[b].at("band").is_string())
+            throw Error("missing or not a string", "", 0, where + ".band");
+        m.bands.push_back(list[b].at("band").get<std::string>());
+        m.band_zero_points.push_back(list[b].contains("zero_point")
+                                         ? std::optional(number(list[b], "zero_point", where + "."))
+                                         : std::nullopt);
     }
-    if (!doc.contains("points") || !doc.at("points").is_array() || doc.at("points").empty())
-        throw Error("must be a non-empty array", "", 0, "points");
-    std::size_t i = 0;
-    for (const Json& pj : doc.at("points")) {
-        const std::string where = "points[" + std::to_string(i++) + "].";
-        MorphologyPoint p;
-        if (!pj.is_object() || !pj.contains("id") || !pj.at("id").is_string())
-            throw Error("missing or not a string", "", 0, where + "id");
-        p.id = pj.at("id").get<std::string>();
-        p.n_max = int(number(pj, "n_max", where));
-        if (p.n_max < 0 || p.n_max > m.n_max)
-            throw Error("must be in [0, n_max of the model]", "", 0, where + "n_max");
-        p.beta = number(pj, "beta", where);
-        if (!(p.beta > 0.0)) throw Error("must be > 0", "", 0, where + "beta");
-        p.mag = number(pj, "mag", where);
-        p.weight = pj.contains("weight") ? number(pj, "weight", where) : 1.0;
-        p.psf_beta = pj.contains("psf_beta") ? number(pj, "psf_beta", where) : 0.0;
-        if (!(p.psf_beta >= 0.0)) throw Error("must be ≥ 0", "", 0, where + "psf_beta");
-        if (!(p.weight >= 0.0)) throw Error("must be ≥ 0", "", 0, where + "weight");
-        p.alignment.rotation = pj.contains("rotation") ? number(pj, "rotation", where) : 0.0;
-        p.alignment.reflected = pj.value("reflected", false);
-        if (pj.contains("shape_only")) {
-            if (!pj.at("shape_only").is_boolean())
-                throw Error("must be true or false", "", 0, where + "shape_only");
-            p.shape_only = pj.at("shape_only").get<bool>();
-            if (p.shape_only && p.weight != 0.0)
-                throw Error("a shape-only point must have weight 0", "", 0, where + "weight");
-        }
-        if (!pj.contains("shape") || !pj.at("shape").is_array() ||
-            pj.at("shape").size() != std::size_t(polar_count(p.n_max)))
-            throw Error("must hold polar_count(n_max) [re, im] pairs", "", 0, where + "shape");
-        for (const Json& c : pj.at("shape")) {
-            if (!c.is_array() || c.size() != 2 || !c[0].is_number() || !c[1].is_number())
-                throw Error("must hold [re, im] pairs of numbers", "", 0, where + "shape");
-            const Complex v(c[0].get<double>(), c[1].get<double>());
-            if (!std::isfinite(v.real()) || !std::isfinite(v.imag()))
-                throw Error("not finite", "", 0, where + "shape");
-            p.shape.push_back(v);
-        }
-        if (!m.bands.empty()) {
-            const Json* list = pj.contains("bands") ? &pj.at("bands") : nullptr;
-            if (!list || !list->is_array() || list->size() != m.bands.size())
-                throw Error("must hold one shape per band", "", 0, where + "bands");
-            for (const Json& band : *list) {
-                if (!band.is_array() || band.size() != p.shape.size())
-                    throw Error("must hold polar_count(n_max) [re, im] pairs per band", "", 0,
-                                where + "bands");
-                std::vector<Complex> shape;
-                for (const Json& c : band) {
-                    if (!c.is_array() || c.size() != 2 || !c[0].is_number() || !c[1].is_number())
-                        throw Error("must hold [re, im] pairs of numbers", "", 0, where + "bands");
-                    const Complex v(c[0].get<double>(), c[1].get<double>());
-                    if (!std::isfinite(v.real()) || !std::isfinite(v.imag()))
-                        throw Error("not finite", "", 0, where + "bands");
-                    shape.push_back(v);
-                }
-                p.band_shapes.push_back(std::move(shape));
-            }
-        }
-        m.points.push_back(std::move(p));
+    if (lam.contains("colour") && lam.at("colour").is_array())
+        throw Error(
+            "is one width per band: a model of an older shapesim-smooth (smooth its "
+            "records again)",
+            "", 0, "lambda.colour");
+    m.lambda.colour = number(lam, "colour", "lambda.");
+    if (m.lambda.colour < 0.0) throw Error("must be ≥ 0", "", 0, "lambda.colour");
+    if (doc.contains("colours")) read_colour_population(m, doc.at("colours"));
+}
+
+// One of "points" (`where`: "points[i]."), checked against the model's n_max and bands.
+MorphologyPoint read_point(const Json& pj, const std::string& where, const Morphology& m) {
+    MorphologyPoint p;
+    if (!pj.is_object() || !pj.contains("id") || !pj.at("id").is_string())
+        throw Error("missing or not a string", "", 0, where + "id");
+    p.id = pj.at("id").get<std::string>();
+    p.n_max = int(number(pj, "n_max", where));
+    if (p.n_max < 0 || p.n_max > m.n_max)
+        throw Error("must be in [0, n_max of the model]", "", 0, where + "n_max");
+    p.beta = number(pj, "beta", where);
+    if (!(p.beta > 0.0)) throw Error("must be > 0", "", 0, where + "beta");
+    p.mag = number(pj, "mag", where);
+    p.weight = pj.contains("weight") ? number(pj, "weight", where) : 1.0;
+    p.psf_beta = pj.contains("psf_beta") ? number(pj, "psf_beta", where) : 0.0;
+    if (!(p.psf_beta >= 0.0)) throw Error("must be ≥ 0", "", 0, where + "psf_beta");
+    if (!(p.weight >= 0.0)) throw Error("must be ≥ 0", "", 0, where + "weight");
+    p.alignment.rotation = pj.contains("rotation") ? number(pj, "rotation", where) : 0.0;
+    p.alignment.reflected = pj.value("reflected", false);
+    if (pj.contains("shape_only")) {
+        if (!pj.at("shape_only").is_boolean())
+            throw Error("must be true or false", "", 0, where + "shape_only");
+        p.shape_only = pj.at("shape_only").get<bool>();
+        if (p.shape_only && p.weight != 0.0)
+            throw Error("a shape-only point must have weight 0", "", 0, where + "weight");
     }
-    const auto read_field = [](const Json& f, const std::string& where) {
-        SourceField field;
-        if (!f.is_object()) throw Error("must be an object", "", 0, where);
-        field.area_arcmin2 = number(f, "area_arcmin2", where + ".");
-        if (!(field.area_arcmin2 > 0.0)) throw Error("must be > 0", "", 0, where + ".area_arcmin2");
-        if (!f.contains("mags") || !f.at("mags").is_array())
-            throw Error("must be an array of numbers", "", 0, where + ".mags");
-        for (const Json& v : f.at("mags")) {
-            if (!v.is_number() || !std::isfinite(v.get<double>()))
-                throw Error("must be finite numbers", "", 0, where + ".mags");
-            field.mags.push_back(v.get<double>());
-        }
-        std::sort(field.mags.begin(), field.mags.end());
-        if (f.contains("image")) {
-            if (!f.at("image").is_string()) throw Error("must be a string", "", 0, where + ".image");
-            field.image = f.at("image").get<std::string>();
-        }
-        if (f.contains("completeness")) field.completeness = number(f, "completeness", where + ".");
-        return field;
-    };
-    if (doc.contains("source_field")) m.source_fields.push_back(read_field(doc.at("source_field"), "source_field"));
+    if (!pj.contains("shape") || !pj.at("shape").is_array() ||
+        pj.at("shape").size() != std::size_t(polar_count(p.n_max)))
+        throw Error("must hold polar_count(n_max) [re, im] pairs", "", 0, where + "shape");
+    p.shape = read_complex_pairs(pj.at("shape"), where + "shape");
+    if (m.bands.empty()) return p;
+    const Json* list = pj.contains("bands") ? &pj.at("bands") : nullptr;
+    if (!list || !list->is_array() || list->size() != m.bands.size())
+        throw Error("must hold one shape per band", "", 0, where + "bands");
+    for (const Json& band : *list) {
+        if (!band.is_array() || band.size() != p.shape.size())
+            throw Error("must hold polar_count(n_max) [re, im] pairs per band", "", 0,
+                        where + "bands");
+        p.band_shapes.push_back(read_complex_pairs(band, where + "bands"));
+    }
+    return p;
+}
+
+// A source field (`where`: "source_fields[k]"); its magnitudes sorted.
+SourceField read_source_field(const Json& f, const std::string& where) {
+    SourceField field;
+    if (!f.is_object()) throw Error("must be an object", "", 0, where);
+    field.area_arcmin2 = number(f, "area_arcmin2", where + ".");
+    if (!(field.area_arcmin2 > 0.0)) throw Error("must be > 0", "", 0, where + ".area_arcmin2");
+    if (!f.contains("mags") || !f.at("mags").is_array())
+        throw Error("must be an array of numbers", "", 0, where + ".mags");
+    for (const Json& v : f.at("mags")) {
+        if (!v.is_number() || !std::isfinite(v.get<double>()))
+            throw Error("must be finite numbers", "", 0, where + ".mags");
+        field.mags.push_back(v.get<double>());
+    }
+    std::sort(field.mags.begin(), field.mags.end());
+    if (f.contains("image")) {
+        if (!f.at("image").is_string()) throw Error("must be a string", "", 0, where + ".image");
+        field.image = f.at("image").get<std::string>();
+    }
+    if (f.contains("completeness")) field.completeness = number(f, "completeness", where + ".");
+    return field;
+}
+
+// The real fields: "source_field" (one, of older models), "source_fields", "shape_fields".
+void read_fields(const Json& doc, Morphology& m) {
+    if (doc.contains("source_field"))
+        m.source_fields.push_back(read_source_field(doc.at("source_field"), "source_field"));
     if (doc.contains("source_fields")) {
         if (!doc.at("source_fields").is_array())
             throw Error("must be an array", "", 0, "source_fields");
         std::size_t k = 0;
         for (const Json& f : doc.at("source_fields"))
-            m.source_fields.push_back(read_field(f, "source_fields[" + std::to_string(k++) + "]"));
+            m.source_fields.push_back(
+                read_source_field(f, "source_fields[" + std::to_string(k++) + "]"));
     }
     if (doc.contains("shape_fields")) {
         const Json& f = doc.at("shape_fields");
@@ -780,6 +807,33 @@ Morphology Morphology::from_json(const Json& doc) {
             m.shape_fields.push_back(image.get<std::string>());
         }
     }
+}
+
+}  // namespace
+
+Morphology Morphology::from_json(const Json& doc) {
+    if (!doc.is_object() || !doc.contains("schema") || doc.at("schema") != schema)
+        throw Error(std::string("not a morphology model (expected schema \"") + schema + "\")", "",
+                    0, "schema");
+    Morphology m;
+    m.n_max = int(number(doc, "n_max", ""));
+    if (m.n_max < 0 || m.n_max > 100) throw Error("must be in [0, 100]", "", 0, "n_max");
+    if (doc.contains("zero_point") && !doc.at("zero_point").is_null())
+        m.zero_point = number(doc, "zero_point", "");
+    if (doc.contains("frame")) {
+        if (!doc.at("frame").is_string() ||
+            (doc.at("frame") != "observed" && doc.at("frame") != "intrinsic"))
+            throw Error("must be \"observed\" or \"intrinsic\"", "", 0, "frame");
+        m.frame = doc.at("frame").get<std::string>();
+    }
+    read_lambda(doc, m);
+    if (doc.contains("bands")) read_bands(doc, m);
+    if (!doc.contains("points") || !doc.at("points").is_array() || doc.at("points").empty())
+        throw Error("must be a non-empty array", "", 0, "points");
+    std::size_t i = 0;
+    for (const Json& pj : doc.at("points"))
+        m.points.push_back(read_point(pj, "points[" + std::to_string(i++) + "].", m));
+    read_fields(doc, m);
     if (doc.contains("provenance")) m.provenance = doc.at("provenance");
     m.prepare();
     return m;
@@ -1006,6 +1060,46 @@ std::vector<double> drawn_ratios(const Morphology& m, const std::vector<double>&
     return out;
 }
 
+// The parent of a cumulative-weight table `parents` at u ∈ [0, total): the first whose running
+// total exceeds u, never one of weight 0.
+std::size_t parent_at(const std::vector<double>& parents, double u) {
+    std::size_t parent =
+        std::size_t(std::upper_bound(parents.begin(), parents.end(), u) - parents.begin());
+    parent = std::min(parent, parents.size() - 1);
+    while (parent > 0 && parents[parent] == parents[parent - 1]) --parent;  // weight 0
+    return parent;
+}
+
+// Each band's model of a drawn galaxy: the parent's, plus the reference perturbation at the
+// parent's mean colour, then the colour kernel (drawn last: one-band draws are unchanged).
+std::vector<ShapeletModel> band_models(const Morphology& morphology,
+                                       const MorphologyPoint& shape_parent,
+                                       const PerturbedShape& drawn, double beta_pix, double a00,
+                                       const DrawnGalaxy& g, RandomStream& stream) {
+    const bool delta = morphology.lambda.is_delta();
+    std::vector<double> parent_ratios;
+    for (std::size_t b = 0; b < shape_parent.band_shapes.size(); ++b) {
+        // (A parent's flux sum is > 0: build_morphology's records have flux > 0.)
+        const double ratio = flux_ratio(shape_parent, b);
+        parent_ratios.push_back(std::isfinite(ratio) ? ratio : 0.0);
+    }
+    const std::vector<double> ratios = drawn_ratios(morphology, parent_ratios, stream);
+    std::vector<ShapeletModel> models;
+    for (std::size_t b = 0; b < shape_parent.band_shapes.size(); ++b) {
+        const std::vector<Complex>& own = shape_parent.band_shapes[b];
+        const double ratio = parent_ratios[b];
+        const double change = ratios.empty() ? 0.0 : ratios[b] - ratio;
+        std::vector<Complex> band(own.size());
+        for (std::size_t k = 0; k < own.size(); ++k)
+            band[k] = delta ? own[k]
+                            : own[k] + (drawn.shape[k] - shape_parent.shape[k]) * ratio +
+                                  change * drawn.shape[k];
+        models.push_back(
+            placed_model(band, shape_parent.n_max, beta_pix, a00, g.rotation, g.reflected));
+    }
+    return models;
+}
+
 }  // namespace
 
 DrawnGalaxy draw_galaxy(const Morphology& morphology, const std::vector<double>& parents,
@@ -1013,9 +1107,7 @@ DrawnGalaxy draw_galaxy(const Morphology& morphology, const std::vector<double>&
                         double mag_limit, const DrawOptions& draw) {
     DrawnGalaxy g;
     const double u = stream.uniform() * parents.back();
-    g.parent = std::size_t(std::upper_bound(parents.begin(), parents.end(), u) - parents.begin());
-    g.parent = std::min(g.parent, parents.size() - 1);
-    while (g.parent > 0 && parents[g.parent] == parents[g.parent - 1]) --g.parent;  // weight 0
+    g.parent = parent_at(parents, u);
     const SmoothingLengths& l = morphology.lambda;
     const bool delta = l.is_delta();
     const bool conditional = draw.neighbours > 0 && !delta && !draw.by_magnitude.empty();
@@ -1085,32 +1177,146 @@ DrawnGalaxy draw_galaxy(const Morphology& morphology, const std::vector<double>&
     const MorphologyPoint& shape_parent = morphology.points[g.parent];
     g.model = placed_model(drawn.shape, shape_parent.n_max, beta_pix, a00, g.rotation, g.reflected);
     g.perturbation = drawn.norm > 0.0 ? std::sqrt(drawn.change / drawn.norm) : 0.0;
-    // Each band: the parent's, plus the reference perturbation at the parent's mean colour,
-    // then the colour kernel (drawn last: one-band draws are unchanged).
-    std::vector<double> parent_ratios;
-    for (std::size_t b = 0; b < shape_parent.band_shapes.size(); ++b) {
-        // (A parent's flux sum is > 0: build_morphology's records have flux > 0.)
-        const double ratio = flux_ratio(shape_parent, b);
-        parent_ratios.push_back(std::isfinite(ratio) ? ratio : 0.0);
-    }
-    const std::vector<double> ratios = drawn_ratios(morphology, parent_ratios, stream);
-    for (std::size_t b = 0; b < shape_parent.band_shapes.size(); ++b) {
-        const std::vector<Complex>& own = shape_parent.band_shapes[b];
-        const double ratio = parent_ratios[b];
-        const double change = ratios.empty() ? 0.0 : ratios[b] - ratio;
-        std::vector<Complex> band(own.size());
-        for (std::size_t k = 0; k < own.size(); ++k)
-            band[k] = delta ? own[k]
-                            : own[k] + (drawn.shape[k] - shape_parent.shape[k]) * ratio +
-                                  change * drawn.shape[k];
-        g.band_models.push_back(
-            placed_model(band, shape_parent.n_max, beta_pix, a00, g.rotation, g.reflected));
-    }
+    g.band_models = band_models(morphology, shape_parent, drawn, beta_pix, a00, g, stream);
     return g;
 }
 
 double model_reach(double beta_pix, int n_max) {
     return beta_pix * (std::sqrt(2.0 * n_max + 1.0) + 5.0);
+}
+
+std::string drop_reason(const ShapeletRecord& r, const RecordSelection& selection) {
+    // Counted under the first reason, in the order the options list them.
+    for (const auto& f : selection.required)
+        if (!has_any_flag(r.flags, f)) return "not " + f;
+    for (const auto& f : selection.rejected)
+        if (has_flag(r.flags, f)) return f;
+    if (!r.mag) return "no magnitude";
+    if (selection.mag_limit && *r.mag > *selection.mag_limit) return "fainter than --mag-limit";
+    if (!(r.coeffs[0].real() > 0.0)) return "a_00 <= 0";
+    return "";
+}
+
+namespace {
+
+// The parent-selection weight of a kept record: 1, or its selection.weight_field (≥ 0).
+double selection_weight(const ShapeletRecord& r, const RecordSelection& selection) {
+    if (selection.weight_field.empty()) return 1.0;
+    const auto w = optional_double(r.extra, selection.weight_field);
+    if (!w || !(*w >= 0.0))
+        throw Error("missing, or not a number ≥ 0", "", 0, selection.weight_field);
+    return *w;
+}
+
+}  // namespace
+
+SelectedRecords select_records(JsonlReader& reader, const RecordSelection& selection,
+                               std::vector<SourceField>& fields) {
+    SelectedRecords out;
+    const std::vector<std::string>& images = selection.images;
+    Json record;
+    while (reader.next(record)) {
+        ++out.read;
+        ShapeletRecord r;
+        try {
+            r = ShapeletRecord::from_json(record);
+        } catch (const Error& e) {
+            throw reader.locate(e);
+        }
+        out.hash ^= fnv1a_64(record.dump());
+        out.hash *= 0x100000001b3ULL;
+        std::size_t field = 0;
+        if (!images.empty()) {
+            const std::string image = record.value("image", std::string());
+            field = std::size_t(std::find(images.begin(), images.end(), image) - images.begin());
+            if (field == images.size())
+                throw reader.locate(Error(
+                    "record " + r.id + " comes from '" + image + "', none of the --field images",
+                    "", 0, "image"));
+        }
+        if (field < fields.size() && r.mag && record.value("kind", std::string("galaxy")) != "star")
+            fields[field].mags.push_back(*r.mag);
+        const std::string why = drop_reason(r, selection);
+        if (!why.empty()) {
+            ++out.dropped[why];
+            continue;
+        }
+        double weight = 1.0;
+        try {
+            weight = selection_weight(r, selection);
+        } catch (const Error& e) {
+            throw reader.locate(e);
+        }
+        out.kept.push_back(std::move(r));
+        out.weights.push_back(weight);
+        out.field.push_back(field);
+    }
+    return out;
+}
+
+void weight_by_counted_area(const std::vector<SourceField>& fields,
+                            const std::vector<ShapeletRecord>& kept,
+                            const std::vector<std::size_t>& field, std::vector<double>& weights) {
+    if (fields.size() <= 1) return;
+    for (std::size_t i = 0; i < weights.size(); ++i) {
+        if (field[i] >= fields.size()) continue;  // shape-only
+        double area = 0.0;
+        bool mine = false;
+        for (std::size_t k : fields_counted(fields, *kept[i].mag)) {
+            area += fields[k].area_arcmin2;
+            mine = mine || k == field[i];
+        }
+        weights[i] = mine ? weights[i] / area : 0.0;
+    }
+}
+
+std::vector<std::string> image_labels(const std::vector<std::string>& images) {
+    std::vector<std::string> labels;
+    for (const std::string& image : images) {
+        std::string label = image.substr(image.find_last_of('/') + 1);
+        const std::size_t fits = label.find(".fits");
+        if (fits != std::string::npos) label.erase(fits, 5);
+        labels.push_back(label);
+    }
+    for (std::size_t k = 0; k < labels.size(); ++k)
+        if (std::count(labels.begin(), labels.end(), labels[k]) > 1) labels[k] = images[k];
+    return labels;
+}
+
+long mark_point_fields(Morphology& morphology, const SelectedRecords& selected,
+                       const RecordSelection& selection, std::size_t counted_fields) {
+    const std::vector<std::string> labels = image_labels(selection.images);
+    long shape_only = 0;
+    for (std::size_t i = 0; i < selected.kept.size(); ++i) {
+        MorphologyPoint& point = morphology.points[i];
+        if (labels.size() > 1) point.id = labels[selected.field[i]] + ":" + point.id;
+        point.shape_only = !selection.images.empty() && selected.field[i] >= counted_fields;
+        point.weight = point.shape_only ? 0.0 : selected.weights[i];
+        shape_only += point.shape_only;
+    }
+    return shape_only;
+}
+
+Json smooth_provenance(const std::string& input, const SelectedRecords& selected,
+                       const RecordSelection& selection, const SmoothOptions& options) {
+    char hex[17];
+    std::snprintf(hex, sizeof hex, "%016llx", static_cast<unsigned long long>(selected.hash));
+    Json dropped = Json::object();
+    for (const auto& [why, n] : selected.dropped) dropped[why] = n;
+    return {{"program", "shapesim-smooth"},
+            {"version", version()},
+            {"input", input},
+            {"input_records", selected.read},
+            {"input_fnv1a64", hex},
+            {"dropped", dropped},
+            {"options",
+             {{"k", options.k},
+              {"lambda_phase", options.phase_deg},
+              {"delta", options.delta},
+              {"keep_colour_noise", options.keep_colour_noise},
+              {"lambda_colour", options.colour},
+              {"require", selection.required},
+              {"reject", selection.rejected}}}};
 }
 
 }  // namespace shapesim

@@ -80,7 +80,9 @@
 
 #include <Eigen/Dense>
 
+#include <cstdint>
 #include <limits>
+#include <map>
 #include <optional>
 #include <string>
 #include <vector>
@@ -250,6 +252,66 @@ double mean_nearest_neighbour_separation(std::vector<double> values);
 /// Align every record's model and compute the smoothing lengths. Throws Error when a record
 /// has a_{0,0} ≤ 0 or no magnitude (the caller filters such records first).
 Morphology build_morphology(const std::vector<ShapeletRecord>& records, const SmoothOptions& options);
+
+// Choosing the records (shapesim-smooth): which become points, their parent-selection weights
+// and fields, and the model's provenance.
+/// Which shapelet records become the model's points (shapesim-smooth's selection).
+struct RecordSelection {
+    std::vector<std::string> required;  ///< flags every kept record holds (an entry "A|B": either)
+    std::vector<std::string> rejected;  ///< flags no kept record holds
+    std::optional<double> mag_limit;    ///< kept records are at most this faint
+    /// The fields' images, counted ones first, that records name in "image" (empty: one field,
+    /// "image" not read).
+    std::vector<std::string> images;
+    std::string weight_field;  ///< numeric record field of the parent-selection weight (empty: 1)
+};
+/// Why a record is left out, the first reason in this order: "not <required>", "<rejected
+/// flag>", "no magnitude", "fainter than --mag-limit", "a_00 <= 0"; empty when it is kept.
+std::string drop_reason(const ShapeletRecord& record, const RecordSelection& selection);
+
+/// The records a selection keeps, and an account of the rest.
+struct SelectedRecords {
+    std::vector<ShapeletRecord> kept;
+    std::vector<double> weights;          ///< each kept record's parent-selection weight
+    std::vector<std::size_t> field;       ///< each kept record's index in the selection's images
+    std::map<std::string, long> dropped;  ///< records left out, by drop_reason()
+    long read = 0;                        ///< records read
+    /// The input's identity for the provenance: FNV-1a over the records' compact dumps.
+    std::uint64_t hash = fnv1a_64("");
+};
+/// Read every shapelet record of `reader` and keep the selected ones. Every galaxy with a
+/// magnitude, kept or not, joins its counted field's `mags` (unsorted; fields[i] is the
+/// selection's images[i], or fields[0] without images). Throws Error placed in the input on a
+/// bad record, an image not among the selection's, or a bad weight.
+SelectedRecords select_records(JsonlReader& reader, const RecordSelection& selection,
+                               std::vector<SourceField>& fields);
+
+/// Several fields counted together (field_density()): each kept galaxy of a counted field
+/// (field[i] < fields.size()) stands for weights[i] / (the area counted at its magnitude)
+/// galaxies per arcmin², none where its own field is not counted (fainter than its
+/// completeness). Shape-only galaxies' weights, and one field's, are left as they are.
+void weight_by_counted_area(const std::vector<SourceField>& fields,
+                            const std::vector<ShapeletRecord>& kept,
+                            const std::vector<std::size_t>& field, std::vector<double>& weights);
+
+/// Ids are per image: the short name of each image that prefixes its points' ids
+/// ("hdfn_f814w_v2", "AEGIS_F814w_images_01[1]": no folder, no ".fits"); where two clash, the
+/// first takes its whole name, which tells them apart: a simulation's `parent` names one real
+/// galaxy.
+std::vector<std::string> image_labels(const std::vector<std::string>& images);
+
+/// The model's points built from `selected.kept` (in order) take their fields' marks: with
+/// several images, each id its image's label (image_labels()); with images, a point of a
+/// shape-only field (index ≥ `counted_fields`) is shape_only and weighs 0, every other its
+/// selected weight. Returns the number of shape-only points.
+long mark_point_fields(Morphology& morphology, const SelectedRecords& selected,
+                       const RecordSelection& selection, std::size_t counted_fields);
+
+/// shapesim-smooth's provenance of a model built from `selected` (Morphology::provenance): the
+/// program and version, the input's name, record count and FNV-1a hash, the records dropped by
+/// reason, and the smoothing and selection options.
+Json smooth_provenance(const std::string& input, const SelectedRecords& selected,
+                       const RecordSelection& selection, const SmoothOptions& options);
 
 /// One drawn galaxy, centred at (0, 0), before placement on the sky.
 struct DrawnGalaxy {

@@ -222,26 +222,26 @@ Window aperture_box(double x, double y, double r, long nx, long ny) {
     return {x0, y0, x1 - x0, y1 - y0};
 }
 
-}  // namespace
+using Mask = Eigen::Array<bool, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>;
+using Centre = std::array<double, 2>;
 
-Morphometry measure_morphometry(const ImageArray& image, const LabelArray& labels, int label,
-                                const MaskArray* mask, const MorphometryOptions& options) {
+// A flag of the measurement, once, in the order the steps raise them.
+void add_flag(Morphometry& out, const std::string& f) {
+    if (std::find(out.flags.begin(), out.flags.end(), f) == out.flags.end()) out.flags.push_back(f);
+}
+
+// The pixels every statistic leaves out: other segments, the user mask, non-finite pixels and
+// `n_sigma` outliers from their 8 neighbours (cosmic rays, hot pixels).
+Mask bad_pixels(const ImageArray& image, const LabelArray& labels, int label, const MaskArray* mask,
+                double n_sigma) {
     const long ny = image.rows(), nx = image.cols();
-    require(labels.rows() == ny && labels.cols() == nx, "segmentation and image differ in size");
-    require(!mask || (mask->rows() == ny && mask->cols() == nx), "mask and image differ in size");
-    Morphometry out;
-    auto flag = [&](const std::string& f) {
-        if (std::find(out.flags.begin(), out.flags.end(), f) == out.flags.end()) out.flags.push_back(f);
-    };
-
-    // Masks: other segments, the user mask, non-finite pixels, 10σ outliers.
-    Eigen::Array<bool, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor> masked(ny, nx);
+    Mask masked(ny, nx);
     for (long j = 0; j < ny; ++j)
         for (long i = 0; i < nx; ++i) {
             const double v = image(j, i);
             bool bad = (labels(j, i) != 0 && labels(j, i) != label) || (mask && (*mask)(j, i)) ||
                        !std::isfinite(v);
-            if (!bad && options.n_sigma_outlier > 0.0) {
+            if (!bad && n_sigma > 0.0) {
                 double m = 0.0, m2 = 0.0;
                 for (long dj = -1; dj <= 1; ++dj)
                     for (long di = -1; di <= 1; ++di) {
@@ -251,30 +251,31 @@ Morphometry measure_morphometry(const ImageArray& image, const LabelArray& label
                         m2 += w * w / 8.0;
                     }
                 const double s = std::sqrt(m2 - m * m);
-                if (std::abs(v - m) > options.n_sigma_outlier * s) bad = true;
+                if (std::abs(v - m) > n_sigma * s) bad = true;
             }
             masked(j, i) = bad;
         }
-    Grid z(ny, nx), zs(ny, nx);
-    for (long j = 0; j < ny; ++j)
-        for (long i = 0; i < nx; ++i) {
-            z(j, i) = masked(j, i) ? 0.0 : image(j, i);
-            zs(j, i) = labels(j, i) == label ? z(j, i) : 0.0;
-        }
-    const double total = zs.sum();
-    require(total > 0.0, "the segment has no positive flux");
+    return masked;
+}
+
+// The first-moment centre of the segment's light `zs` (of total `total`).
+Centre centroid(const Grid& zs, double total) {
     double sx = 0.0, sy = 0.0;
-    for (long j = 0; j < ny; ++j)
-        for (long i = 0; i < nx; ++i) {
+    for (long j = 0; j < zs.rows(); ++j)
+        for (long i = 0; i < zs.cols(); ++i) {
             sx += double(i) * zs(j, i);
             sy += double(j) * zs(j, i);
         }
-    out.x_centroid = sx / total;
-    out.y_centroid = sy / total;
+    return {sx / total, sy / total};
+}
 
-    // The sky box: first square of only sky and no user mask, sides 32, 16, …
+// The sky box, for the sky terms of A and S: the first square of only sky and no user mask, in
+// row order, of side `size`, then half that, … (down to 4); `out.sky_box` its side (0: none).
+Grid find_sky_box(const Grid& z, const LabelArray& labels, const MaskArray* mask, int size,
+                  Morphometry& out) {
+    const long ny = z.rows(), nx = z.cols();
     Grid sky;
-    for (int size = options.skybox_size; size > 2 && out.sky_box == 0; size /= 2)
+    for (; size > 2 && out.sky_box == 0; size /= 2)
         for (long j = 0; j + size < ny && out.sky_box == 0; ++j)
             for (long i = 0; i + size < nx; ++i) {
                 bool clean = true;
@@ -287,247 +288,346 @@ Morphometry measure_morphometry(const ImageArray& image, const LabelArray& label
                     break;
                 }
             }
-    double sky_asymmetry = 0.0;
-    if (out.sky_box > 0) {
-        out.sky_mean = sky.mean();
-        out.sky_sigma = std::sqrt((sky - out.sky_mean).square().mean());
-        const Grid flipped = sky.reverse();
-        sky_asymmetry = (flipped - sky).abs().sum() / double(sky.size());
-    } else {
+    return sky;
+}
+
+// The sky's mean and rms into `out`, and its own asymmetry per pixel (the noise's share of A);
+// without a sky box, NaN, "no_sky" and 0.
+double sky_statistics(const Grid& sky, Morphometry& out) {
+    if (out.sky_box == 0) {
         out.sky_mean = out.sky_sigma = nan;
-        flag("no_sky");
+        add_flag(out, "no_sky");
+        return 0.0;
     }
+    out.sky_mean = sky.mean();
+    out.sky_sigma = std::sqrt((sky - out.sky_mean).square().mean());
+    const Grid flipped = sky.reverse();
+    return (flipped - sky).abs().sum() / double(sky.size());
+}
 
-    const Apertures on_z(z);
-    const double diagonal = std::sqrt(double(nx * nx + ny * ny));
-    auto petrosian = [&](double x, double y) {
-        const double w = options.annulus_width;
-        auto f = [&](double r) {
-            const double disc = on_z.circle(x, y, r) / (pi * r * r);
-            const double r_in = r - 0.5 * w, r_out = r + 0.5 * w;
-            const double ring = on_z.annulus(x, y, r_in, r_out) / (pi * (r_out * r_out - r_in * r_in));
-            const double ratio = disc == 0.0 ? (ring != 0.0 ? 1.0 : 0.0) : std::abs(ring) / std::abs(disc);
-            return ratio - options.eta;
-        };
-        bool ok = false;
-        const double r = first_root(f, w, diagonal, 100, &ok);
-        if (!ok) flag("petrosian_unbracketed");
-        return r;
+// The Petrosian ratio's root: the annulus' mean surface brightness over the disc's, less η.
+double petrosian_ratio(double disc, double ring, double eta) {
+    const double ratio = disc == 0.0 ? (ring != 0.0 ? 1.0 : 0.0) : std::abs(ring) / std::abs(disc);
+    return ratio - eta;
+}
+
+// The circular Petrosian radius about (x, y), searched out to `r_max`; "petrosian_unbracketed"
+// where the ratio never crosses η.
+double circular_petrosian(const Apertures& on_z, double x, double y, double r_max,
+                          const MorphometryOptions& options, Morphometry& out) {
+    const double w = options.annulus_width;
+    auto f = [&](double r) {
+        const double disc = on_z.circle(x, y, r) / (pi * r * r);
+        const double r_in = r - 0.5 * w, r_out = r + 0.5 * w;
+        const double ring = on_z.annulus(x, y, r_in, r_out) / (pi * (r_out * r_out - r_in * r_in));
+        return petrosian_ratio(disc, ring, options.eta);
     };
-    out.r_petro_centroid = petrosian(out.x_centroid, out.y_centroid);
+    bool ok = false;
+    const double r = first_root(f, w, r_max, 100, &ok);
+    if (!ok) add_flag(out, "petrosian_unbracketed");
+    return r;
+}
 
-    // Asymmetry about c, aperture fixed at 1.5 r_p(centroid).
-    const double r_asym = options.petro_extent * out.r_petro_centroid;
-    bool left_stamp = false;
-    auto asymmetry_at = [&](const std::array<double, 2>& c) {
+// The asymmetry about a centre, in a circle of radius r (statmorph): Σ|I − I₁₈₀| less the sky's
+// share, over Σ|I|, with the mask made symmetric. Minimised over the centre (Nelder–Mead), so
+// it is a hot loop: only the box of pixels the aperture can touch is built.
+class Asymmetry {
+public:
+    Asymmetry(const Grid& z, const Mask& masked, double r, double sky_asymmetry)
+        : z_(z), masked_(masked), r_(r), sky_asymmetry_(sky_asymmetry) {}
+
+    double operator()(const Centre& c) const {
+        const long ny = z_.rows(), nx = z_.cols();
         const double xc = c[0], yc = c[1];
         if (xc < 0.0 || xc >= double(nx) || yc < 0.0 || yc >= double(ny)) {
-            left_stamp = true;
+            left_stamp_ = true;
             return 100.0;
         }
         // Only the box of pixels the aperture can touch (its radius and 3 pixels, clipped to
         // the stamp, as sep clips the circle's own box): each of its pixels takes the same
         // values as in the whole stamp, and the sums run over the same pixels in the same
         // order, so the asymmetry is the same number, at the cost of the aperture alone.
-        const Window box = aperture_box(xc, yc, r_asym, nx, ny);
-        Grid img = z.block(box.y0, box.x0, box.ny, box.nx), rot(box.ny, box.nx), unmasked(box.ny, box.nx);
+        const Window box = aperture_box(xc, yc, r_, nx, ny);
+        Grid img = z_.block(box.y0, box.x0, box.ny, box.nx), rot(box.ny, box.nx),
+             unmasked(box.ny, box.nx);
         for (long b = 0; b < box.ny; ++b)
             for (long a = 0; a < box.nx; ++a) {
                 const long j = box.y0 + b, i = box.x0 + a;
-                rot(b, a) = rotated180(z, xc, yc, j, i);
+                rot(b, a) = rotated180(z_, xc, yc, j, i);
                 // The mask rotated by nearest neighbour (half away from zero), then OR.
                 const double x = 2.0 * xc - double(i), y = 2.0 * yc - double(j);
                 const long ri = round_half_away(x), rj = round_half_away(y);
-                const bool mirror = ri >= 0 && rj >= 0 && ri < nx && rj < ny && masked(rj, ri);
-                const bool sym = masked(j, i) || mirror;
+                const bool mirror = ri >= 0 && rj >= 0 && ri < nx && rj < ny && masked_(rj, ri);
+                const bool sym = masked_(j, i) || mirror;
                 if (sym) img(b, a) = rot(b, a) = 0.0;
                 unmasked(b, a) = sym ? 0.0 : 1.0;
             }
         const Grid absolute = img.abs(), difference = (rot - img).abs();
         const double bx = xc - double(box.x0), by = yc - double(box.y0);  // exact
-        const double s_abs = Apertures(absolute).circle(bx, by, r_asym);
-        const double d = Apertures(difference).circle(bx, by, r_asym);
-        const double area = Apertures(unmasked).circle(bx, by, r_asym);
+        const double s_abs = Apertures(absolute).circle(bx, by, r_);
+        const double d = Apertures(difference).circle(bx, by, r_);
+        const double area = Apertures(unmasked).circle(bx, by, r_);
         if (!(s_abs > 0.0)) return nan;
-        return (d - area * sky_asymmetry) / s_abs;
+        return (d - area * sky_asymmetry_) / s_abs;
+    }
+    // Whether the search tried a centre off the stamp.
+    bool left_stamp() const { return left_stamp_; }
+
+private:
+    const Grid& z_;
+    const Mask& masked_;
+    double r_, sky_asymmetry_;
+    mutable bool left_stamp_ = false;
+};
+
+// Elongation and orientation from the second moments of `zs` about `centre`, regularised (as
+// SExtractor does) so that a point source's are defined.
+void shape_about(const Grid& zs, double total, const Centre& centre, Morphometry& out) {
+    double x2 = 0.0, y2 = 0.0, xy = 0.0;
+    for (long j = 0; j < zs.rows(); ++j)
+        for (long i = 0; i < zs.cols(); ++i) {
+            const double dx = double(i) - centre[0], dy = double(j) - centre[1];
+            x2 += dx * dx * zs(j, i);
+            y2 += dy * dy * zs(j, i);
+            xy += dx * dy * zs(j, i);
+        }
+    x2 /= total;
+    y2 /= total;
+    xy /= total;
+    while (std::abs(x2 * y2 - xy * xy) < 1.0 / 144.0) {
+        x2 += x2 >= 0.0 ? 1.0 / 12.0 : -1.0 / 12.0;
+        y2 += y2 >= 0.0 ? 1.0 / 12.0 : -1.0 / 12.0;
+    }
+    const double mean = 0.5 * (x2 + y2), diff = std::sqrt(0.25 * (x2 - y2) * (x2 - y2) + xy * xy);
+    double l1 = mean + diff, l2 = mean - diff;
+    if (std::abs(l2) > std::abs(l1)) std::swap(l1, l2);
+    out.elongation = std::sqrt(std::abs(l1)) / std::sqrt(std::abs(l2));
+    out.orientation = 0.5 * std::atan2(2.0 * xy, x2 - y2);
+}
+
+// r20, r50, r80 of the light within petro_extent × r_p, and C = 5 log₁₀(r80 / r20).
+void measure_concentration(const Apertures& on_z, const Centre& centre,
+                           const MorphometryOptions& options, Morphometry& out) {
+    const double r_total = options.petro_extent * out.r_petro;
+    double flux_total = on_z.circle(centre[0], centre[1], r_total);
+    if (flux_total == 0.0) {
+        add_flag(out, "concentration_no_flux");
+        out.r20 = out.r50 = out.r80 = out.concentration = nan;
+        return;
+    }
+    flux_total = std::abs(flux_total);
+    auto radius_of = [&](double fraction) {
+        auto g = [&](double r) {
+            return (r > 0.0 ? std::abs(on_z.circle(centre[0], centre[1], r)) : 0.0) / flux_total -
+                   fraction;
+        };
+        double prev = 0.0;
+        for (int k = 1; k < 100; ++k) {
+            const double r = r_total * k / 99.0;
+            if (g(r) > 0.0) return brent(g, prev, r, 1e-6);
+            prev = r;
+        }
+        return r_total;
     };
-    std::array<double, 2> centre = nelder_mead<2>(asymmetry_at, {out.x_centroid, out.y_centroid});
-    if (left_stamp) {
-        flag("asymmetry_centre_left_stamp");
-        centre = {out.x_centroid, out.y_centroid};
+    out.r20 = radius_of(0.2);
+    out.r50 = radius_of(0.5);
+    out.r80 = radius_of(0.8);
+    out.concentration = out.r20 > 0.0 ? 5.0 * std::log10(out.r80 / out.r20) : nan;
+}
+
+// The smoothness S: the light above a boxcar-smoothed copy in the annulus between
+// petro_fraction_cas and petro_extent × r_p, less the sky's share, over the light there.
+void measure_smoothness(const Grid& z, const Apertures& on_z, const Grid& sky, const Centre& centre,
+                        const MorphometryOptions& options, Morphometry& out) {
+    // statmorph's k = ⌊0.25 r_p⌋; an even k puts the window half a pixel off centre, which
+    // reads a gradient as clumps and makes S depend on the orientation: made odd unless
+    // statmorph's own is asked for.
+    int k = int(options.petro_fraction_cas * out.r_petro);
+    if (!options.statmorph_boxcar && k % 2 == 0 && k > 0) k += 1;
+    const Grid smooth = boxcar(z, k);
+    const Grid residual = (z - smooth).max(0.0);
+    const double r_in = options.petro_fraction_cas * out.r_petro,
+                 r_out = options.petro_extent * out.r_petro;
+    const double flux = on_z.annulus(centre[0], centre[1], r_in, r_out);
+    const double s_diff = Apertures(residual).annulus(centre[0], centre[1], r_in, r_out);
+    double sky_term = 0.0;
+    if (out.sky_box > 0) {
+        const Grid sky_smooth = boxcar(sky, k);
+        sky_term = (sky - sky_smooth).max(0.0).sum() / double(sky.size());
+    }
+    const double area = pi * (r_out * r_out - r_in * r_in);
+    out.smoothness = flux > 0.0 ? (s_diff - area * sky_term) / flux : nan;
+    if (!std::isfinite(out.smoothness)) add_flag(out, "smoothness_undefined");
+}
+
+// The elliptical Petrosian radius (semi-major axis) about `centre`, of the shape's elongation
+// and orientation, searched out to `a_max`; "petrosian_ellip_unbracketed" where it never
+// crosses η.
+double elliptical_petrosian(const Apertures& on_z, const Centre& centre, double a_max,
+                            const MorphometryOptions& options, Morphometry& out) {
+    const double q = out.elongation, theta = out.orientation, w = options.annulus_width;
+    auto f = [&](double a) {
+        const double disc = on_z.ellipse(centre[0], centre[1], a, q, theta) / (pi * a * a / q);
+        const double a_in = a - 0.5 * w, a_out = a + 0.5 * w;
+        const double ring = on_z.ellipse_annulus(centre[0], centre[1], a_in, a_out, q, theta) /
+                            (pi * (a_out * a_out - a_in * a_in) / q);
+        return petrosian_ratio(disc, ring, options.eta);
+    };
+    bool ok = false;
+    const double a = first_root(f, w, a_max, 100, &ok);
+    if (!ok) add_flag(out, "petrosian_ellip_unbracketed");
+    return a;
+}
+
+using Segment = Eigen::Array<std::uint8_t, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>;
+
+// The Gini segment (statmorph): the 8-connected region, holding the (first) maximum, of the
+// image smoothed by a Gaussian of petro_fraction_gini × r_p(ellip) above that smoothed image's
+// mean surface brightness in the elliptical Petrosian annulus about the centroid.
+Segment gini_segment(const Grid& z, const MorphometryOptions& options, const Morphometry& out) {
+    const long ny = z.rows(), nx = z.cols();
+    const double q = out.elongation, theta = out.orientation, w = options.annulus_width;
+    const Grid smooth = gaussian(z, options.petro_fraction_gini * out.r_petro_ellip);
+    const double a_in = out.r_petro_ellip - 0.5 * w, a_out = out.r_petro_ellip + 0.5 * w;
+    const double threshold =
+        Apertures(smooth).ellipse_annulus(out.x_centroid, out.y_centroid, a_in, a_out, q, theta) /
+        (pi * (a_out * a_out - a_in * a_in) / q);
+    Segment in(ny, nx);
+    in.setZero();
+    Eigen::Index mj = 0, mi = 0;
+    smooth.maxCoeff(&mj, &mi);
+    if (!(smooth(mj, mi) >= threshold)) return in;
+    std::vector<std::pair<long, long>> stack{{long(mj), long(mi)}};
+    in(mj, mi) = 1;
+    while (!stack.empty()) {
+        const auto [j, i] = stack.back();
+        stack.pop_back();
+        for (long dj = -1; dj <= 1; ++dj)
+            for (long di = -1; di <= 1; ++di) {
+                const long jj = j + dj, ii = i + di;
+                if (jj < 0 || ii < 0 || jj >= ny || ii >= nx || in(jj, ii)) continue;
+                if (smooth(jj, ii) >= threshold) {
+                    in(jj, ii) = 1;
+                    stack.push_back({jj, ii});
+                }
+            }
+    }
+    return in;
+}
+
+// The Gini coefficient of |z| over the segment's pixels (Lotz et al. 2004, eq. 6).
+double gini_of(const Grid& z, const Segment& in) {
+    std::vector<double> values;
+    for (long j = 0; j < z.rows(); ++j)
+        for (long i = 0; i < z.cols(); ++i)
+            if (in(j, i)) values.push_back(std::abs(z(j, i)));
+    std::sort(values.begin(), values.end());
+    const double n = double(values.size());
+    double num = 0.0, sum = 0.0;
+    for (std::size_t k = 0; k < values.size(); ++k) {
+        num += (2.0 * double(k + 1) - n - 1.0) * values[k];
+        sum += values[k];
+    }
+    return sum > 0.0 ? num / ((n - 1.0) * sum) : nan;
+}
+
+// M20 (Lotz et al. 2004): log₁₀ of the second moment of the brightest 20% of the segment's light
+// over the whole's, both about the first-moment centre of the segment's light.
+double m20_of(const Grid& z, const Segment& in) {
+    const long ny = z.rows(), nx = z.cols();
+    Grid y(ny, nx);
+    double yt = 0.0, yx = 0.0, yy = 0.0;
+    for (long j = 0; j < ny; ++j)
+        for (long i = 0; i < nx; ++i) {
+            y(j, i) = in(j, i) ? z(j, i) : 0.0;
+            yt += y(j, i);
+            yx += double(i) * y(j, i);
+            yy += double(j) * y(j, i);
+        }
+    const double cx = yx / yt, cy = yy / yt;
+    double m_total = 0.0;
+    std::vector<double> all(y.data(), y.data() + y.size());
+    for (long j = 0; j < ny; ++j)
+        for (long i = 0; i < nx; ++i)
+            m_total += y(j, i) *
+                       ((double(i) - cx) * (double(i) - cx) + (double(j) - cy) * (double(j) - cy));
+    std::sort(all.begin(), all.end());
+    double cumulative = 0.0, cut = all.back();
+    for (double v : all) {
+        cumulative += v;
+        if (cumulative / yt >= 0.8) {
+            cut = v;
+            break;
+        }
+    }
+    double m_bright = 0.0;
+    for (long j = 0; j < ny; ++j)
+        for (long i = 0; i < nx; ++i)
+            if (y(j, i) >= cut)
+                m_bright += y(j, i) * ((double(i) - cx) * (double(i) - cx) +
+                                       (double(j) - cy) * (double(j) - cy));
+    return (m_bright > 0.0 && m_total > 0.0) ? std::log10(m_bright / m_total) : nan;
+}
+
+}  // namespace
+
+Morphometry measure_morphometry(const ImageArray& image, const LabelArray& labels, int label,
+                                const MaskArray* mask, const MorphometryOptions& options) {
+    const long ny = image.rows(), nx = image.cols();
+    require(labels.rows() == ny && labels.cols() == nx, "segmentation and image differ in size");
+    require(!mask || (mask->rows() == ny && mask->cols() == nx), "mask and image differ in size");
+    Morphometry out;
+
+    // z: the stamp with its bad pixels zeroed; zs: the segment's own light.
+    const Mask masked = bad_pixels(image, labels, label, mask, options.n_sigma_outlier);
+    Grid z(ny, nx), zs(ny, nx);
+    for (long j = 0; j < ny; ++j)
+        for (long i = 0; i < nx; ++i) {
+            z(j, i) = masked(j, i) ? 0.0 : image(j, i);
+            zs(j, i) = labels(j, i) == label ? z(j, i) : 0.0;
+        }
+    const double total = zs.sum();
+    require(total > 0.0, "the segment has no positive flux");
+    const Centre centroid_at = centroid(zs, total);
+    out.x_centroid = centroid_at[0];
+    out.y_centroid = centroid_at[1];
+
+    const Grid sky = find_sky_box(z, labels, mask, options.skybox_size, out);
+    const double sky_asymmetry = sky_statistics(sky, out);
+
+    const Apertures on_z(z);
+    const double diagonal = std::sqrt(double(nx * nx + ny * ny));
+    out.r_petro_centroid =
+        circular_petrosian(on_z, out.x_centroid, out.y_centroid, diagonal, options, out);
+
+    // Asymmetry about its own minimum, aperture fixed at 1.5 r_p(centroid).
+    const Asymmetry asymmetry(z, masked, options.petro_extent * out.r_petro_centroid,
+                              sky_asymmetry);
+    Centre centre = nelder_mead<2>(asymmetry, centroid_at);
+    if (asymmetry.left_stamp()) {
+        add_flag(out, "asymmetry_centre_left_stamp");
+        centre = centroid_at;
     }
     out.x_asymmetry = centre[0];
     out.y_asymmetry = centre[1];
-    out.asymmetry = asymmetry_at(centre);
+    out.asymmetry = asymmetry(centre);
 
-    // Shape about the asymmetry centre (moments of Zs, regularised).
-    {
-        double x2 = 0.0, y2 = 0.0, xy = 0.0;
-        for (long j = 0; j < ny; ++j)
-            for (long i = 0; i < nx; ++i) {
-                const double dx = double(i) - centre[0], dy = double(j) - centre[1];
-                x2 += dx * dx * zs(j, i);
-                y2 += dy * dy * zs(j, i);
-                xy += dx * dy * zs(j, i);
-            }
-        x2 /= total;
-        y2 /= total;
-        xy /= total;
-        while (std::abs(x2 * y2 - xy * xy) < 1.0 / 144.0) {
-            x2 += x2 >= 0.0 ? 1.0 / 12.0 : -1.0 / 12.0;
-            y2 += y2 >= 0.0 ? 1.0 / 12.0 : -1.0 / 12.0;
-        }
-        const double mean = 0.5 * (x2 + y2), diff = std::sqrt(0.25 * (x2 - y2) * (x2 - y2) + xy * xy);
-        double l1 = mean + diff, l2 = mean - diff;
-        if (std::abs(l2) > std::abs(l1)) std::swap(l1, l2);
-        out.elongation = std::sqrt(std::abs(l1)) / std::sqrt(std::abs(l2));
-        out.orientation = 0.5 * std::atan2(2.0 * xy, x2 - y2);
+    // The rest about the asymmetry centre.
+    shape_about(zs, total, centre, out);
+    out.r_petro = circular_petrosian(on_z, centre[0], centre[1], diagonal, options, out);
+    measure_concentration(on_z, centre, options, out);
+    measure_smoothness(z, on_z, sky, centre, options, out);
+    out.r_petro_ellip = elliptical_petrosian(on_z, centre, diagonal * out.elongation, options, out);
+    const Segment in = gini_segment(z, options, out);
+    const long count = long(in.cast<long>().sum());
+    if (count <= 1 || count == nx * ny) {
+        add_flag(out, "gini_segment_bad");
+        out.gini = out.m20 = nan;
+        return out;
     }
-
-    out.r_petro = petrosian(centre[0], centre[1]);
-
-    // Concentration.
-    {
-        const double r_total = options.petro_extent * out.r_petro;
-        double flux_total = on_z.circle(centre[0], centre[1], r_total);
-        if (flux_total == 0.0) {
-            flag("concentration_no_flux");
-            out.r20 = out.r50 = out.r80 = out.concentration = nan;
-        } else {
-            flux_total = std::abs(flux_total);
-            auto radius_of = [&](double fraction) {
-                auto g = [&](double r) {
-                    return (r > 0.0 ? std::abs(on_z.circle(centre[0], centre[1], r)) : 0.0) / flux_total - fraction;
-                };
-                double prev = 0.0;
-                for (int k = 1; k < 100; ++k) {
-                    const double r = r_total * k / 99.0;
-                    if (g(r) > 0.0) return brent(g, prev, r, 1e-6);
-                    prev = r;
-                }
-                return r_total;
-            };
-            out.r20 = radius_of(0.2);
-            out.r50 = radius_of(0.5);
-            out.r80 = radius_of(0.8);
-            out.concentration = out.r20 > 0.0 ? 5.0 * std::log10(out.r80 / out.r20) : nan;
-        }
-    }
-
-    // Smoothness.
-    {
-        // statmorph's k = ⌊0.25 r_p⌋; an even k puts the window half a pixel off centre, which
-        // reads a gradient as clumps and makes S depend on the orientation: made odd unless
-        // statmorph's own is asked for.
-        int k = int(options.petro_fraction_cas * out.r_petro);
-        if (!options.statmorph_boxcar && k % 2 == 0 && k > 0) k += 1;
-        const Grid smooth = boxcar(z, k);
-        const Grid residual = (z - smooth).max(0.0);
-        const double r_in = options.petro_fraction_cas * out.r_petro, r_out = options.petro_extent * out.r_petro;
-        const double flux = on_z.annulus(centre[0], centre[1], r_in, r_out);
-        const double s_diff = Apertures(residual).annulus(centre[0], centre[1], r_in, r_out);
-        double sky_term = 0.0;
-        if (out.sky_box > 0) {
-            const Grid sky_smooth = boxcar(sky, k);
-            sky_term = (sky - sky_smooth).max(0.0).sum() / double(sky.size());
-        }
-        const double area = pi * (r_out * r_out - r_in * r_in);
-        out.smoothness = flux > 0.0 ? (s_diff - area * sky_term) / flux : nan;
-        if (!std::isfinite(out.smoothness)) flag("smoothness_undefined");
-    }
-
-    // Elliptical Petrosian radius, Gini segment, Gini, M20.
-    {
-        const double q = out.elongation, theta = out.orientation, w = options.annulus_width;
-        auto f = [&](double a) {
-            const double disc = on_z.ellipse(centre[0], centre[1], a, q, theta) / (pi * a * a / q);
-            const double a_in = a - 0.5 * w, a_out = a + 0.5 * w;
-            const double ring = on_z.ellipse_annulus(centre[0], centre[1], a_in, a_out, q, theta) /
-                                (pi * (a_out * a_out - a_in * a_in) / q);
-            const double ratio = disc == 0.0 ? (ring != 0.0 ? 1.0 : 0.0) : std::abs(ring) / std::abs(disc);
-            return ratio - options.eta;
-        };
-        bool ok = false;
-        out.r_petro_ellip = first_root(f, w, diagonal * q, 100, &ok);
-        if (!ok) flag("petrosian_ellip_unbracketed");
-        const Grid smooth = gaussian(z, options.petro_fraction_gini * out.r_petro_ellip);
-        const double a_in = out.r_petro_ellip - 0.5 * w, a_out = out.r_petro_ellip + 0.5 * w;
-        const double threshold =
-            Apertures(smooth).ellipse_annulus(out.x_centroid, out.y_centroid, a_in, a_out, q, theta) /
-            (pi * (a_out * a_out - a_in * a_in) / q);
-        // The 8-connected region above the threshold that holds the (first) maximum.
-        Eigen::Array<std::uint8_t, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor> in(ny, nx);
-        in.setZero();
-        Eigen::Index mj = 0, mi = 0;
-        smooth.maxCoeff(&mj, &mi);
-        if (smooth(mj, mi) >= threshold) {
-            std::vector<std::pair<long, long>> stack{{long(mj), long(mi)}};
-            in(mj, mi) = 1;
-            while (!stack.empty()) {
-                const auto [j, i] = stack.back();
-                stack.pop_back();
-                for (long dj = -1; dj <= 1; ++dj)
-                    for (long di = -1; di <= 1; ++di) {
-                        const long jj = j + dj, ii = i + di;
-                        if (jj < 0 || ii < 0 || jj >= ny || ii >= nx || in(jj, ii)) continue;
-                        if (smooth(jj, ii) >= threshold) {
-                            in(jj, ii) = 1;
-                            stack.push_back({jj, ii});
-                        }
-                    }
-            }
-        }
-        const long count = long(in.cast<long>().sum());
-        if (count <= 1 || count == nx * ny) {
-            flag("gini_segment_bad");
-            out.gini = out.m20 = nan;
-        } else {
-            std::vector<double> values;
-            for (long j = 0; j < ny; ++j)
-                for (long i = 0; i < nx; ++i)
-                    if (in(j, i)) values.push_back(std::abs(z(j, i)));
-            std::sort(values.begin(), values.end());
-            const double n = double(values.size());
-            double num = 0.0, sum = 0.0;
-            for (std::size_t k = 0; k < values.size(); ++k) {
-                num += (2.0 * double(k + 1) - n - 1.0) * values[k];
-                sum += values[k];
-            }
-            out.gini = sum > 0.0 ? num / ((n - 1.0) * sum) : nan;
-            // M20 about the first-moment centre of the segment's light.
-            Grid y(ny, nx);
-            double yt = 0.0, yx = 0.0, yy = 0.0;
-            for (long j = 0; j < ny; ++j)
-                for (long i = 0; i < nx; ++i) {
-                    y(j, i) = in(j, i) ? z(j, i) : 0.0;
-                    yt += y(j, i);
-                    yx += double(i) * y(j, i);
-                    yy += double(j) * y(j, i);
-                }
-            const double cx = yx / yt, cy = yy / yt;
-            double m_total = 0.0;
-            std::vector<double> all(y.data(), y.data() + y.size());
-            for (long j = 0; j < ny; ++j)
-                for (long i = 0; i < nx; ++i)
-                    m_total += y(j, i) * ((double(i) - cx) * (double(i) - cx) + (double(j) - cy) * (double(j) - cy));
-            std::sort(all.begin(), all.end());
-            double cumulative = 0.0, cut = all.back();
-            for (double v : all) {
-                cumulative += v;
-                if (cumulative / yt >= 0.8) {
-                    cut = v;
-                    break;
-                }
-            }
-            double m_bright = 0.0;
-            for (long j = 0; j < ny; ++j)
-                for (long i = 0; i < nx; ++i)
-                    if (y(j, i) >= cut)
-                        m_bright += y(j, i) * ((double(i) - cx) * (double(i) - cx) + (double(j) - cy) * (double(j) - cy));
-            out.m20 = (m_bright > 0.0 && m_total > 0.0) ? std::log10(m_bright / m_total) : nan;
-            if (!std::isfinite(out.m20)) flag("m20_undefined");
-        }
-    }
+    out.gini = gini_of(z, in);
+    out.m20 = m20_of(z, in);
+    if (!std::isfinite(out.m20)) add_flag(out, "m20_undefined");
     return out;
 }
 

@@ -2,6 +2,7 @@
 
 #include "shapesim/constants.hpp"
 
+#include <algorithm>
 #include <cmath>
 #include <sstream>
 
@@ -668,6 +669,19 @@ Json ReferenceConvolutionRecord::to_json() const {
     j["result"] = result.to_json();
     put_extra(j, extra, convolution_fields);
     return j;
+}
+
+bool has_flag(const std::vector<std::string>& flags, const std::string& flag) {
+    return std::find(flags.begin(), flags.end(), flag) != flags.end();
+}
+
+bool has_any_flag(const std::vector<std::string>& flags, const std::string& wanted) {
+    for (std::size_t start = 0;;) {
+        const std::size_t bar = wanted.find('|', start);
+        if (has_flag(flags, wanted.substr(start, bar - start))) return true;
+        if (bar == std::string::npos) return false;
+        start = bar + 1;
+    }
 }
 
 }  // namespace shapesim

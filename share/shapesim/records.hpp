@@ -222,4 +222,10 @@ struct ReferenceConvolutionRecord {
     Json to_json() const;
 };
 
+/// Whether `flags` holds `flag`.
+bool has_flag(const std::vector<std::string>& flags, const std::string& flag);
+/// Whether `flags` holds one of the '|'-separated alternatives of `wanted`
+/// ("converged|n_max_cap").
+bool has_any_flag(const std::vector<std::string>& flags, const std::string& wanted);
+
 }  // namespace shapesim

@@ -1,24 +1,27 @@
 // Program plumbing: app/options (common options, --config, --print-params, range checks),
 // app/run_main (exceptions → one stderr line and an exit code) and app/log.
-#include "shapesim/version.hpp"
 #include "shapesim/app/decompose_options.hpp"
 #include "shapesim/app/log.hpp"
 #include "shapesim/app/options.hpp"
 #include "shapesim/app/progress.hpp"
 #include "shapesim/app/run_main.hpp"
+#include "shapesim/app/source_fields.hpp"
 #include "shapesim/error.hpp"
+#include "shapesim/version.hpp"
 
 #include <gtest/gtest.h>
 
+#include <unistd.h>
 #include <chrono>
+#include <cmath>
 #include <cstdio>
 #include <cstdlib>
 #include <filesystem>
 #include <fstream>
 #include <memory>
+#include <optional>
 #include <sstream>
 #include <thread>
-#include <unistd.h>
 #include <vector>
 
 using namespace shapesim;
@@ -415,4 +418,36 @@ TEST(ProgramOptions, OldNamesAreAliasesOfTheNewOnes) {
                             "  --weight-map (now --weight)\n"),
                   std::string::npos);
     }
+}
+
+// --like / --area / --field: one of them; --field's counted and shape-only fields, in order,
+// with @MAG where given; malformed, repeated and shape-only-only specs are option errors.
+TEST(SourceFields, ReadsTheFieldOptions) {
+    const app::SourceFields none = app::read_source_fields("", std::nullopt, std::nullopt, {});
+    EXPECT_TRUE(none.counted.empty() && none.images().empty());
+    const app::SourceFields area = app::read_source_fields("", 2.5, std::nullopt, {});
+    ASSERT_EQ(area.counted.size(), 1u);
+    EXPECT_EQ(area.counted[0].area_arcmin2, 2.5);
+    EXPECT_EQ(area.images(), std::vector<std::string>{""});
+    app::SourceFields f = app::read_source_fields("", std::nullopt, std::nullopt,
+                                                  {"a.fits=1.5", "s.fits=shapes", "b.fits=2@27"});
+    ASSERT_EQ(f.counted.size(), 2u);
+    EXPECT_EQ(f.completeness_given, (std::vector<bool>{false, true}));
+    EXPECT_EQ(f.counted[1].completeness, 27.0);
+    EXPECT_EQ(f.images(), (std::vector<std::string>{"a.fits", "b.fits", "s.fits"}));
+    f.counted[0].mags = {25.0, 24.0};
+    f.complete();
+    EXPECT_EQ(f.counted[0].mags, (std::vector<double>{24.0, 25.0}));
+    EXPECT_TRUE(std::isinf(f.counted[0].completeness));  // fewer than 10: no turnover
+    EXPECT_EQ(f.counted[1].completeness, 27.0);
+    for (const std::vector<std::string>& bad : {std::vector<std::string>{"a.fits"},
+                                                {"=1"},
+                                                {"a.fits=1x"},
+                                                {"a.fits=-1"},
+                                                {"a.fits=1@inf"},
+                                                {"a.fits=1", "a.fits=shapes"},
+                                                {"a.fits=shapes"}})
+        EXPECT_THROW(app::read_source_fields("", std::nullopt, std::nullopt, bad), po::error)
+            << bad[0];
+    EXPECT_THROW(app::read_source_fields("", 1.0, std::nullopt, {"a.fits=1"}), po::error);
 }

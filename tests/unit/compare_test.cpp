@@ -7,8 +7,11 @@
 
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
 #include <iostream>
+#include <limits>
+#include <sstream>
 
 using namespace shapesim;
 
@@ -101,4 +104,53 @@ TEST(Statistics, UpperMedianAndMedian) {
     EXPECT_EQ(upper_median(odd), 2.0);
     EXPECT_TRUE(std::isnan(upper_median(none)));
     EXPECT_TRUE(std::isnan(median_of_values(none)));
+}
+
+// The report's writers: the Table with "–" for what is absent, the distances' rows, the
+// figures' data (NaN where absent, galaxies only) and a script naming every catalogue's data.
+TEST(CompareReport, WritersFormatTheirFiles) {
+    Catalogue a{"hdf", {}}, b{"sim", {}};
+    for (int k = 0; k < 5; ++k) {
+        a.records.push_back(Json{{"mag", 22.0 + k},
+                                 {"fwhm", 3.0},
+                                 {"pixel_scale", 0.04},
+                                 {"e1", 0.3},
+                                 {"e2", 0.4},
+                                 {"c", 3.0 + 0.1 * k}});
+        b.records.push_back(
+            Json{{"mag", 22.0 + 0.5 * k}, {"c", 2.5 + 0.1 * k}, {"kind", "galaxy"}});
+    }
+    b.records.push_back(Json{{"mag", 20.0}, {"kind", "star"}});
+    TableCuts cuts;
+    cuts.resamples = 10;
+    TableRow paper;
+    paper.name = "paper";
+    paper.galaxies = -1;
+    paper.c_mean = 2.9;
+    paper.c_mean_err = std::numeric_limits<double>::quiet_NaN();
+    paper.c_rms = std::numeric_limits<double>::quiet_NaN();
+    std::ostringstream table;
+    write_table_markdown(table, {paper}, "I", cuts);
+    EXPECT_NE(table.str().find("| paper | – | 2.900 | – |"), std::string::npos) << table.str();
+    EXPECT_NE(table.str().find("| catalogue | N (I ≤ 29) |"), std::string::npos);
+    EXPECT_NE(table.str().find("errors: 10 bootstrap resamples.\n"), std::string::npos);
+
+    std::ostringstream distances;
+    write_distances_markdown(distances, {a, b}, cuts);
+    EXPECT_NE(distances.str().find("| n (hdf) |"), std::string::npos);
+    EXPECT_NE(distances.str().find("| c | sim | 5 | 5 | 1.000 |"), std::string::npos)
+        << distances.str();
+    EXPECT_NE(distances.str().find("| fwhm_arcsec | sim | 0 | 5 | – | – | – |"), std::string::npos);
+
+    std::ostringstream data;
+    write_figure_data(data, b);
+    const std::string text = data.str();
+    EXPECT_EQ(text.substr(text.find('\n') + 1, 28), "22 NaN NaN 2.5 NaN NaN NaN \n");
+    EXPECT_EQ(std::count(text.begin(), text.end(), '\n'), 6);
+
+    std::ostringstream script;
+    write_figures_script(script, "out", {a, b}, "I", cuts);
+    EXPECT_NE(script.str().find("set output 'out/a_s.png'"), std::string::npos);
+    EXPECT_NE(script.str().find("'out/sim.dat' using 1:2 with points pt 7 ps 0.4 title 'sim'"),
+              std::string::npos);
 }

@@ -14,6 +14,7 @@
 #include <cmath>
 #include <iostream>
 #include <map>
+#include <sstream>
 
 using namespace shapesim;
 
@@ -953,4 +954,121 @@ TEST(MorphologyBands, ParentsColoursAreDeconvolvedFromTheirNoise) {
     const double change = flux_ratio(p, 2) - flux_ratio(kept.points[7], 2);
     for (std::size_t k = 0; k < p.shape.size(); ++k)
         EXPECT_LT(std::abs(p.band_shapes[2][k] - kept.points[7].band_shapes[2][k] - change * p.shape[k]), 1e-12);
+}
+
+// Records left out under the first reason, in the options' order; kept ones give "".
+TEST(RecordSelection, DropReasonTakesTheFirstInTheOptionsOrder) {
+    ShapeletRecord r = record_of(test::random_model(2, 2.0, 0.0, 0.0, 3), "a", 25.0);
+    r.coeffs[0] = std::abs(r.coeffs[0]);
+    r.flags = {"converged", "edge"};
+    RecordSelection s;
+    EXPECT_EQ(drop_reason(r, s), "");
+    s.required = {"n_max_cap|converged"};
+    EXPECT_EQ(drop_reason(r, s), "");
+    s.required.push_back("flat");
+    s.rejected = {"edge"};
+    EXPECT_EQ(drop_reason(r, s), "not flat");
+    s.required.pop_back();
+    EXPECT_EQ(drop_reason(r, s), "edge");
+    s.rejected.clear();
+    s.mag_limit = 24.0;
+    EXPECT_EQ(drop_reason(r, s), "fainter than --mag-limit");
+    r.coeffs[0] = -r.coeffs[0];
+    s.mag_limit = 26.0;
+    EXPECT_EQ(drop_reason(r, s), "a_00 <= 0");
+    r.mag.reset();
+    EXPECT_EQ(drop_reason(r, s), "no magnitude");
+}
+
+// Records read, kept with their field and weight, dropped by reason; every galaxy's magnitude
+// counted in its field, an unknown image and a bad weight placed in the input.
+TEST(RecordSelection, SelectRecordsKeepsCountsAndPlaces) {
+    auto line = [](const std::string& id, double mag, const std::string& image,
+                   const std::vector<std::string>& flags, double w) {
+        ShapeletRecord r = record_of(test::random_model(2, 2.0, 0.0, 0.0, 5), id, mag);
+        r.coeffs[0] = std::abs(r.coeffs[0]);
+        r.flags = flags;
+        r.extra["image"] = image;
+        r.extra["w"] = w;
+        return r.to_json().dump() + "\n";
+    };
+    const std::string text = line("1", 24.0, "a.fits", {"converged"}, 2.0) +
+                             line("2", 25.0, "b.fits", {"edge"}, 1.0) +
+                             line("3", 26.0, "s.fits", {"converged"}, 0.5);
+    RecordSelection s;
+    s.rejected = {"edge"};
+    s.images = {"a.fits", "b.fits", "s.fits"};
+    s.weight_field = "w";
+    std::vector<SourceField> fields{{"a.fits", 1.0, {}}, {"b.fits", 2.0, {}}};
+    std::istringstream in(text);
+    JsonlReader reader(in, "records", {ShapeletRecord::schema});
+    const SelectedRecords got = select_records(reader, s, fields);
+    EXPECT_EQ(got.read, 3);
+    ASSERT_EQ(got.kept.size(), 2u);
+    EXPECT_EQ(got.field, (std::vector<std::size_t>{0, 2}));
+    EXPECT_EQ(got.weights, (std::vector<double>{2.0, 0.5}));
+    EXPECT_EQ(got.dropped, (std::map<std::string, long>{{"edge", 1}}));
+    EXPECT_EQ(fields[0].mags, std::vector<double>{24.0});
+    EXPECT_EQ(fields[1].mags, std::vector<double>{25.0});
+    EXPECT_NE(got.hash, SelectedRecords{}.hash);
+
+    s.images = {"a.fits"};
+    std::istringstream unknown(text);
+    JsonlReader unknown_reader(unknown, "records", {ShapeletRecord::schema});
+    EXPECT_THROW(select_records(unknown_reader, s, fields), Error);
+    s.images.clear();
+    s.weight_field = "absent";
+    std::istringstream no_weight(text);
+    JsonlReader no_weight_reader(no_weight, "records", {ShapeletRecord::schema});
+    EXPECT_THROW(select_records(no_weight_reader, s, fields), Error);
+}
+
+// Several fields: weight / the area counted at the galaxy's magnitude, 0 where its own field is
+// not counted; shape-only galaxies and a single field untouched.
+TEST(RecordSelection, WeightByCountedArea) {
+    const std::vector<SourceField> both{{"a", 1.0, {}, 26.0}, {"b", 3.0, {}, 28.0}};
+    std::vector<ShapeletRecord> kept(4);
+    kept[0].mag = 25.0;
+    kept[1].mag = 27.0;
+    kept[2].mag = 27.0;
+    kept[3].mag = 27.0;
+    std::vector<double> w{2.0, 1.0, 1.0, 5.0};
+    weight_by_counted_area(both, kept, {0, 0, 1, 2}, w);
+    EXPECT_EQ(w, (std::vector<double>{0.5, 0.0, 1.0 / 3.0, 5.0}));
+    std::vector<double> one{2.0};
+    weight_by_counted_area({both[0]}, {kept[0]}, {0}, one);
+    EXPECT_EQ(one, std::vector<double>{2.0});
+}
+
+// Short image names for ids; where two clash, the first takes its whole name, which tells
+// them apart.
+TEST(RecordSelection, ImageLabels) {
+    EXPECT_EQ(
+        image_labels({"data/hdfn_f814w_v2.fits", "x/AEGIS_01.fits[1]", "p/c.fits", "q/c.fits"}),
+        (std::vector<std::string>{"hdfn_f814w_v2", "AEGIS_01[1]", "p/c.fits", "c"}));
+}
+
+// Ids prefixed by their image's label with several images; shape-only points weigh 0.
+TEST(RecordSelection, MarkPointFields) {
+    SelectedRecords selected;
+    for (unsigned seed : {7u, 8u}) {
+        const std::string id = std::to_string(seed - 6);
+        selected.kept.push_back(record_of(test::random_model(2, 2.0, 0.0, 0.0, seed), id, 25.0));
+        selected.kept.back().coeffs[0] = std::abs(selected.kept.back().coeffs[0]);
+    }
+    selected.weights = {0.5, 2.0};
+    selected.field = {0, 1};
+    RecordSelection s;
+    s.images = {"a.fits", "shapes.fits"};
+    Morphology m = build_morphology(selected.kept, SmoothOptions{});
+    EXPECT_EQ(mark_point_fields(m, selected, s, 1), 1);
+    EXPECT_EQ(m.points[0].id, "a:1");
+    EXPECT_EQ(m.points[1].id, "shapes:2");
+    EXPECT_FALSE(m.points[0].shape_only);
+    EXPECT_TRUE(m.points[1].shape_only);
+    EXPECT_EQ(m.points[0].weight, 0.5);
+    EXPECT_EQ(m.points[1].weight, 0.0);
+    const Json p = smooth_provenance("in", selected, s, SmoothOptions{});
+    EXPECT_EQ(p.at("program"), "shapesim-smooth");
+    EXPECT_EQ(p.at("input_fnv1a64").get<std::string>().size(), 16u);
 }

@@ -482,3 +482,14 @@ TEST(TruthRecord, ValidationErrorsNameTheField) {
               "clipped_flux");
     EXPECT_EQ(error(head + R"("kind":"star","flux":1,"n_max":0,"stamp_radius":1})"), "no error");
 }
+
+// A flag, and any one of '|'-separated alternatives.
+TEST(Flags, HasFlagAndAlternatives) {
+    const std::vector<std::string> flags{"converged", "edge"};
+    EXPECT_TRUE(has_flag(flags, "edge"));
+    EXPECT_FALSE(has_flag(flags, "holes"));
+    EXPECT_TRUE(has_any_flag(flags, "n_max_cap|converged"));
+    EXPECT_TRUE(has_any_flag(flags, "edge"));
+    EXPECT_FALSE(has_any_flag(flags, "n_max_cap|holes"));
+    EXPECT_FALSE(has_any_flag({}, "converged"));
+}
