@@ -1,5 +1,6 @@
 // shapesim-smooth: shapelet records (shapesim-decompose) → the morphology model, one JSON
 // document (paper §3–4.1; DESIGN §4). The work is in the library: morphology.hpp.
+#include "shapesim/app/atomic_file.hpp"
 #include "shapesim/app/options.hpp"
 #include "shapesim/app/run_main.hpp"
 #include "shapesim/app/source_fields.hpp"
@@ -7,9 +8,6 @@
 #include "shapesim/jsonl.hpp"
 #include "shapesim/morphology.hpp"
 #include "shapesim/records.hpp"
-#include "shapesim/version.hpp"
-
-#include <iostream>
 
 namespace {
 
@@ -44,14 +42,14 @@ struct Settings {
 };
 
 int run(int argc, const char* const argv[]) {
-    app::ProgramOptions options("shapesim-smooth", "[OPTION]...", description,
-                                app::Common::quiet | app::Common::verbose | app::Common::config |
+    app::ProgramOptions options("shapesim-smooth", "[OPTION]... [FILE]", description,
+                                app::Common::output | app::Common::quiet | app::Common::verbose | app::Common::config |
                                     app::Common::like | app::Common::print_params);
     Settings s;
     using app::in_range;
     options.group("Input").add_options()
         ("input,i", po::value(&s.input)->value_name("FILE")->default_value("-"),
-         "shapelet records (default: stdin)")
+         "shapelet records, or the first argument (default: stdin)")
         ("require", po::value(&s.require)->value_name("FLAGS")->default_value(""),
          "keep records carrying all these flags (comma-separated; empty: all; A|B: either);\n"
          "the paper's selection: converged|n_max_cap")
@@ -77,8 +75,9 @@ int run(int argc, const char* const argv[]) {
         ("weight-field", po::value(&s.weight_field)->value_name("NAME"),
          "parent-selection weight from this numeric record field (default: all 1)");
     options.group("Smoothing").add_options()
-        ("k", po::value(&s.smooth.k)->default_value(4.0)->notifier(in_range("k", 0.0, 1e6)),
-         "lambda = k x the mean nearest-neighbour separation along each axis")
+        ("lambda-factor", po::value(&s.smooth.k)->value_name("K")->default_value(4.0)
+             ->notifier(in_range("lambda-factor", 0.0, 1e6)),
+         "every lambda = K x the mean nearest-neighbour separation along its axis (paper: k)")
         ("lambda-phase", po::value(&s.smooth.phase_deg)->default_value(15.0)
              ->notifier(in_range("lambda-phase", 0.0, 180.0)), "phase smoothing length, degrees")
         ("lambda-beta", po::value(&s.beta)->value_name("ARCSEC")
@@ -95,7 +94,10 @@ int run(int argc, const char* const argv[]) {
         ("keep-colour-noise", po::bool_switch(&s.smooth.keep_colour_noise),
          "several bands: keep each parent's flux ratios as measured, noise and all (by default "
          "they are deconvolved from it, so a simulation does not carry its noise twice)");
+    options.positional("input", 1);
+    options.alias("k", "lambda-factor");
     if (!options.parse(argc, argv)) return 0;
+    app::AtomicTextFile file(options.common().output_or_stdout());
     const app::Log log("shapesim-smooth", options.common().verbosity);
 
     SmoothOptions& smooth = s.smooth;
@@ -132,9 +134,8 @@ int run(int argc, const char* const argv[]) {
     morphology.source_fields = std::move(fields.counted);
     morphology.shape_fields = fields.shape_images;
     morphology.provenance = smooth_provenance(reader.name(), selected, selection, smooth);
-    std::cout << morphology.to_json().dump() << '\n';
-    std::cout.flush();
-    if (!std::cout) throw Error("cannot write the morphology model", "stdout");
+    file.stream() << morphology.to_json().dump() << '\n';
+    file.commit();
     log.info(selected.kept.size(), " of ", selected.read, " models kept (n_max up to ", morphology.n_max,
              "); lambda: beta ", morphology.lambda.beta, "\", mag ", morphology.lambda.mag,
              ", phase ", morphology.lambda.phase_deg, " deg");

@@ -66,14 +66,14 @@ assert bad and all(r["chi2r"] > 1.5 for r in map(json.loads, open("capped.jsonl"
 assert not bad & {p["id"] for p in json.load(open("capped.json"))["points"]}, bad' ||
   fail "bad fits reach the morphology model"
 
-# --k scales every computed λ; overrides win.
-"$BIN/$prog" -q --k 2 --lambda-mag 0.5 <shapelets.jsonl >k2.json || fail "--k 2 failed"
+# --lambda-factor (the paper's k) scales every computed λ; overrides win.
+"$BIN/$prog" -q --lambda-factor 2 --lambda-mag 0.5 <shapelets.jsonl >k2.json || fail "--lambda-factor 2 failed"
 python3 -c 'import json
 a, b = json.load(open("morph.json"))["lambda"], json.load(open("k2.json"))["lambda"]
 assert abs(b["beta"] - a["beta"] / 2) < 1e-12 * a["beta"], (a["beta"], b["beta"])
 assert b["mag"] == 0.5
 assert all(abs(y - x / 2) <= 1e-12 * x for x, y in zip(a["coefficient"], b["coefficient"]))' ||
-  fail "--k / --lambda-mag do not act as documented"
+  fail "--lambda-factor / --lambda-mag do not act as documented"
 
 # Bad input.
 rc=0; "$BIN/$prog" <sources.jsonl >out 2>err || rc=$?
@@ -85,8 +85,8 @@ rc=0; { head -n 3 shapelets.jsonl; echo '{"schema":"shapesim.shapelet/1",'; } | 
 expect_error "$rc" 1 '^shapesim-smooth: -:4: invalid JSON'
 rc=0; "$BIN/$prog" --weight-field nosuch <shapelets.jsonl >out 2>err || rc=$?
 expect_error "$rc" 1 'nosuch'
-rc=0; "$BIN/$prog" --k -1 <shapelets.jsonl >out 2>err || rc=$?
-expect_error "$rc" 2 'k'
+rc=0; "$BIN/$prog" --lambda-factor -1 <shapelets.jsonl >out 2>err || rc=$?
+expect_error "$rc" 2 '^shapesim-smooth: --lambda-factor: must be in'
 rc=0; "$BIN/$prog" --like "$data/hdfn_f814w_v2.fits" --area 1 <shapelets.jsonl >out 2>err || rc=$?
 expect_error "$rc" 2 'give one of --like, --area and --field'
 # --field: one field named by the records' image gives --area's density; records from an
