@@ -177,4 +177,37 @@ DetectionRun DetectionSettings::run(const ProgramOptions& options, const Log& lo
     return r;
 }
 
+void declare_stamp_options(po::options_description_easy_init& add, StampOptions& stamp) {
+    add
+        ("stamp-factor", po::value(&stamp.size_factor)->default_value(3.0)
+             ->notifier(in_range("stamp-factor", 0.0, 1e3)),
+         "stamp side >= factor · A_IMAGE + offset, pixels (and >= the object's segment plus "
+         "--stamp-sky-margin, and its Kron aperture; then grown x1.25 until the border is sky)")
+        ("stamp-offset", po::value(&stamp.size_offset)->default_value(5.0)
+             ->notifier(in_range("stamp-offset", 1.0, 1e4)), "see --stamp-factor")
+        ("stamp-sky-margin", po::value(&stamp.sky_margin)->default_value(4)
+             ->notifier(in_range("stamp-sky-margin", 0, 10000)),
+         "sky pixels beyond the object's segment on each side of its stamp")
+        ("stamp-max-side", po::value(&stamp.max_side)->default_value(513)
+             ->notifier(in_range("stamp-max-side", 3, 100000)),
+         "stamps are never grown beyond this side, pixels (flag stamp_not_sky)")
+        ("border-width", po::value(&stamp.border_width)->default_value(2)
+             ->notifier(in_range("border-width", 1, 1000)),
+         "depth of the stamp border that sets the local noise, pixels");
+}
+
+void declare_sky_noise_options(po::options_description_easy_init& add, SkyNoiseOptions& noise) {
+    add
+        ("noise-radius", po::value(&noise.radius)->default_value(8)
+             ->notifier(in_range("noise-radius", 0, 64)),
+         "largest lag of the measured autocorrelation, pixels")
+        ("noise-grow", po::value(&noise.grow)->default_value(2)
+             ->notifier(in_range("noise-grow", 0, 100)),
+         "sky pixels kept this far from every masked object and bad pixel, pixels")
+        ("noise-mask-snr", po::value(&noise.mask_snr)->default_value(4.0)
+             ->notifier(in_range("noise-mask-snr", 0.0, 1e9)),
+         "mask only objects of at least this S/N (fainter ones are mostly the noise's own "
+         "peaks; 0: mask all)");
+}
+
 }  // namespace shapesim::app
