@@ -95,6 +95,41 @@ std::vector<Tile> tile_grid(long field_nx, long field_ny, long width, long heigh
     return tiles;
 }
 
+std::string SampleSummary::describe(const FieldGeometry& field, double density,
+                                    bool in_tile) const {
+    std::ostringstream line;
+    line << galaxies << " galaxies and " << stars << " stars over " << field.area_arcmin2()
+         << " arcmin^2 (" << density << " per arcmin^2; " << field.nx << " x " << field.ny
+         << " pixels); " << galaxies_out << " galaxies and " << stars_out << " stars written"
+         << (in_tile ? " (in the tile)" : "") << " from " << cells_read << " of " << cells
+         << " sky cells; " << redraws << " perturbations redrawn; ";
+    return line.str();
+}
+
+void write_tile_grid(std::ostream& out, const std::string& name, long field_nx, long field_ny,
+                     long width, long height) {
+    for (const Tile& t : tile_grid(field_nx, field_ny, width, height))
+        out << (t.x0 - 1) / width << ' ' << (t.y0 - 1) / height << ' ' << t.x0 << ' ' << t.y0
+            << ' ' << t.x1 << ' ' << t.y1 << '\n';
+    out.flush();
+    if (!out) throw Error("cannot write the tile grid", name);
+}
+
+void apply_model_counts(SampleOptions& options, const Morphology& morphology, bool fit_counts,
+                        bool density_given, const std::string& model_path) {
+    if (fit_counts) {
+        try {
+            options.draw.counts = conditional_counts(morphology, options.draw, options.mag_limit);
+        } catch (const Error& e) {
+            throw Error(e.message() + "; draw with --counts parents", model_path);
+        }
+    }
+    const std::optional<CountModel>& counts = options.draw.counts;
+    if (!density_given && !morphology.source_fields.empty())
+        options.density = counts ? counts->density()
+                                 : field_density(morphology.source_fields, options.mag_limit);
+}
+
 namespace {
 
 // A uniform position over the field's pixel area.
