@@ -9,15 +9,12 @@
 #include "shapesim/app/run_main.hpp"
 #include "shapesim/bands.hpp"
 #include "shapesim/detect.hpp"
-#include "shapesim/error.hpp"
 #include "shapesim/fits_io.hpp"
 #include "shapesim/jsonl.hpp"
 #include "shapesim/noise.hpp"
-#include "shapesim/psf.hpp"
 #include "shapesim/records.hpp"
 #include "shapesim/sources.hpp"
 
-#include <cmath>
 #include <iostream>
 #include <memory>
 #include <optional>
@@ -52,7 +49,6 @@ struct Settings {
 };
 
 void declare(app::ProgramOptions& options, Settings& s) {
-    using app::in_range;
     s.detection.declare(options);
     options.group("Stars").add_options()
         ("stars", po::value(&s.stars)->value_name("FILE"),
@@ -61,39 +57,17 @@ void declare(app::ProgramOptions& options, Settings& s) {
         ("bands", po::value(&s.bands)->value_name("FILE"),
          "shapesim.band/1 lines (band, image, weight, zero_point, gain): measure each band in "
          "the detection's apertures and cut its stamps (<id>.<band>) in the same boxes");
-    options.group("Output").add_options()
-        ("stamps", po::value(&s.stamps)->value_name("FILE"),
-         "write postage stamps (image, weight, mask per object) to this FITS file")
-        ("stamp-factor", po::value(&s.stamp.size_factor)->default_value(3.0)
-             ->notifier(in_range("stamp-factor", 0.0, 1e3)),
-         "stamp side >= factor · A_IMAGE + offset, pixels (and >= the object's segment plus "
-         "--stamp-sky-margin, and its Kron aperture; then grown x1.25 until the border is sky)")
-        ("stamp-offset", po::value(&s.stamp.size_offset)->default_value(5.0)
-             ->notifier(in_range("stamp-offset", 1.0, 1e4)), "see --stamp-factor")
-        ("stamp-sky-margin", po::value(&s.stamp.sky_margin)->default_value(4)
-             ->notifier(in_range("stamp-sky-margin", 0, 10000)),
-         "sky pixels beyond the object's segment on each side of its stamp")
-        ("stamp-max-side", po::value(&s.stamp.max_side)->default_value(513)
-             ->notifier(in_range("stamp-max-side", 3, 100000)),
-         "stamps are never grown beyond this side, pixels (flag stamp_not_sky)")
-        ("border-width", po::value(&s.stamp.border_width)->default_value(2)
-             ->notifier(in_range("border-width", 1, 1000)),
-         "depth of the stamp border that sets the local noise, pixels")
-        ("segmentation", po::value(&s.segmentation)->value_name("FILE"),
-         "write the segmentation map (object labels = ids) to this FITS file")
-        ("noise-model", po::value(&s.noise_model)->value_name("FILE"),
-         "write the sky's measured noise (shapesim.noise/1: rms, 2-D autocorrelation, pixel "
-         "quantiles; objects masked) to this file, for shapesim-render --noise-model")
-        ("noise-radius", po::value(&s.noise.radius)->default_value(8)
-             ->notifier(in_range("noise-radius", 0, 64)),
-         "largest lag of the measured autocorrelation, pixels")
-        ("noise-grow", po::value(&s.noise.grow)->default_value(2)
-             ->notifier(in_range("noise-grow", 0, 100)),
-         "sky pixels kept this far from every masked object and bad pixel, pixels")
-        ("noise-mask-snr", po::value(&s.noise.mask_snr)->default_value(4.0)
-             ->notifier(in_range("noise-mask-snr", 0.0, 1e9)),
-         "mask only objects of at least this S/N (fainter ones are mostly the noise's own "
-         "peaks; 0: mask all)");
+    // The stamps' and the sky noise's own options are shared plumbing (app/detection_run.hpp).
+    po::options_description_easy_init output = options.group("Output").add_options();
+    output("stamps", po::value(&s.stamps)->value_name("FILE"),
+           "write postage stamps (image, weight, mask per object) to this FITS file");
+    app::declare_stamp_options(output, s.stamp);
+    output("segmentation", po::value(&s.segmentation)->value_name("FILE"),
+           "write the segmentation map (object labels = ids) to this FITS file")
+          ("noise-model", po::value(&s.noise_model)->value_name("FILE"),
+           "write the sky's measured noise (shapesim.noise/1: rms, 2-D autocorrelation, pixel "
+           "quantiles; objects masked) to this file, for shapesim-render --noise-model");
+    app::declare_sky_noise_options(output, s.noise);
 }
 
 int run(int argc, const char* const argv[]) {
@@ -125,7 +99,6 @@ int run(int argc, const char* const argv[]) {
         noise = measure_sky_noise(field, s.noise);
         noise->extra["image"] = s.detection.image;
     }
-    const double star_threshold = s.detection.star_threshold;
     const std::vector<std::string> outputs = {"stamps", "stars", "segmentation", "noise-model"};
     std::unique_ptr<FitsWriter> stamps;
     if (!s.stamps.empty())
@@ -138,34 +111,14 @@ int run(int argc, const char* const argv[]) {
         stars_out = std::make_unique<JsonlWriter>(stars_file->stream(), s.stars);
     }
     JsonlWriter out(std::cout, "-");
-    long n_stars = 0, n_spikes = 0;
-    for (const Detection& object : field.objects) {
-        if (is_single_pixel_event(object.peak, object.flux_iso)) {  // not a star: no PSF
-            ++n_spikes;
-            continue;
-        }
-        const CoreFraction core = core_fraction(field, object, locus);
-        const double star = stellarity(core, locus);
-        const bool is_star = star > star_threshold;
-        std::unique_ptr<CutStamp> cut;
-        if (stamps && (!is_star || stars_out)) {
-            cut = std::make_unique<CutStamp>(
-                cut_stamp(field, object, std::to_string(object.label), s.stamp));
-            write_stamp(*stamps, cut->stamp);
-        }
-        SourceRecord record = source_record(object, core, star, cut.get(), context);
-        if (!bands.empty())
-            add_bands(record, bands, std::size_t(object.label - 1), object, cut.get(),
-                      stamps.get(), s.stamps, s.stamp);
-        if (is_star) {
-            ++n_stars;
-            if (stars_out) stars_out->write(record.to_json());
-        } else {
-            out.write(record.to_json());
-        }
-        log.verbose("object ", object.label, " at (", object.x, ", ", object.y,
-                    ") stellarity ", star);
-    }
+    const CatalogueTally tally = catalogue_sources(
+        field, locus, context, bands, s.stamp, stamps.get(), stars_out != nullptr,
+        [&](const Detection& object, const SourceRecord& record, bool is_star, double star) {
+            if (!is_star) out.write(record.to_json());
+            else if (stars_out) stars_out->write(record.to_json());
+            log.verbose("object ", object.label, " at (", object.x, ", ", object.y,
+                        ") stellarity ", star);
+        });
     if (!s.segmentation.empty()) {
         FitsWriter seg(s.segmentation, "shapesim-detect",
                        app::provenance_keywords(options, outputs));
@@ -183,11 +136,12 @@ int run(int argc, const char* const argv[]) {
     }
     if (stamps) stamps->commit();
     if (stars_file) stars_file->commit();
-    log.info(out.count(), " galaxies, ", n_stars, " stars (stellarity > ", star_threshold,
-             ", through ", detected.locus_note, ") in ", log.elapsed(), " s");
-    if (n_spikes > 0)
-        log.info(n_spikes, " single-pixel events (cosmic rays, hot pixels: the peak holds ",
-                 "≥ 75% of the flux) left out");
+    log.info(out.count(), " galaxies, ", tally.stars, " stars (stellarity > ",
+             context.star_threshold, ", through ", detected.locus_note, ") in ", log.elapsed(),
+             " s");
+    if (tally.single_pixel_events > 0)
+        log.info(tally.single_pixel_events, " single-pixel events (cosmic rays, hot pixels: ",
+                 "the peak holds ≥ 75% of the flux) left out");
     return 0;
 }
 

@@ -4,14 +4,11 @@
 #include "shapesim/app/field_options.hpp"
 #include "shapesim/app/options.hpp"
 #include "shapesim/app/run_main.hpp"
-#include "shapesim/error.hpp"
 #include "shapesim/geometry.hpp"
 #include "shapesim/jsonl.hpp"
 #include "shapesim/morphology.hpp"
 #include "shapesim/sample.hpp"
 
-#include <algorithm>
-#include <cmath>
 #include <iostream>
 
 namespace {
@@ -96,18 +93,7 @@ int run(int argc, const char* const argv[]) {
              ->notifier(in_range("hole-allowance", 0.0, 1e6)),
          "redraw perturbations whose model dips below zero deeper than the real galaxy's by "
          "more than this fraction of the peak");
-    options.group("Stars").add_options()
-        ("star-density", po::value(&o.stars.density)->default_value(0.0)
-             ->notifier(in_range("star-density", 0.0, 1e8)), "stars per arcmin^2 (Poisson)")
-        ("star-count", po::value(&s.star_count), "exactly this many stars instead")
-        ("star-slope", po::value(&o.stars.slope)->default_value(0.1)
-             ->notifier(in_range("star-slope", -10.0, 10.0)), "d log10 N / dm of the star counts")
-        ("star-mag-min", po::value(&o.stars.mag_min)->default_value(18.0)
-             ->notifier(in_range("star-mag-min", -100.0, 100.0)), "brightest star")
-        ("star-mag-max", po::value(&o.stars.mag_max)->notifier(in_range("star-mag-max", -100.0, 100.0)),
-         "faintest star (default: --mag-limit)")
-        ("star-histogram", po::value(&s.star_histogram)->value_name("FILE"),
-         "star counts from lines 'mag_lo mag_hi count' instead of the power law");
+    app::declare_star_options(options, o.stars, s.star_count, s.star_histogram);
     if (!options.parse(argc, argv)) return 0;
     const app::Log log("shapesim-sample", options.common().verbosity);
 
@@ -115,12 +101,8 @@ int run(int argc, const char* const argv[]) {
     if (options.given("tile-grid")) {
         if (s.tile_grid.empty() || s.tile_grid.size() > 2 || s.tile_grid.front() < 1 || s.tile_grid.back() < 1)
             throw po::error("--tile-grid takes W [H], whole numbers of pixels >= 1");
-        const long w = s.tile_grid.front(), h = s.tile_grid.back();
-        for (const Tile& t : tile_grid(field.nx, field.ny, w, h))
-            std::cout << (t.x0 - 1) / w << ' ' << (t.y0 - 1) / h << ' ' << t.x0 << ' ' << t.y0 << ' '
-                      << t.x1 << ' ' << t.y1 << '\n';
-        std::cout.flush();
-        if (!std::cout) throw Error("cannot write the tile grid", "stdout");
+        write_tile_grid(std::cout, "stdout", field.nx, field.ny, s.tile_grid.front(),
+                        s.tile_grid.back());
         return 0;
     }
     if (s.model.empty()) throw po::error("give the morphology MODEL (from shapesim-smooth)");
@@ -136,16 +118,8 @@ int run(int argc, const char* const argv[]) {
         throw po::error("--counts takes 'fit' or 'parents', not '" + s.counts + "'");
     // The real field's density at this magnitude limit, when smooth recorded it (--like): the
     // fitted counts' with them.
-    if (s.counts == "fit") {
-        try {
-            o.draw.counts = conditional_counts(morphology, o.draw, o.mag_limit);
-        } catch (const Error& e) {
-            throw Error(e.message() + "; draw with --counts parents", s.model);
-        }
-    }
+    apply_model_counts(o, morphology, s.counts == "fit", options.given("density"), s.model);
     const std::optional<CountModel>& counts = o.draw.counts;
-    if (!options.given("density") && !morphology.source_fields.empty())
-        o.density = counts ? counts->density() : field_density(morphology.source_fields, o.mag_limit);
     if (counts)
         log.info("galaxy counts: d log10 N / dm = ", counts->slope, ", ", counts->density(),
                  " per arcmin^2 over ", counts->bright, " - ", counts->faint, ", fitted to ",
@@ -157,8 +131,7 @@ int run(int argc, const char* const argv[]) {
     if (!s.star_histogram.empty()) o.stars.bins = read_star_histogram(s.star_histogram);
     o.margin = s.margin / field.pixel_scale;
 
-    const auto shape_only = std::count_if(morphology.points.begin(), morphology.points.end(),
-                                          [](const MorphologyPoint& p) { return p.shape_only; });
+    const long shape_only = count_shape_only(morphology);
     if (shape_only > 0 && o.draw.neighbours == 0)
         log.info(shape_only, " shape-only models unused: only --neighbours draws take their shapes");
     JsonlWriter out(std::cout, "-");
@@ -167,12 +140,7 @@ int run(int argc, const char* const argv[]) {
         out.write(r.to_json());
         parents.add(r);
     });
-    log.info(summary.galaxies, " galaxies and ", summary.stars, " stars over ",
-             field.area_arcmin2(), " arcmin^2 (", o.density, " per arcmin^2; ", field.nx, " x ", field.ny, " pixels); ",
-             summary.galaxies_out, " galaxies and ", summary.stars_out, " stars written",
-             tile ? " (in the tile)" : "", " from ", summary.cells_read, " of ", summary.cells, " sky cells; ",
-             summary.redraws, " perturbations redrawn; ",
-             log.elapsed(), " s");
+    log.info(summary.describe(field, o.density, tile.has_value()), log.elapsed(), " s");
     log.info("largest share of one parent among the galaxies written: ", parents.summary());
     return 0;
 }

@@ -424,6 +424,11 @@ std::vector<std::size_t> fields_counted(const std::vector<SourceField>& fields, 
     return counted;
 }
 
+long count_shape_only(const Morphology& morphology) {
+    return long(std::count_if(morphology.points.begin(), morphology.points.end(),
+                              [](const MorphologyPoint& p) { return p.shape_only; }));
+}
+
 double field_density(const std::vector<SourceField>& fields, double mag_limit) {
     if (fields.empty()) return 0.0;
     if (fields.size() == 1) return fields.front().density(mag_limit);

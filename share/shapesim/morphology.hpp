@@ -249,6 +249,10 @@ double flux_ratio(const MorphologyPoint& p, std::size_t band);
 /// Mean over the values of the distance to the nearest other value (0 for fewer than two).
 double mean_nearest_neighbour_separation(std::vector<double> values);
 
+/// How many of the model's points are shape-only (MorphologyPoint::shape_only: only
+/// magnitude-conditional draws take their shapes).
+long count_shape_only(const Morphology& morphology);
+
 /// Align every record's model and compute the smoothing lengths. Throws Error when a record
 /// has a_{0,0} ≤ 0 or no magnitude (the caller filters such records first).
 Morphology build_morphology(const std::vector<ShapeletRecord>& records, const SmoothOptions& options);

@@ -127,11 +127,11 @@ NoiseRecord read_noise_record(const std::string& path) {
 // ---------------------------------------------------------------------------------------------
 // Measuring
 
-NoiseRecord measure_sky_noise(const DetectionResult& field, const SkyNoiseOptions& options) {
-    require(options.radius >= 0 && options.radius <= 64, "sky noise: radius must be in [0, 64]");
-    require(options.grow >= 0 && options.decimate >= 1 && options.quantiles >= 2 &&
-                options.mask_snr >= 0.0,
-            "sky noise: grow ≥ 0, decimate ≥ 1, quantiles ≥ 2 and mask_snr ≥ 0");
+namespace {
+
+// The sky: pixels no masked object (S/N ≥ mask_snr: fainter ones are mostly the noise's own
+// peaks) and no bad pixel reaches within `grow` pixels.
+std::vector<std::uint8_t> sky_pixels(const DetectionResult& field, const SkyNoiseOptions& options) {
     const long nx = field.image.cols(), ny = field.image.rows();
     const std::size_t n = std::size_t(nx * ny);
     std::vector<std::uint8_t> blocked(n, 0);
@@ -139,19 +139,26 @@ NoiseRecord measure_sky_noise(const DetectionResult& field, const SkyNoiseOption
     std::vector<std::uint8_t> masked(field.objects.size() + 1, 0);
     for (std::size_t i = 0; i < field.objects.size(); ++i) {
         const Detection& d = field.objects[i];
-        masked[i + 1] = !(d.flux_auto_err > 0.0) || !(d.flux_auto / d.flux_auto_err < options.mask_snr);
+        masked[i + 1] =
+            !(d.flux_auto_err > 0.0) || !(d.flux_auto / d.flux_auto_err < options.mask_snr);
     }
     for (std::size_t k = 0; k < n; ++k) {
         const auto label = std::size_t(field.segmentation.data()[k]);
-        blocked[k] = (label != 0 && (label >= masked.size() || masked[label])) || field.bad[k] != 0;
+        blocked[k] =
+            (label != 0 && (label >= masked.size() || masked[label])) || field.bad[k] != 0;
     }
     std::vector<std::uint8_t> sky = dilate(blocked, nx, ny, options.grow);
     for (auto& s : sky) s = !s;
+    return sky;
+}
 
-    // Clip at 5 MAD-σ about the median.
+// Clip the sky at 5 MAD-σ about its median (cosmic rays, hot pixels); the MAD σ. Error with
+// fewer than 100 sky pixels.
+double clip_sky(const ImageArray& image, std::vector<std::uint8_t>& sky) {
+    const std::size_t n = sky.size();
     std::vector<double> values;
     for (std::size_t k = 0; k < n; ++k)
-        if (sky[k]) values.push_back(field.image.data()[k]);
+        if (sky[k]) values.push_back(image.data()[k]);
     if (values.size() < 100)
         throw Error("sky noise: only " + std::to_string(values.size()) +
                     " sky pixels away from the objects (need 100)");
@@ -160,7 +167,74 @@ NoiseRecord measure_sky_noise(const DetectionResult& field, const SkyNoiseOption
     const double mad_sigma = 1.4826 * median_of_values(std::move(values));
     const double cut = 5.0 * mad_sigma;
     for (std::size_t k = 0; k < n; ++k)
-        if (sky[k] && !(std::abs(field.image.data()[k] - median) <= cut)) sky[k] = 0;
+        if (sky[k] && !(std::abs(image.data()[k] - median) <= cut)) sky[k] = 0;
+    return mad_sigma;
+}
+
+// The normalised autocorrelation ξ(dx, dy) of the centred sky pixels out to lag `r`: ξ(d) for
+// dy ≥ 0 (and dx > 0 on dy = 0), the rest by symmetry, ξ(0) = 1.
+NoiseCorrelation sky_autocorrelation(const std::vector<std::uint8_t>& sky,
+                                     const std::vector<double>& centred, long nx, long ny, int r,
+                                     double variance) {
+    NoiseCorrelation xi;
+    xi.radius = r;
+    xi.values.assign(std::size_t(side(r) * side(r)), 0.0);
+    for (int dy = 0; dy <= r; ++dy)
+        for (int dx = -r; dx <= r; ++dx) {
+            if (dy == 0 && dx < 0) continue;
+            double pair_sum = 0.0;
+            long pairs = 0;
+            for (long j = 0; j + dy < ny; ++j)
+                for (long i = std::max(0L, long(-dx)); i < nx && i + dx < nx; ++i) {
+                    const std::size_t p = std::size_t(j * nx + i);
+                    const std::size_t q = std::size_t((j + dy) * nx + i + dx);
+                    if (sky[p] && sky[q]) {
+                        pair_sum += centred[p] * centred[q];
+                        ++pairs;
+                    }
+                }
+            const double v = pairs > 0 ? pair_sum / double(pairs) / variance : 0.0;
+            xi.values[std::size_t((dy + r) * side(r) + dx + r)] = v;
+            xi.values[std::size_t((-dy + r) * side(r) - dx + r)] = v;
+        }
+    xi.values[std::size_t(r * side(r) + r)] = 1.0;
+    return xi;
+}
+
+// Quantiles of the sky pixels on a sparse grid (every `decimate`-th pixel: neighbours are
+// correlated) into `record`.
+void sky_quantiles(const ImageArray& image, const std::vector<std::uint8_t>& sky,
+                   const SkyNoiseOptions& options, NoiseRecord& record) {
+    const long nx = image.cols(), ny = image.rows();
+    std::vector<double> sparse;
+    for (long j = 0; j < ny; j += options.decimate)
+        for (long i = 0; i < nx; i += options.decimate)
+            if (sky[std::size_t(j * nx + i)]) sparse.push_back(image.data()[j * nx + i]);
+    std::sort(sparse.begin(), sparse.end());
+    record.quantile_pixels = long(sparse.size());
+    if (sparse.size() >= 2) {
+        const int q = int(std::min<std::size_t>(std::size_t(options.quantiles), sparse.size()));
+        for (int k = 0; k < q; ++k) {
+            const double at = (double(k) + 0.5) / q * double(sparse.size()) - 0.5;
+            const std::size_t lo = std::size_t(std::max(0.0, std::floor(at)));
+            const std::size_t hi = std::min(lo + 1, sparse.size() - 1);
+            const double t = std::clamp(at - double(lo), 0.0, 1.0);
+            record.quantiles.push_back(sparse[lo] + t * (sparse[hi] - sparse[lo]));
+        }
+    }
+}
+
+}  // namespace
+
+NoiseRecord measure_sky_noise(const DetectionResult& field, const SkyNoiseOptions& options) {
+    require(options.radius >= 0 && options.radius <= 64, "sky noise: radius must be in [0, 64]");
+    require(options.grow >= 0 && options.decimate >= 1 && options.quantiles >= 2 &&
+                options.mask_snr >= 0.0,
+            "sky noise: grow ≥ 0, decimate ≥ 1, quantiles ≥ 2 and mask_snr ≥ 0");
+    const long nx = field.image.cols(), ny = field.image.rows();
+    const std::size_t n = std::size_t(nx * ny);
+    std::vector<std::uint8_t> sky = sky_pixels(field, options);
+    const double mad_sigma = clip_sky(field.image, sky);
 
     double sum = 0.0;
     long count = 0;
@@ -185,49 +259,8 @@ NoiseRecord measure_sky_noise(const DetectionResult& field, const SkyNoiseOption
     record.mad_sigma = mad_sigma;
     record.pixels = count;
     record.noise_correlation = field.noise_correlation;
-
-    // ξ(d) for dy ≥ 0 (and dx > 0 on dy = 0); the rest by symmetry.
-    const int r = options.radius;
-    NoiseCorrelation& xi = record.correlation;
-    xi.radius = r;
-    xi.values.assign(std::size_t(side(r) * side(r)), 0.0);
-    for (int dy = 0; dy <= r; ++dy)
-        for (int dx = -r; dx <= r; ++dx) {
-            if (dy == 0 && dx < 0) continue;
-            double pair_sum = 0.0;
-            long pairs = 0;
-            for (long j = 0; j + dy < ny; ++j)
-                for (long i = std::max(0L, long(-dx)); i < nx && i + dx < nx; ++i) {
-                    const std::size_t p = std::size_t(j * nx + i);
-                    const std::size_t q = std::size_t((j + dy) * nx + i + dx);
-                    if (sky[p] && sky[q]) {
-                        pair_sum += centred[p] * centred[q];
-                        ++pairs;
-                    }
-                }
-            const double v = pairs > 0 ? pair_sum / double(pairs) / variance : 0.0;
-            xi.values[std::size_t((dy + r) * side(r) + dx + r)] = v;
-            xi.values[std::size_t((-dy + r) * side(r) - dx + r)] = v;
-        }
-    xi.values[std::size_t(r * side(r) + r)] = 1.0;
-
-    // Quantiles of the sparse grid's pixels.
-    std::vector<double> sparse;
-    for (long j = 0; j < ny; j += options.decimate)
-        for (long i = 0; i < nx; i += options.decimate)
-            if (sky[std::size_t(j * nx + i)]) sparse.push_back(field.image.data()[j * nx + i]);
-    std::sort(sparse.begin(), sparse.end());
-    record.quantile_pixels = long(sparse.size());
-    if (sparse.size() >= 2) {
-        const int q = int(std::min<std::size_t>(std::size_t(options.quantiles), sparse.size()));
-        for (int k = 0; k < q; ++k) {
-            const double at = (double(k) + 0.5) / q * double(sparse.size()) - 0.5;
-            const std::size_t lo = std::size_t(std::max(0.0, std::floor(at)));
-            const std::size_t hi = std::min(lo + 1, sparse.size() - 1);
-            const double t = std::clamp(at - double(lo), 0.0, 1.0);
-            record.quantiles.push_back(sparse[lo] + t * (sparse[hi] - sparse[lo]));
-        }
-    }
+    record.correlation = sky_autocorrelation(sky, centred, nx, ny, options.radius, variance);
+    sky_quantiles(field.image, sky, options, record);
     return record;
 }
 

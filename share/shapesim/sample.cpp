@@ -95,6 +95,41 @@ std::vector<Tile> tile_grid(long field_nx, long field_ny, long width, long heigh
     return tiles;
 }
 
+std::string SampleSummary::describe(const FieldGeometry& field, double density,
+                                    bool in_tile) const {
+    std::ostringstream line;
+    line << galaxies << " galaxies and " << stars << " stars over " << field.area_arcmin2()
+         << " arcmin^2 (" << density << " per arcmin^2; " << field.nx << " x " << field.ny
+         << " pixels); " << galaxies_out << " galaxies and " << stars_out << " stars written"
+         << (in_tile ? " (in the tile)" : "") << " from " << cells_read << " of " << cells
+         << " sky cells; " << redraws << " perturbations redrawn; ";
+    return line.str();
+}
+
+void write_tile_grid(std::ostream& out, const std::string& name, long field_nx, long field_ny,
+                     long width, long height) {
+    for (const Tile& t : tile_grid(field_nx, field_ny, width, height))
+        out << (t.x0 - 1) / width << ' ' << (t.y0 - 1) / height << ' ' << t.x0 << ' ' << t.y0
+            << ' ' << t.x1 << ' ' << t.y1 << '\n';
+    out.flush();
+    if (!out) throw Error("cannot write the tile grid", name);
+}
+
+void apply_model_counts(SampleOptions& options, const Morphology& morphology, bool fit_counts,
+                        bool density_given, const std::string& model_path) {
+    if (fit_counts) {
+        try {
+            options.draw.counts = conditional_counts(morphology, options.draw, options.mag_limit);
+        } catch (const Error& e) {
+            throw Error(e.message() + "; draw with --counts parents", model_path);
+        }
+    }
+    const std::optional<CountModel>& counts = options.draw.counts;
+    if (!density_given && !morphology.source_fields.empty())
+        options.density = counts ? counts->density()
+                                 : field_density(morphology.source_fields, options.mag_limit);
+}
+
 namespace {
 
 // A uniform position over the field's pixel area.
@@ -218,84 +253,66 @@ std::vector<std::uint64_t> cell_counts(const Cells& cells, std::uint64_t seed, d
 
 }  // namespace
 
-SampleSummary sample_field(const Morphology& morphology, const FieldGeometry& field,
-                           const SampleOptions& options, const std::optional<Tile>& tile,
-                           const std::function<void(const ObjectRecord&)>& emit) {
-    options.validate();
-    require(field.nx > 0 && field.ny > 0 && field.pixel_scale > 0.0, "the field is empty");
-    SampleSummary summary;
-    const double scale = field.pixel_scale;
+namespace {
 
-    // Galaxies.
-    const std::vector<double> parents = parent_table(morphology, options.mag_limit);
-    DrawOptions draw = options.draw;
-    draw.by_magnitude = magnitude_order(morphology, options.mag_limit);
-    const Cells cells(field, options.cell);
-    const std::vector<std::uint64_t> galaxies =
-        cell_counts(cells, options.seed, options.density, options.count, "galaxy count");
-    for (const std::uint64_t n : galaxies) summary.galaxies += n;
-    // No galaxy reaches further than the widest parent, perturbed, at the top order: a tile
-    // skips the shape draw of objects beyond that.
-    // A shape moved to another magnitude is scaled by 10^{−0.4 s (m − m_parent)}, m within
-    // [brightest parent − its λ_mag (conditional: or its gap; fitted counts: their bright end),
-    // mag_limit].
+// No galaxy reaches further than the widest parent, perturbed, at the top order: a tile
+// skips the shape draw of objects beyond that bound (pixels, with the margin).
+// A shape moved to another magnitude is scaled by 10^{−0.4 s (m − m_parent)}, m within
+// [brightest parent − its λ_mag (conditional: or its gap; fitted counts: their bright end),
+// mag_limit].
+double galaxy_reach_bound(const Morphology& morphology, const DrawOptions& draw,
+                          const SampleOptions& options, double scale) {
     const bool conditional = draw.neighbours > 0 && !morphology.lambda.is_delta();
     double brightest = draw.counts ? draw.counts->bright : options.mag_limit;
-    for (const auto& p : morphology.points)
-        if (p.weight > 0.0 && !draw.counts)
-            brightest = std::min(brightest,
-                                 p.mag - (conditional ? conditional_mag_spread(p, morphology.lambda.mag, draw)
-                                                      : morphology.lambda.mag));
+    for (const auto& p : morphology.points) {
+        if (!(p.weight > 0.0) || draw.counts) continue;
+        const double spread = conditional ? conditional_mag_spread(p, morphology.lambda.mag, draw)
+                                          : morphology.lambda.mag;
+        brightest = std::min(brightest, p.mag - spread);
+    }
     double beta_max = 0.0;
     for (const auto& p : morphology.points) {
         double scale_up = 1.0;
         if (conditional)
-            scale_up = std::max(std::pow(10.0, -0.4 * draw.size_slope * (brightest - p.mag)),
-                                std::pow(10.0, -0.4 * draw.size_slope * (options.mag_limit - p.mag)));
+            scale_up =
+                std::max(std::pow(10.0, -0.4 * draw.size_slope * (brightest - p.mag)),
+                         std::pow(10.0, -0.4 * draw.size_slope * (options.mag_limit - p.mag)));
         beta_max = std::max(beta_max, p.beta * scale_up);
     }
-    const double reach_bound =
-        model_reach((beta_max + morphology.lambda.beta) / scale, morphology.n_max) + options.margin;
-    summary.cells = cells.count();
-    for (std::uint64_t cell = 0; cell < cells.count(); ++cell) {
-      if (tile && !cells.reaches(cell, *tile, reach_bound)) continue;  // a tile reads its cells
-      ++summary.cells_read;
-      for (std::uint64_t j = 0; j < galaxies[cell]; ++j) {
-        const std::uint64_t k = object_key(cell, j);
-        RandomStream where(options.seed, k, "galaxy position");
-        const PixelPosition p = cells.position(cell, where);
-        if (tile && !tile->reaches(p.x, p.y, reach_bound)) continue;
-        RandomStream stream(options.seed, k, "galaxy");
-        const DrawnGalaxy g =
-            draw_galaxy(morphology, parents, stream, scale, options.zero_point, options.mag_limit,
-                        draw);
-        const double reach = model_reach(g.model.beta_pix, g.model.n_max) + options.margin;
-        if (tile && !tile->reaches(p.x, p.y, reach)) continue;
-        summary.redraws += std::uint64_t(g.redraws);
-        ObjectRecord o = placed(object_id("g", cell, j), "galaxy", p, field);
-        o.mag = g.mag;
-        o.flux = g.flux;
-        o.beta = g.beta;
-        o.pixel_scale = scale;
-        o.n_max = g.model.n_max;
-        o.coeffs = g.model.coeffs;
-        o.parent = morphology.points[g.parent].id;
-        o.extra["rotation"] = g.rotation / degree;
-        o.extra["reflected"] = g.reflected;
-        o.extra["perturbation"] = g.perturbation;
-        if (morphology.frame != "observed") o.extra["frame"] = morphology.frame;
-        if (morphology.points[g.parent].psf_beta > 0.0)
-            o.extra["psf_beta"] = morphology.points[g.parent].psf_beta;
-        if (g.mag_parent != g.parent) o.extra["mag_parent"] = morphology.points[g.mag_parent].id;
-        o.extra["reach"] = reach;
-        for (std::size_t b = 0; b < g.band_models.size(); ++b)
-            o.bands.push_back(band_part(morphology, b, options.zero_point, &g.band_models[b], 0.0));
-        emit(o);
-        ++summary.galaxies_out;
-      }
-    }
+    return model_reach((beta_max + morphology.lambda.beta) / scale, morphology.n_max) +
+           options.margin;
+}
 
-    // Stars: the PSF at a magnitude from the star counts.
+// The record of drawn galaxy `g`, object `j` of `cell`, at `p`, reaching `reach` pixels.
+ObjectRecord galaxy_record(const Morphology& morphology, const DrawnGalaxy& g, std::uint64_t cell,
+                           std::uint64_t j, const PixelPosition& p, const FieldGeometry& field,
+                           const SampleOptions& options, double reach) {
+    ObjectRecord o = placed(object_id("g", cell, j), "galaxy", p, field);
+    o.mag = g.mag;
+    o.flux = g.flux;
+    o.beta = g.beta;
+    o.pixel_scale = field.pixel_scale;
+    o.n_max = g.model.n_max;
+    o.coeffs = g.model.coeffs;
+    o.parent = morphology.points[g.parent].id;
+    o.extra["rotation"] = g.rotation / degree;
+    o.extra["reflected"] = g.reflected;
+    o.extra["perturbation"] = g.perturbation;
+    if (morphology.frame != "observed") o.extra["frame"] = morphology.frame;
+    if (morphology.points[g.parent].psf_beta > 0.0)
+        o.extra["psf_beta"] = morphology.points[g.parent].psf_beta;
+    if (g.mag_parent != g.parent) o.extra["mag_parent"] = morphology.points[g.mag_parent].id;
+    o.extra["reach"] = reach;
+    for (std::size_t b = 0; b < g.band_models.size(); ++b)
+        o.bands.push_back(band_part(morphology, b, options.zero_point, &g.band_models[b], 0.0));
+    return o;
+}
+
+// Stars: the PSF at a magnitude from the star counts, each cell's after the galaxies.
+void sample_stars(const Morphology& morphology, const FieldGeometry& field,
+                  const SampleOptions& options, const std::optional<Tile>& tile,
+                  const Cells& cells, const std::function<void(const ObjectRecord&)>& emit,
+                  SampleSummary& summary) {
     const std::vector<std::uint64_t> stars =
         cell_counts(cells, options.seed, options.stars.density, options.star_count, "star count");
     for (const std::uint64_t n : stars) summary.stars += n;
@@ -318,6 +335,47 @@ SampleSummary sample_field(const Morphology& morphology, const FieldGeometry& fi
             ++summary.stars_out;
         }
     }
+}
+
+}  // namespace
+
+SampleSummary sample_field(const Morphology& morphology, const FieldGeometry& field,
+                           const SampleOptions& options, const std::optional<Tile>& tile,
+                           const std::function<void(const ObjectRecord&)>& emit) {
+    options.validate();
+    require(field.nx > 0 && field.ny > 0 && field.pixel_scale > 0.0, "the field is empty");
+    SampleSummary summary;
+    const double scale = field.pixel_scale;
+
+    // Galaxies.
+    const std::vector<double> parents = parent_table(morphology, options.mag_limit);
+    DrawOptions draw = options.draw;
+    draw.by_magnitude = magnitude_order(morphology, options.mag_limit);
+    const Cells cells(field, options.cell);
+    const std::vector<std::uint64_t> galaxies =
+        cell_counts(cells, options.seed, options.density, options.count, "galaxy count");
+    for (const std::uint64_t n : galaxies) summary.galaxies += n;
+    const double reach_bound = galaxy_reach_bound(morphology, draw, options, scale);
+    summary.cells = cells.count();
+    for (std::uint64_t cell = 0; cell < cells.count(); ++cell) {
+        if (tile && !cells.reaches(cell, *tile, reach_bound)) continue;  // a tile reads its cells
+        ++summary.cells_read;
+        for (std::uint64_t j = 0; j < galaxies[cell]; ++j) {
+            const std::uint64_t k = object_key(cell, j);
+            RandomStream where(options.seed, k, "galaxy position");
+            const PixelPosition p = cells.position(cell, where);
+            if (tile && !tile->reaches(p.x, p.y, reach_bound)) continue;
+            RandomStream stream(options.seed, k, "galaxy");
+            const DrawnGalaxy g = draw_galaxy(morphology, parents, stream, scale,
+                                              options.zero_point, options.mag_limit, draw);
+            const double reach = model_reach(g.model.beta_pix, g.model.n_max) + options.margin;
+            if (tile && !tile->reaches(p.x, p.y, reach)) continue;
+            summary.redraws += std::uint64_t(g.redraws);
+            emit(galaxy_record(morphology, g, cell, j, p, field, options, reach));
+            ++summary.galaxies_out;
+        }
+    }
+    sample_stars(morphology, field, options, tile, cells, emit, summary);
     return summary;
 }
 

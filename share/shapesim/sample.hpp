@@ -27,7 +27,9 @@
 #include <cstdint>
 #include <functional>
 #include <map>
+#include <ostream>
 #include <optional>
+#include <string>
 #include <vector>
 
 namespace shapesim {
@@ -83,12 +85,27 @@ struct Tile {
 /// column and row of tiles take what is left. Throws Error unless both sides are ≥ 1.
 std::vector<Tile> tile_grid(long field_nx, long field_ny, long width, long height);
 
+/// The grid of tile_grid() as lines "IX IY X0 Y0 X1 Y1" (IX, IY from 0: the tile's column and
+/// row; the rest its --tile arguments), flushed; Error naming `name` when `out` fails.
+void write_tile_grid(std::ostream& out, const std::string& name, long field_nx, long field_ny,
+                     long width, long height);
+
+/// The model's say in a draw. With `fit_counts` (--counts fit), `options.draw.counts` are the
+/// counts fitted to its real fields (conditional_counts; when they cannot be, an Error naming
+/// `model_path` points to --counts parents). Unless `density_given`, `options.density` becomes
+/// the real fields' own, when the model recorded any: the fitted counts', else field_density().
+void apply_model_counts(SampleOptions& options, const Morphology& morphology, bool fit_counts,
+                        bool density_given, const std::string& model_path);
+
 /// Counts of what sample_field() drew and emitted.
 struct SampleSummary {
     std::uint64_t galaxies = 0, stars = 0;      ///< drawn over the whole field
     std::uint64_t galaxies_out = 0, stars_out = 0;  ///< emitted (in the tile)
     std::uint64_t redraws = 0;                  ///< perturbations refused and redrawn
     std::uint64_t cells = 0, cells_read = 0;    ///< sky cells, and those whose draws were read
+    /// The run's summary as shapesim-sample logs it (its elapsed time follows): drawn over
+    /// `field` at `density` per arcmin², written (`in_tile`: in the tile), cells, redraws.
+    std::string describe(const FieldGeometry& field, double density, bool in_tile) const;
 };
 
 /// Clones at the bright end (issue 14 §3): among the galaxies brighter than each limit, the

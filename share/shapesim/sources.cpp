@@ -1,11 +1,13 @@
 #include "shapesim/sources.hpp"
 
+#include "shapesim/bands.hpp"
 #include "shapesim/fits_io.hpp"
 #include "shapesim/jsonl.hpp"
 #include "shapesim/statistics.hpp"
 
 #include <algorithm>
 #include <cmath>
+#include <memory>
 #include <vector>
 
 namespace shapesim {
@@ -69,6 +71,35 @@ SourceRecord source_record(const Detection& object, const CoreFraction& core,
     e["zero_point"] = context.zero_point;
     e["image"] = context.image;
     return r;
+}
+
+CatalogueTally catalogue_sources(const DetectionResult& field, const PointSourceLocus& locus,
+                                 const SourceContext& context,
+                                 const std::vector<BandField>& bands, const StampOptions& stamp,
+                                 FitsWriter* stamps, bool stamp_stars, const SourceSink& sink) {
+    CatalogueTally tally;
+    for (const Detection& object : field.objects) {
+        if (is_single_pixel_event(object.peak, object.flux_iso)) {  // not a star: no PSF
+            ++tally.single_pixel_events;
+            continue;
+        }
+        const CoreFraction core = core_fraction(field, object, locus);
+        const double star = stellarity(core, locus);
+        const bool is_star = star > context.star_threshold;
+        std::unique_ptr<CutStamp> cut;
+        if (stamps && (!is_star || stamp_stars)) {
+            cut = std::make_unique<CutStamp>(
+                cut_stamp(field, object, std::to_string(object.label), stamp));
+            write_stamp(*stamps, cut->stamp);
+        }
+        SourceRecord record = source_record(object, core, star, cut.get(), context);
+        if (!bands.empty())
+            add_bands(record, bands, std::size_t(object.label - 1), object, cut.get(), stamps,
+                      context.stamps, stamp);
+        if (is_star) ++tally.stars;
+        sink(object, record, is_star, star);
+    }
+    return tally;
 }
 
 std::optional<double> header_zero_point(FitsReader& fits) {

@@ -16,12 +16,16 @@
 #include "shapesim/stamps.hpp"
 #include "shapesim/stellarity.hpp"
 
+#include <functional>
 #include <optional>
 #include <string>
+#include <vector>
 
 namespace shapesim {
 
 class FitsReader;
+class FitsWriter;
+struct BandField;
 
 /// Facts about the field every record of one run shares.
 struct SourceContext {
@@ -39,6 +43,26 @@ struct SourceContext {
 SourceRecord source_record(const Detection& object, const CoreFraction& core,
                            double stellarity_value, const CutStamp* cut,
                            const SourceContext& context);
+
+/// What catalogue_sources() left out or set aside.
+struct CatalogueTally {
+    long stars = 0;                ///< stellarity above context.star_threshold
+    long single_pixel_events = 0;  ///< cosmic rays, hot pixels: not recorded at all
+};
+
+/// One recorded detection, as catalogue_sources() hands it on.
+using SourceSink = std::function<void(const Detection& object, const SourceRecord& record,
+                                      bool is_star, double stellarity_value)>;
+
+/// The catalogue of a detected field, in label order: every object but the single-pixel
+/// events (is_single_pixel_event: no PSF, so no stellarity) gets its stellarity against
+/// `locus`, a stamp in `stamps` (when given; a star's only with `stamp_stars`, since nobody
+/// reads it otherwise), its `bands` (measure_bands(), in the same boxes) and a record to
+/// `sink`. `stamp` are the stamps' options; `context.stamps` names the file in the records.
+CatalogueTally catalogue_sources(const DetectionResult& field, const PointSourceLocus& locus,
+                                 const SourceContext& context,
+                                 const std::vector<BandField>& bands, const StampOptions& stamp,
+                                 FitsWriter* stamps, bool stamp_stars, const SourceSink& sink);
 
 /// A field's background noise as shapesim-detect measured it.
 struct FieldNoise {

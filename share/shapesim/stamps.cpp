@@ -5,6 +5,7 @@
 #include <algorithm>
 #include <cmath>
 #include <limits>
+#include <optional>
 
 namespace shapesim {
 
@@ -46,17 +47,10 @@ bool touches_object(const DetectionResult& field, int row, int column) {
     return false;
 }
 
-// The stamp of pixels [i0, i1] × [j0, j1] (0-based), its weights renormalised locally and the
-// source's photon noise added (see the header); `out` carries what the box choice found.
-CutStamp in_box(const DetectionResult& field, const Detection& object, const std::string& id,
-                int i0, int i1, int j0, int j1, const StampOptions& options, CutStamp out) {
-    const int nx = int(field.image.cols()), ny = int(field.image.rows());
-    const int depth = options.border_width;
-    const auto near_object = [&](int row, int column) { return touches_object(field, row, column); };
-    Stamp& stamp = out.stamp;
-    stamp.id = id;
-    stamp.x0 = i0 + 1;
-    stamp.y0 = j0 + 1;
+// The field's pixels of box [i0, i1] × [j0, j1] (0-based, inclusive) into `stamp`: image,
+// weight (inverse variance; 0 on bad pixels) and mask (other objects' segments).
+void copy_stamp_pixels(const DetectionResult& field, const Detection& object, int i0, int i1,
+                       int j0, int j1, Stamp& stamp) {
     const int w = i1 - i0 + 1, h = j1 - j0 + 1;
     stamp.image = field.image.block(j0, i0, h, w);
     stamp.weight.resize(h, w);
@@ -70,11 +64,19 @@ CutStamp in_box(const DetectionResult& field, const Detection& object, const std
             const int label = field.segmentation(row, column);
             if (label != 0 && label != object.label) stamp.mask(j, i) = 1.0;
         }
+}
 
-    // Local noise from sky pixels: the stamp's border ring, then, while there are too few,
-    // the sky around the stamp out to `max_margin` pixels beyond it. A sky pixel touching a
-    // segment is skipped while enough others remain: the segment took its neighbours'
-    // upward noise peaks, so the pixels left just outside it are biased low.
+// Local noise from sky pixels (in units of their σ): the stamp's border ring, then, while there
+// are too few, the sky around the stamp out to `max_margin` pixels beyond it. A sky pixel
+// touching a segment is skipped while enough others remain: the segment took its neighbours'
+// upward noise peaks, so the pixels left just outside it are biased low.
+std::vector<double> border_sky(const DetectionResult& field, int i0, int i1, int j0, int j1,
+                               const StampOptions& options) {
+    const int nx = int(field.image.cols()), ny = int(field.image.rows());
+    const int depth = options.border_width;
+    const auto near_object = [&](int row, int column) {
+        return touches_object(field, row, column);
+    };
     std::vector<double> z;
     for (const bool strict : {true, false}) {
         for (int margin = 0;; margin = std::max(2 * margin, 4)) {
@@ -99,6 +101,55 @@ CutStamp in_box(const DetectionResult& field, const Detection& object, const std
         }
         if (int(z.size()) >= options.min_border_pixels) break;
     }
+    return z;
+}
+
+// The stamp's pixel σ: the middle (upper median) of its good pixels' 1/√weight.
+std::optional<double> middle_sigma(const ImageArray& weight) {
+    std::vector<double> sigmas;
+    sigmas.reserve(std::size_t(weight.cols()) * std::size_t(weight.rows()));
+    for (int j = 0; j < int(weight.rows()); ++j)
+        for (int i = 0; i < int(weight.cols()); ++i)
+            if (weight(j, i) > 0.0) sigmas.push_back(1.0 / std::sqrt(weight(j, i)));
+    if (sigmas.empty()) return std::nullopt;
+    auto middle = sigmas.begin() + std::ptrdiff_t(sigmas.size() / 2);
+    std::nth_element(sigmas.begin(), middle, sigmas.end());
+    return *middle;
+}
+
+// Source photon noise (see the header), from the 3×3 mean about each pixel.
+void add_source_noise(Stamp& stamp, double gain) {
+    const int w = int(stamp.image.cols()), h = int(stamp.image.rows());
+    const ImageArray sky_weight = stamp.weight;
+    for (int j = 0; j < h; ++j)
+        for (int i = 0; i < w; ++i) {
+            if (!(sky_weight(j, i) > 0.0)) continue;
+            double sum = 0.0;
+            int n = 0;
+            for (int dj = -1; dj <= 1; ++dj)
+                for (int di = -1; di <= 1; ++di) {
+                    const int r = j + dj, c = i + di;
+                    if (r < 0 || c < 0 || r >= h || c >= w || !(sky_weight(r, c) > 0.0))
+                        continue;
+                    sum += stamp.image(r, c);
+                    ++n;
+                }
+            const double source = std::max(0.0, sum / n);
+            stamp.weight(j, i) = 1.0 / (1.0 / sky_weight(j, i) + source / gain);
+        }
+}
+
+// The stamp of pixels [i0, i1] × [j0, j1] (0-based), its weights renormalised locally and the
+// source's photon noise added (see the header); `out` carries what the box choice found.
+CutStamp in_box(const DetectionResult& field, const Detection& object, const std::string& id,
+                int i0, int i1, int j0, int j1, const StampOptions& options, CutStamp out) {
+    Stamp& stamp = out.stamp;
+    stamp.id = id;
+    stamp.x0 = i0 + 1;
+    stamp.y0 = j0 + 1;
+    copy_stamp_pixels(field, object, i0, i1, j0, j1, stamp);
+
+    const std::vector<double> z = border_sky(field, i0, i1, j0, j1, options);
     out.border_pixels = int(z.size());
     double local = 1.0;
     if (int(z.size()) >= options.min_border_pixels) {
@@ -110,38 +161,9 @@ CutStamp in_box(const DetectionResult& field, const Detection& object, const std
     }
     stamp.weight *= local;
     out.weight_scale = field.weight_scale * local;
+    if (const std::optional<double> sigma = middle_sigma(stamp.weight)) out.noise_rms = *sigma;
 
-    std::vector<double> sigmas;
-    sigmas.reserve(std::size_t(w) * std::size_t(h));
-    for (int j = 0; j < h; ++j)
-        for (int i = 0; i < w; ++i)
-            if (stamp.weight(j, i) > 0.0) sigmas.push_back(1.0 / std::sqrt(stamp.weight(j, i)));
-    if (!sigmas.empty()) {
-        auto middle = sigmas.begin() + std::ptrdiff_t(sigmas.size() / 2);
-        std::nth_element(sigmas.begin(), middle, sigmas.end());
-        out.noise_rms = *middle;
-    }
-
-    // Source photon noise (see the header), from the 3×3 mean about each pixel.
-    if (options.gain > 0.0) {
-        const ImageArray sky_weight = stamp.weight;
-        for (int j = 0; j < h; ++j)
-            for (int i = 0; i < w; ++i) {
-                if (!(sky_weight(j, i) > 0.0)) continue;
-                double sum = 0.0;
-                int n = 0;
-                for (int dj = -1; dj <= 1; ++dj)
-                    for (int di = -1; di <= 1; ++di) {
-                        const int r = j + dj, c = i + di;
-                        if (r < 0 || c < 0 || r >= h || c >= w || !(sky_weight(r, c) > 0.0))
-                            continue;
-                        sum += stamp.image(r, c);
-                        ++n;
-                    }
-                const double source = std::max(0.0, sum / n);
-                stamp.weight(j, i) = 1.0 / (1.0 / sky_weight(j, i) + source / options.gain);
-            }
-    }
+    if (options.gain > 0.0) add_source_noise(stamp, options.gain);
     return out;
 }
 
@@ -188,7 +210,9 @@ CutStamp cut_stamp(const DetectionResult& field, const Detection& object, const 
     const int nx = int(field.image.cols()), ny = int(field.image.rows());
     const int ic = int(std::lround(object.x)) - 1, jc = int(std::lround(object.y)) - 1;
     const int depth = options.border_width;
-    const auto near_object = [&](int row, int column) { return touches_object(field, row, column); };
+    const auto near_object = [&](int row, int column) {
+        return touches_object(field, row, column);
+    };
 
     CutStamp out;
     int side = extent_side(object, options);

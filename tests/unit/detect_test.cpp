@@ -5,6 +5,7 @@
 //
 // Signal-to-noise of a Gaussian of flux F and σ (any ellipticity of the same area) in white
 // noise σ_n, as an optimal (matched-filter) measurement would have it: F / (σ_n √(4π) σ).
+#include "shapesim/bands.hpp"
 #include "shapesim/detect.hpp"
 
 #include "shapesim/error.hpp"
@@ -451,6 +452,36 @@ TEST(DetectSynthetic, ConstantPedestalIsRemovedByTheBackground) {
     report("pedestal_max_flux_change_in_sigma", worst);
     // The mesh background is translation-equivariant up to float rounding in libsep.
     EXPECT_LT(worst, 0.01);
+}
+
+// catalogue_sources: one record per object in label order, each a star exactly when its
+// stellarity is above the threshold; with a threshold of 1 nothing is a star.
+TEST(DetectSynthetic, CatalogueRecordsEveryObjectOnce) {
+    const SyntheticCase& c = galaxy_field();
+    const PointSourceLocus locus = gaussian_point_source_locus(2.5);
+    for (const double threshold : {0.5, 1.0}) {
+        SourceContext context;
+        context.star_threshold = threshold;
+        std::vector<std::string> ids;
+        long stars = 0;
+        const CatalogueTally tally = catalogue_sources(
+            c.result, locus, context, {}, StampOptions{}, nullptr, false,
+            [&](const Detection& object, const SourceRecord& record, bool is_star, double star) {
+                EXPECT_EQ(record.id, std::to_string(object.label));
+                EXPECT_EQ(is_star, star > threshold);
+                ASSERT_TRUE(record.stellarity.has_value());
+                EXPECT_EQ(*record.stellarity, star);
+                ids.push_back(record.id);
+                stars += is_star;
+            });
+        EXPECT_EQ(tally.stars, stars);
+        EXPECT_EQ(long(ids.size()) + tally.single_pixel_events, long(c.result.objects.size()));
+        if (threshold == 1.0) {
+            EXPECT_EQ(tally.stars, 0);
+        }
+        for (std::size_t k = 1; k < ids.size(); ++k)
+            EXPECT_LT(std::stol(ids[k - 1]), std::stol(ids[k]));
+    }
 }
 
 TEST(DetectSynthetic, FwhmOfStars) {

@@ -10,6 +10,7 @@
 #include <algorithm>
 #include <cmath>
 #include <map>
+#include <sstream>
 #include <tuple>
 
 using namespace shapesim;
@@ -241,6 +242,49 @@ TEST(Sample, TileGridPartitionsTheField) {
     EXPECT_EQ(tile_grid(100, 100, 100, 100).size(), 1u);
     EXPECT_EQ(tile_grid(100, 100, 1000, 7).size(), 15u);
     EXPECT_THROW(tile_grid(100, 100, 0, 10), Error);
+}
+
+// --tile-grid's lines: column, row, then the tile's --tile arguments; a failed stream names
+// its sink.
+TEST(Sample, TileGridLines) {
+    std::ostringstream out;
+    write_tile_grid(out, "out", 602, 452, 320, 240);
+    EXPECT_EQ(out.str(), "0 0 1 1 320 240\n1 0 321 1 602 240\n0 1 1 241 320 452\n"
+                         "1 1 321 241 602 452\n");
+    std::ostringstream failed;
+    failed.setstate(std::ios::badbit);
+    EXPECT_THROW(write_tile_grid(failed, "out", 10, 10, 5, 5), Error);
+}
+
+// The run's summary line, field and counts in the order shapesim-sample logs them.
+TEST(Sample, SummaryDescribesTheDraw) {
+    SampleSummary s;
+    s.galaxies = 12;
+    s.stars = 3;
+    s.galaxies_out = 5;
+    s.stars_out = 1;
+    s.cells = 4;
+    s.cells_read = 2;
+    s.redraws = 7;
+    const FieldGeometry f = test_field(300, 150);
+    const std::string d = s.describe(f, 700.0, true);
+    EXPECT_EQ(d.rfind("12 galaxies and 3 stars over ", 0), 0u) << d;
+    EXPECT_NE(d.find(" arcmin^2 (700 per arcmin^2; 300 x 150 pixels); 5 galaxies and 1 stars "
+                     "written (in the tile) from 2 of 4 sky cells; 7 perturbations redrawn; "),
+              std::string::npos) << d;
+    EXPECT_EQ(s.describe(f, 700.0, false).find("(in the tile)"), std::string::npos);
+}
+
+// Without recorded fields the model leaves the density alone; with --counts parents it
+// fits nothing. No point of a plain model is shape-only.
+TEST(Sample, ModelCountsWithoutFieldsKeepTheDensity) {
+    const Morphology m = test_morphology();
+    ASSERT_TRUE(m.source_fields.empty());
+    SampleOptions o = crowded_options(1);
+    apply_model_counts(o, m, false, false, "model.json");
+    EXPECT_EQ(o.density, 3000.0);
+    EXPECT_FALSE(o.draw.counts.has_value());
+    EXPECT_EQ(count_shape_only(m), 0);
 }
 
 // The bright end's clones: the largest share of one parent below each limit, ties to the

@@ -80,8 +80,11 @@ void DetectionSettings::declare(ProgramOptions& options, bool image_required) {
          "objects with stellarity above this are stars");
 }
 
-DetectionRun DetectionSettings::run(const ProgramOptions& options, const Log& log) {
-    DetectionSettings& s = *this;
+namespace {
+
+// The options' values into DetectionOptions, and the combinations a single option cannot
+// refuse (po::error, so the message points to --help).
+void check_options(DetectionSettings& s, const ProgramOptions& options) {
     s.detection.clean = !s.no_clean;
     s.detection.rescale_weight = !s.no_rescale;
     if (s.filter_mode == "matched") s.detection.filter_mode = FilterMode::matched;
@@ -92,14 +95,12 @@ DetectionRun DetectionSettings::run(const ProgramOptions& options, const Log& lo
         throw po::error("--ra and --dec go together");
     if (!s.psf_image.empty() && !s.psf_model.empty())
         throw po::error("--psf-image and --psf-model exclude each other");
-    // The image, its geometry and zero point.
-    FitsReader fits(s.image, FitsStart::first_image);
-    DetectionRun r;
-    r.image = fits.read_image();
-    const ImageArray& image = r.image;
-    SourceContext& context = r.context;
-    context.image = s.image;
-    context.star_threshold = s.star_threshold;
+}
+
+// The image's geometry (its WCS, else --pixel-scale and --ra/--dec) and zero point (given,
+// else the header's, else 0) into `context`.
+void read_geometry(const DetectionSettings& s, const ProgramOptions& options, const Log& log,
+                   FitsReader& fits, const ImageArray& image, SourceContext& context) {
     if (has_wcs(fits)) {
         context.wcs = read_wcs(fits);
         context.pixel_scale = context.wcs->pixel_scale_arcsec();
@@ -119,35 +120,42 @@ DetectionRun DetectionSettings::run(const ProgramOptions& options, const Log& lo
     if (options.given("zero-point")) context.zero_point = s.zero_point;
     else if (auto zp = header_zero_point(fits)) context.zero_point = *zp;
     else log.info("no zero point given or in the header: magnitudes use zero point 0");
+}
 
-    std::unique_ptr<ImageArray> inverse_variance;
-    if (!s.weight.empty()) {
-        FitsReader weight_fits(s.weight, FitsStart::first_image);
-        inverse_variance = std::make_unique<ImageArray>(inverse_variance_from(
-            weight_fits.read_image(), parse_noise_map_type(s.weight_type), weight_fits.place()));
-        if (inverse_variance->rows() != image.rows() || inverse_variance->cols() != image.cols())
-            throw Error("weight map is " + std::to_string(inverse_variance->cols()) + "×" +
-                            std::to_string(inverse_variance->rows()) + " pixels, the image " +
-                            std::to_string(image.cols()) + "×" + std::to_string(image.rows()),
-                        weight_fits.place());
-    }
+// The --weight map as inverse variance (null without one); Error unless it is the image's size.
+std::unique_ptr<ImageArray> read_inverse_variance(const DetectionSettings& s,
+                                                  const ImageArray& image) {
+    if (s.weight.empty()) return nullptr;
+    FitsReader weight_fits(s.weight, FitsStart::first_image);
+    auto inverse_variance = std::make_unique<ImageArray>(inverse_variance_from(
+        weight_fits.read_image(), parse_noise_map_type(s.weight_type), weight_fits.place()));
+    if (inverse_variance->rows() != image.rows() || inverse_variance->cols() != image.cols())
+        throw Error("weight map is " + std::to_string(inverse_variance->cols()) + "×" +
+                        std::to_string(inverse_variance->rows()) + " pixels, the image " +
+                        std::to_string(image.cols()) + "×" + std::to_string(image.rows()),
+                    weight_fits.place());
+    return inverse_variance;
+}
 
-    // The point-source locus for the stellarity.
+// The point-source locus for the stellarity, from --psf-image, --psf-model or the Gaussian of
+// --psf-fwhm, and the note that names it in the summary line.
+void point_source_locus(const DetectionSettings& s, const ProgramOptions& options,
+                        double pixel_scale, DetectionRun& r) {
     PointSourceLocus& locus = r.locus;
     if (!s.psf_image.empty()) {
         const PsfImage psf = read_psf_image(
             s.psf_image, options.given("psf-pixel-scale") ? std::optional(s.psf_pixel_scale)
                                                           : std::nullopt);
         locus = image_point_source_locus(convolve_boxes(psf.pixels, psf.pixel_scale, s.psf_box),
-                                         psf.pixel_scale, context.pixel_scale);
+                                         psf.pixel_scale, pixel_scale);
         r.locus_note = "the PSF image " + s.psf_image;
     } else if (!s.psf_model.empty()) {
         // The stellarity needs the shape in image pixels; the flux is normalised out.
-        const ShapeletModel model = read_psf_model(s.psf_model, context.pixel_scale);
+        const ShapeletModel model = read_psf_model(s.psf_model, pixel_scale);
         locus = model_point_source_locus(model);
         r.locus_note = "the PSF model " + s.psf_model;
     } else {
-        locus = gaussian_point_source_locus(s.psf_fwhm / context.pixel_scale);
+        locus = gaussian_point_source_locus(s.psf_fwhm / pixel_scale);
         std::ostringstream note;
         note << "a Gaussian PSF of FWHM " << s.psf_fwhm << "\""
              << (options.given("psf-fwhm") ? ""
@@ -155,26 +163,78 @@ DetectionRun DetectionSettings::run(const ProgramOptions& options, const Log& lo
                                              "--psf-image for this image's own");
         r.locus_note = note.str();
     }
-    log.verbose("point-source locus: FWHM ", locus.fwhm, " px, core fraction ", locus.ratio,
-                " ± ", locus.scatter, " (r ", locus.r_core, " / ", locus.r_outer, " px)");
+}
 
-    r.field = detect_sources(image, inverse_variance.get(), s.detection);
-    const DetectionResult& field = r.field;
+// What the detection found, and what a user should doubt: pixels with no data, a weight map
+// whose scale is far from the measured noise (the wrong --weight-type?).
+void report_detection(const DetectionSettings& s, const Log& log, const DetectionResult& field,
+                      bool weighted) {
     log.info(field.objects.size(), " objects above ", s.detection.detect_thresh,
              "σ (background rms ", field.background_rms, ", weight scale ", field.weight_scale,
              ", correlated-noise factor ", field.noise_correlation, ")");
-
     if (field.zero_noise_pixels > 0)
         log.warn(field.zero_noise_pixels, " pixels with no data (0 with every neighbour 0, or "
                  "no noise: a zero-filled border?) are treated as bad; give a weight map to say "
                  "so");
-    context.noise_correlation = field.noise_correlation;
-    context.background_rms = field.background_rms;
-    if (inverse_variance && (field.weight_scale > 100.0 || field.weight_scale < 0.01))
+    if (weighted && (field.weight_scale > 100.0 || field.weight_scale < 0.01))
         log.warn("the weight map's noise differs from the measured rms by a factor ",
                  1.0 / std::sqrt(field.weight_scale), " (is --weight-type ", s.weight_type,
                  " right?)");
+}
+
+}  // namespace
+
+DetectionRun DetectionSettings::run(const ProgramOptions& options, const Log& log) {
+    check_options(*this, options);
+    FitsReader fits(image, FitsStart::first_image);
+    DetectionRun r;
+    r.image = fits.read_image();
+    r.context.image = image;
+    r.context.star_threshold = star_threshold;
+    read_geometry(*this, options, log, fits, r.image, r.context);
+    const std::unique_ptr<ImageArray> inverse_variance = read_inverse_variance(*this, r.image);
+    point_source_locus(*this, options, r.context.pixel_scale, r);
+    const PointSourceLocus& locus = r.locus;
+    log.verbose("point-source locus: FWHM ", locus.fwhm, " px, core fraction ", locus.ratio,
+                " ± ", locus.scatter, " (r ", locus.r_core, " / ", locus.r_outer, " px)");
+    r.field = detect_sources(r.image, inverse_variance.get(), detection);
+    r.context.noise_correlation = r.field.noise_correlation;
+    r.context.background_rms = r.field.background_rms;
+    report_detection(*this, log, r.field, inverse_variance != nullptr);
     return r;
+}
+
+void declare_stamp_options(po::options_description_easy_init& add, StampOptions& stamp) {
+    add
+        ("stamp-factor", po::value(&stamp.size_factor)->default_value(3.0)
+             ->notifier(in_range("stamp-factor", 0.0, 1e3)),
+         "stamp side >= factor · A_IMAGE + offset, pixels (and >= the object's segment plus "
+         "--stamp-sky-margin, and its Kron aperture; then grown x1.25 until the border is sky)")
+        ("stamp-offset", po::value(&stamp.size_offset)->default_value(5.0)
+             ->notifier(in_range("stamp-offset", 1.0, 1e4)), "see --stamp-factor")
+        ("stamp-sky-margin", po::value(&stamp.sky_margin)->default_value(4)
+             ->notifier(in_range("stamp-sky-margin", 0, 10000)),
+         "sky pixels beyond the object's segment on each side of its stamp")
+        ("stamp-max-side", po::value(&stamp.max_side)->default_value(513)
+             ->notifier(in_range("stamp-max-side", 3, 100000)),
+         "stamps are never grown beyond this side, pixels (flag stamp_not_sky)")
+        ("border-width", po::value(&stamp.border_width)->default_value(2)
+             ->notifier(in_range("border-width", 1, 1000)),
+         "depth of the stamp border that sets the local noise, pixels");
+}
+
+void declare_sky_noise_options(po::options_description_easy_init& add, SkyNoiseOptions& noise) {
+    add
+        ("noise-radius", po::value(&noise.radius)->default_value(8)
+             ->notifier(in_range("noise-radius", 0, 64)),
+         "largest lag of the measured autocorrelation, pixels")
+        ("noise-grow", po::value(&noise.grow)->default_value(2)
+             ->notifier(in_range("noise-grow", 0, 100)),
+         "sky pixels kept this far from every masked object and bad pixel, pixels")
+        ("noise-mask-snr", po::value(&noise.mask_snr)->default_value(4.0)
+             ->notifier(in_range("noise-mask-snr", 0.0, 1e9)),
+         "mask only objects of at least this S/N (fainter ones are mostly the noise's own "
+         "peaks; 0: mask all)");
 }
 
 }  // namespace shapesim::app

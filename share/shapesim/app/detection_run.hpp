@@ -6,7 +6,9 @@
 #include "shapesim/app/log.hpp"
 #include "shapesim/app/options.hpp"
 #include "shapesim/detect.hpp"
+#include "shapesim/noise.hpp"
 #include "shapesim/sources.hpp"
+#include "shapesim/stamps.hpp"
 #include "shapesim/stellarity.hpp"
 
 #include <string>
@@ -40,5 +42,11 @@ struct DetectionSettings {
     /// Check the values and run the detection (Error / po::error on bad input).
     DetectionRun run(const ProgramOptions& options, const Log& log);
 };
+
+/// The stamps' options (--stamp-factor, --stamp-offset, --stamp-sky-margin, --stamp-max-side,
+/// --border-width), added in that order to the group `add` adds to.
+void declare_stamp_options(po::options_description_easy_init& add, StampOptions& stamp);
+/// The sky noise measurement's options (--noise-radius, --noise-grow, --noise-mask-snr).
+void declare_sky_noise_options(po::options_description_easy_init& add, SkyNoiseOptions& noise);
 
 }  // namespace shapesim::app

@@ -52,4 +52,20 @@ std::optional<Tile> FieldOptions::window(const ProgramOptions& options, const Fi
     return t;
 }
 
+void declare_star_options(ProgramOptions& options, StarCounts& stars, std::uint64_t& count,
+                          std::string& histogram) {
+    options.group("Stars").add_options()
+        ("star-density", po::value(&stars.density)->default_value(0.0)
+             ->notifier(in_range("star-density", 0.0, 1e8)), "stars per arcmin^2 (Poisson)")
+        ("star-count", po::value(&count), "exactly this many stars instead")
+        ("star-slope", po::value(&stars.slope)->default_value(0.1)
+             ->notifier(in_range("star-slope", -10.0, 10.0)), "d log10 N / dm of the star counts")
+        ("star-mag-min", po::value(&stars.mag_min)->default_value(18.0)
+             ->notifier(in_range("star-mag-min", -100.0, 100.0)), "brightest star")
+        ("star-mag-max", po::value(&stars.mag_max)->notifier(in_range("star-mag-max", -100.0, 100.0)),
+         "faintest star (default: --mag-limit)")
+        ("star-histogram", po::value(&histogram)->value_name("FILE"),
+         "star counts from lines 'mag_lo mag_hi count' instead of the power law");
+}
+
 }  // namespace shapesim::app

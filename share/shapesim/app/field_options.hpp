@@ -7,6 +7,7 @@
 #include "shapesim/geometry.hpp"
 #include "shapesim/sample.hpp"
 
+#include <cstdint>
 #include <optional>
 #include <string>
 #include <vector>
@@ -26,5 +27,11 @@ struct FieldOptions {
     std::optional<Tile> window(const ProgramOptions& options, const FieldGeometry& field,
                                bool within) const;
 };
+
+/// The group "Stars" of a program that draws stars (shapesim-sample): --star-density,
+/// --star-count (into `count`), --star-slope, --star-mag-min, --star-mag-max and
+/// --star-histogram (its FILE into `histogram`), in that order.
+void declare_star_options(ProgramOptions& options, StarCounts& stars, std::uint64_t& count,
+                          std::string& histogram);
 
 }  // namespace shapesim::app
