@@ -15,7 +15,6 @@
 #include "shapesim/records.hpp"
 #include "shapesim/sources.hpp"
 
-#include <iostream>
 #include <memory>
 #include <optional>
 
@@ -72,7 +71,7 @@ void declare(app::ProgramOptions& options, Settings& s) {
 
 int run(int argc, const char* const argv[]) {
     app::ProgramOptions options("shapesim-detect", "[OPTION]... IMAGE", description,
-                                app::Common::quiet | app::Common::verbose |
+                                app::Common::output | app::Common::quiet | app::Common::verbose |
                                     app::Common::config | app::Common::print_params);
     Settings s;
     declare(options, s);
@@ -82,6 +81,7 @@ int run(int argc, const char* const argv[]) {
     // Refuse unwritable outputs before the work.
     for (const std::string* path : {&s.stamps, &s.stars, &s.segmentation, &s.noise_model})
         if (!path->empty()) app::check_writable(*path);
+    app::AtomicTextFile file(options.common().output_or_stdout());
 
     std::vector<BandRecord> band_list;
     if (!s.bands.empty()) band_list = BandRecord::read_all(s.bands);
@@ -92,7 +92,6 @@ int run(int argc, const char* const argv[]) {
     SourceContext& context = detected.context;
     context.stamps = s.stamps;
     const DetectionResult& field = detected.field;
-    const PointSourceLocus& locus = detected.locus;
     // Measured before any output, so a field without enough sky fails with nothing written.
     std::optional<NoiseRecord> noise;
     if (!s.noise_model.empty()) {
@@ -110,9 +109,9 @@ int run(int argc, const char* const argv[]) {
         stars_file = std::make_unique<app::AtomicTextFile>(s.stars);
         stars_out = std::make_unique<JsonlWriter>(stars_file->stream(), s.stars);
     }
-    JsonlWriter out(std::cout, "-");
+    JsonlWriter out(file.stream(), file.name());
     const CatalogueTally tally = catalogue_sources(
-        field, locus, context, bands, s.stamp, stamps.get(), stars_out != nullptr,
+        field, detected.locus, context, bands, s.stamp, stamps.get(), stars_out != nullptr,
         [&](const Detection& object, const SourceRecord& record, bool is_star, double star) {
             if (!is_star) out.write(record.to_json());
             else if (stars_out) stars_out->write(record.to_json());
@@ -127,15 +126,16 @@ int run(int argc, const char* const argv[]) {
         seg.commit();
     }
     if (noise) {
-        app::AtomicTextFile file(s.noise_model);
-        JsonlWriter(file.stream(), s.noise_model).write(noise->to_json());
-        file.commit();
+        app::AtomicTextFile noise_file(s.noise_model);
+        JsonlWriter(noise_file.stream(), s.noise_model).write(noise->to_json());
+        noise_file.commit();
         log.info("sky noise: rms ", noise->rms, " (MAD σ ", noise->mad_sigma, ") over ",
                  noise->pixels, " pixels; autocorrelation at (1,0) ", noise->correlation.at(1, 0),
                  ", (1,1) ", noise->correlation.at(1, 1), ", (2,0) ", noise->correlation.at(2, 0));
     }
     if (stamps) stamps->commit();
     if (stars_file) stars_file->commit();
+    file.commit();
     log.info(out.count(), " galaxies, ", tally.stars, " stars (stellarity > ",
              context.star_threshold, ", through ", detected.locus_note, ") in ", log.elapsed(),
              " s");

@@ -2,6 +2,7 @@
 // DESIGN §5) as shapesim.morph/1 records. Detection is shapesim-detect's own
 // (app/detection_run.hpp), the statistics are measure.hpp / morphometry.hpp; the comparison
 // modes are app/compare_run.hpp.
+#include "shapesim/app/atomic_file.hpp"
 #include "shapesim/app/compare_run.hpp"
 #include "shapesim/app/detection_run.hpp"
 #include "shapesim/app/options.hpp"
@@ -13,7 +14,6 @@
 #include "shapesim/parallel.hpp"
 #include "shapesim/stellarity.hpp"
 
-#include <iostream>
 
 namespace {
 
@@ -27,17 +27,16 @@ const char* const description =
     "Gini and M20, defined as statmorph defines them, with flags where a statistic is\n"
     "unreliable (small, faint, crowded, no_sky). Records go to stdout as shapesim.morph/1.\n"
     "\n"
-    "\n"
     "With --compare NAME=FILE ... (measured catalogues; the first is the reference), write to\n"
-    "--out DIR: table.md (the paper's Table: mean and rms of C, A, S, rms e, median and sd\n"
-    "of the FWHM, with bootstrap errors), distances.md (KS statistic and p-value, 1D\n"
-    "Wasserstein distance of each catalogue from the first, per statistic) and, with\n"
+    "-o DIR (default: compare): table.md (the paper's Table: mean and rms of C, A, S, rms e,\n"
+    "median and sd of the FWHM, with bootstrap errors), distances.md (KS statistic and\n"
+    "p-value, 1D Wasserstein distance of each catalogue from the first, per statistic) and, with\n"
     "gnuplot, the figures of the paper's Figs. 5-11 as PNG.\n"
     "\n"
     "Examples (the shipped HDF-N data):\n"
     "  shapesim-measure hdfn_f814w_v2.fits --weight hdfn_f814w_v2_weight.fits \\\n"
     "      --zero-point 22.08 -j 2 > hdf.morph.jsonl\n"
-    "  shapesim-measure --compare hdf=hdf.morph.jsonl sim=sim.morph.jsonl --out report";
+    "  shapesim-measure --compare hdf=hdf.morph.jsonl sim=sim.morph.jsonl -o report";
 
 int run(int argc, const char* const argv[]) {
     app::ProgramOptions options("shapesim-measure", "[OPTION]... IMAGE", description,
@@ -70,22 +69,28 @@ int run(int argc, const char* const argv[]) {
     if (!compare.colours.empty()) {
         if (!detection.image.empty() || !compare.inputs.empty() || !compare.skies.empty())
             throw po::error("--compare-colours: not with an IMAGE, --compare or --compare-sky");
-        compare.write_colours(std::cout, options.given("mag-limit") ? mag_limit : 99.0,
+        app::AtomicTextFile file(options.common().output_or_stdout());
+        compare.write_colours(file.stream(), options.given("mag-limit") ? mag_limit : 99.0,
                               options.common().threads);
+        file.commit();
         return 0;
     }
     if (!compare.skies.empty()) {
         if (!detection.image.empty() || !compare.inputs.empty())
             throw po::error("--compare-sky: not with an IMAGE or --compare");
-        compare.write_skies(std::cout);
+        app::AtomicTextFile file(options.common().output_or_stdout());
+        compare.write_skies(file.stream());
+        file.commit();
         return 0;
     }
     if (!compare.inputs.empty()) {
         if (!detection.image.empty()) throw po::error("give an IMAGE or --compare, not both");
+        if (!options.common().output.empty()) compare.out = options.common().output;
         compare.write_report(log);
         return 0;
     }
     if (detection.image.empty()) throw po::error("give an IMAGE to measure (or --compare)");
+    app::AtomicTextFile file(options.common().output_or_stdout());
 
     const app::DetectionRun detected = detection.run(options, log);
     const DetectionResult& field = detected.field;
@@ -121,7 +126,7 @@ int run(int argc, const char* const argv[]) {
         progress.done_one();
     });
 
-    JsonlWriter out(std::cout, "-");
+    JsonlWriter out(file.stream(), file.name());
     long skipped = 0;
     for (const Job& job : jobs) {
         if (!job.record) {
@@ -131,6 +136,7 @@ int run(int argc, const char* const argv[]) {
         }
         out.write(job.record->to_json());
     }
+    file.commit();
     log.info(out.count(), " objects measured", skipped ? ", " + std::to_string(skipped) + " skipped" : "",
              too_faint ? ", " + std::to_string(too_faint) + " fainter than --mag-limit left out" : "",
              " in ", log.elapsed(), " s; stars (left out) through ", detected.locus_note);

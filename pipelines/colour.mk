@@ -72,7 +72,7 @@ $(OUT)/psf.jsonl: $(call sci,f814w) $(call prog,decompose)
 # Detection on the detection image; every band measured in its apertures and cut in its boxes.
 $(OUT)/sources.jsonl $(OUT)/stamps.fits $(OUT)/stars.jsonl &: $(OUT)/real.bands.jsonl $(OUT)/psf.jsonl $(call prog,detect)
 	$(call prog,detect) $(call sci,detection) --weight $(call wht,detection) --pixel-scale $(SCALE) \
-	  --psf-model $(OUT)/psf.jsonl --bands $(OUT)/real.bands.jsonl --stamps $(OUT)/stamps.fits \
+	  --psf $(OUT)/psf.jsonl --bands $(OUT)/real.bands.jsonl --stamps $(OUT)/stamps.fits \
 	  --stars $(OUT)/stars.jsonl > $(OUT)/sources.jsonl.tmp
 	mv $(OUT)/sources.jsonl.tmp $(OUT)/sources.jsonl
 
@@ -122,11 +122,11 @@ $(OUT)/%.sim-bands.jsonl: $(foreach b,$(BANDS),$(OUT)/%/$(b).fits)
 # Real and simulated fields measured alike: detection on F814W, every band in its apertures.
 $(OUT)/real.sources.jsonl: $(OUT)/real.bands.jsonl $(OUT)/psf.jsonl $(call prog,detect)
 	$(call prog,detect) -q $(call sci,f814w) --weight $(call wht,f814w) --pixel-scale $(SCALE) \
-	  --zero-point $(ZP_f814w) --psf-model $(OUT)/psf.jsonl --bands $< > $(tmp)
+	  --zero-point $(ZP_f814w) --psf $(OUT)/psf.jsonl --bands $< > $(tmp)
 	mv $(tmp) $@
 $(OUT)/delta.sources.jsonl $(OUT)/sim.sources.jsonl: $(OUT)/%.sources.jsonl: $(OUT)/%.sim-bands.jsonl $(OUT)/psf.jsonl $(call prog,detect)
 	$(call prog,detect) -q $(OUT)/$*/f814w.fits --pixel-scale $(SCALE) --zero-point $(ZP_f814w) \
-	  --psf-model $(OUT)/psf.jsonl --bands $< > $(tmp)
+	  --psf $(OUT)/psf.jsonl --bands $< > $(tmp)
 	mv $(tmp) $@
 
 $(OUT)/colours.md: $(OUT)/real.sources.jsonl $(OUT)/delta.sources.jsonl $(OUT)/sim.sources.jsonl $(call prog,measure)

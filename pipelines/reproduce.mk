@@ -124,7 +124,7 @@ $(OUT)/xdf/psf.jsonl: $(XDF_IMAGE) $(call prog,decompose)
 	mv $(tmp) $@
 $(OUT)/xdf/sources.jsonl $(OUT)/xdf/stamps.fits $(OUT)/xdf/stars.jsonl $(OUT)/xdf/real.noise.jsonl &: $(XDF_IMAGE) $(XDF_WEIGHT) $(OUT)/xdf/psf.jsonl $(call prog,detect)
 	$(call prog,detect) $(XDF_IMAGE) --weight $(XDF_WEIGHT) --pixel-scale $(XDF_SCALE) \
-	  --zero-point $(XDF_ZERO_POINT) --gain $(XDF_GAIN) --psf-model $(OUT)/xdf/psf.jsonl \
+	  --zero-point $(XDF_ZERO_POINT) --gain $(XDF_GAIN) --psf $(OUT)/xdf/psf.jsonl \
 	  --stamps $(OUT)/xdf/stamps.fits --stars $(OUT)/xdf/stars.jsonl \
 	  --noise-model $(OUT)/xdf/real.noise.jsonl > $(OUT)/xdf/sources.jsonl.tmp
 	mv $(OUT)/xdf/sources.jsonl.tmp $(OUT)/xdf/sources.jsonl
@@ -227,7 +227,7 @@ $(OUT)/xdf/sky.md: $(OUT)/xdf/real.noise.jsonl $(OUT)/xdf/delta.noise.jsonl $(ca
 # The stellarity through the star's PSF model: the default 0.15″ Gaussian is too narrow at
 # 0.06″ pixels and called the cutout's star a galaxy (stellarity 0), one more in the real row.
 XDF_MEASURE = $(call prog,measure) --zero-point $(XDF_ZERO_POINT) --mag-limit $(MAG_LIMIT) -j $(THREADS) \
-  --psf-model $(OUT)/xdf/psf.jsonl
+  --psf $(OUT)/xdf/psf.jsonl
 $(OUT)/xdf/real.morph.jsonl: $(XDF_IMAGE) $(XDF_WEIGHT) $(OUT)/xdf/psf.jsonl $(call prog,measure)
 	$(XDF_MEASURE) $(XDF_IMAGE) --weight $(XDF_WEIGHT) --pixel-scale $(XDF_SCALE) > $(tmp)
 	mv $(tmp) $@
@@ -236,7 +236,7 @@ $(OUT)/xdf/delta.morph.jsonl: $(OUT)/xdf/delta.fits $(OUT)/xdf/psf.jsonl $(call 
 	mv $(tmp) $@
 $(OUT)/xdf/table.md: $(OUT)/xdf/real.morph.jsonl $(OUT)/xdf/delta.morph.jsonl $(call prog,measure)
 	$(call prog,measure) --compare $(foreach c,real delta,xdf_$c=$(OUT)/xdf/$c.morph.jsonl) \
-	  --out $(OUT)/xdf/compare
+	  -o $(OUT)/xdf/compare
 	cp $(OUT)/xdf/compare/table.md $@
 
 # --- the δ-function simulations at five seeds ---------------------------------------------
@@ -266,9 +266,9 @@ $(OUT)/seeds/xdf_%.morph.jsonl: $(OUT)/seeds/xdf_%.fits $(OUT)/xdf/psf.jsonl $(c
 SEED_FILES := $(foreach f,hdf xdf,$(foreach s,$(SEEDS),$(foreach e,objects.jsonl fits morph.jsonl,$(OUT)/seeds/$(f)_$(s).$(e))))
 $(OUT)/seeds.md: $(R)pipelines/seeds.sh $(SEED_FILES) $(OUT)/hdf.morph.jsonl $(OUT)/xdf/real.morph.jsonl $(call prog,measure)
 	$(call prog,measure) -q --compare hdf=$(OUT)/hdf.morph.jsonl \
-	  $(foreach s,$(SEEDS),delta$(s)=$(OUT)/seeds/hdf_$(s).morph.jsonl) --out $(OUT)/seeds/hdf
+	  $(foreach s,$(SEEDS),delta$(s)=$(OUT)/seeds/hdf_$(s).morph.jsonl) -o $(OUT)/seeds/hdf
 	$(call prog,measure) -q --compare xdf=$(OUT)/xdf/real.morph.jsonl \
-	  $(foreach s,$(SEEDS),delta$(s)=$(OUT)/seeds/xdf_$(s).morph.jsonl) --out $(OUT)/seeds/xdf
+	  $(foreach s,$(SEEDS),delta$(s)=$(OUT)/seeds/xdf_$(s).morph.jsonl) -o $(OUT)/seeds/xdf
 	$(R)pipelines/seeds.sh $(OUT)/seeds/hdf $(OUT)/seeds/xdf > $(tmp)
 	mv $(tmp) $@
 
@@ -293,7 +293,7 @@ $(OUT)/sky.md: $(OUT)/hdf.noise.jsonl $(OUT)/delta.noise.jsonl $(OUT)/sim.noise.
 CATALOGUES := hdf delta sim sim6 merged6
 $(OUT)/table.md: $(CATALOGUES:%=$(OUT)/%.morph.jsonl) $(PAPER) $(call prog,measure)
 	$(call prog,measure) --compare $(foreach c,$(CATALOGUES),$c=$(OUT)/$c.morph.jsonl) \
-	  --paper $(PAPER) --out $(OUT)/compare
+	  --paper $(PAPER) -o $(OUT)/compare
 	cp $(OUT)/compare/table.md $@
 
 # --- figures and the report -------------------------------------------------------------

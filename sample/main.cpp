@@ -1,6 +1,7 @@
 // shapesim-sample: the morphology model (shapesim-smooth) → new objects over a sky field as
 // shapesim.object/1 records on stdout (paper §4.1–4.2; DESIGN §4, §6). The work is in the
 // library: morphology.hpp (the draws), sample.hpp (the field, stars, tiles).
+#include "shapesim/app/atomic_file.hpp"
 #include "shapesim/app/field_options.hpp"
 #include "shapesim/app/options.hpp"
 #include "shapesim/app/run_main.hpp"
@@ -8,8 +9,6 @@
 #include "shapesim/jsonl.hpp"
 #include "shapesim/morphology.hpp"
 #include "shapesim/sample.hpp"
-
-#include <iostream>
 
 namespace {
 
@@ -21,9 +20,8 @@ const char* const description =
     "picked at random, its magnitude perturbed, the shape of one of the --neighbours real\n"
     "galaxies nearest that magnitude, every parameter perturbed by an Epanechnikov kernel\n"
     "of its smoothing length), give each a uniform position, orientation and flip, add\n"
-    "stars, and write\n"
-    "shapesim.object/1 records. Every draw comes from the stream of (seed, object), so a\n"
-    "tile (--tile) holds exactly the objects of the whole field that reach it.\n"
+    "stars, and write shapesim.object/1 records. Every draw comes from the stream of (seed,\n"
+    "object), so a tile (--tile) holds exactly the objects of the whole field that reach it.\n"
     "\n"
     "Examples:\n"
     "  shapesim-sample morphology.pdf.json --like hdf.fits --seed 7 > objects.jsonl\n"
@@ -35,8 +33,7 @@ struct Settings {
     std::string model;
     app::FieldOptions field;
     double margin = 0.5;
-    std::string star_histogram;
-    std::string counts = "fit";
+    std::string star_histogram, counts = "fit";
     std::uint64_t count = 0, star_count = 0;
     std::vector<long> tile_grid;
     SampleOptions sample;
@@ -44,15 +41,16 @@ struct Settings {
 
 int run(int argc, const char* const argv[]) {
     app::ProgramOptions options("shapesim-sample", "[OPTION]... MODEL", description,
-                                app::Common::quiet | app::Common::verbose | app::Common::seed |
+                                app::Common::output | app::Common::quiet | app::Common::verbose | app::Common::seed |
                                     app::Common::like | app::Common::config |
                                     app::Common::print_params);
     Settings s;
     SampleOptions& o = s.sample;
     using app::in_range;
-    options.hidden().add_options()("model", po::value(&s.model),
-                                   "morphology model (shapesim-smooth)");
-    options.positional("model", 1);
+    options.group("Input").add_options()(
+        "input,i", po::value(&s.model)->value_name("MODEL"),
+        "the morphology model (shapesim-smooth), or the first argument");
+    options.positional("input", 1);
     s.field.declare(options, "Field (default: --like)",
                     "only the objects reaching these field pixels (FITS, inclusive)");
     options.group("Field (default: --like)").add_options()
@@ -98,11 +96,13 @@ int run(int argc, const char* const argv[]) {
     const app::Log log("shapesim-sample", options.common().verbosity);
 
     const FieldGeometry field = s.field.field(options);
+    app::AtomicTextFile file(options.common().output_or_stdout());
     if (options.given("tile-grid")) {
         if (s.tile_grid.empty() || s.tile_grid.size() > 2 || s.tile_grid.front() < 1 || s.tile_grid.back() < 1)
             throw po::error("--tile-grid takes W [H], whole numbers of pixels >= 1");
-        write_tile_grid(std::cout, "stdout", field.nx, field.ny, s.tile_grid.front(),
+        write_tile_grid(file.stream(), file.name(), field.nx, field.ny, s.tile_grid.front(),
                         s.tile_grid.back());
+        file.commit();
         return 0;
     }
     if (s.model.empty()) throw po::error("give the morphology MODEL (from shapesim-smooth)");
@@ -119,8 +119,7 @@ int run(int argc, const char* const argv[]) {
     // The real field's density at this magnitude limit, when smooth recorded it (--like): the
     // fitted counts' with them.
     apply_model_counts(o, morphology, s.counts == "fit", options.given("density"), s.model);
-    const std::optional<CountModel>& counts = o.draw.counts;
-    if (counts)
+    if (const std::optional<CountModel>& counts = o.draw.counts)
         log.info("galaxy counts: d log10 N / dm = ", counts->slope, ", ", counts->density(),
                  " per arcmin^2 over ", counts->bright, " - ", counts->faint, ", fitted to ",
                  counts->galaxies, " galaxies of ", morphology.source_fields.size(), " field(s)");
@@ -134,12 +133,13 @@ int run(int argc, const char* const argv[]) {
     const long shape_only = count_shape_only(morphology);
     if (shape_only > 0 && o.draw.neighbours == 0)
         log.info(shape_only, " shape-only models unused: only --neighbours draws take their shapes");
-    JsonlWriter out(std::cout, "-");
+    JsonlWriter out(file.stream(), file.name());
     ParentShares parents;
     const SampleSummary summary = sample_field(morphology, field, o, tile, [&](const ObjectRecord& r) {
         out.write(r.to_json());
         parents.add(r);
     });
+    file.commit();
     log.info(summary.describe(field, o.density, tile.has_value()), log.elapsed(), " s");
     log.info("largest share of one parent among the galaxies written: ", parents.summary());
     return 0;

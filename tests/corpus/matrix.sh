@@ -146,7 +146,7 @@ done
 json_row() {
   local label=$1 psf=$2 sources=$3 shapelets=$4 model=$5 objects=$6 morph=$7
   cells=("$label")
-  run detect "$label" detect good.fits --psf-model "$psf" --stamps out/stamps.fits
+  run detect "$label" detect good.fits --psf "$psf" --stamps out/stamps.fits
   cells+=("$cell")
   run decompose "$label" decompose -i "$sources" --stamps base/stamps.fits
   cells+=("$cell")
@@ -158,7 +158,7 @@ json_row() {
   cells+=("$cell")
   run render-psf "$label" render -i base/objects.jsonl --psf "$psf" --like good.fits -o out/sim.fits
   cells+=("$cell")
-  run measure "$label" measure --compare "a=$morph" b=base/morph.jsonl --out out/compare
+  run measure "$label" measure --compare "a=$morph" b=base/morph.jsonl -o out/compare
   cells+=("$cell")
   row "${cells[@]}"
 }

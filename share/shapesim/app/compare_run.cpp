@@ -70,8 +70,6 @@ void CompareSettings::declare(ProgramOptions& options) {
         ("compare-sky", po::value(&skies)->value_name("NAME=FILE")->multitoken(),
          "compare skies' noise records (shapesim-detect --noise-model; the first is the "
          "reference): a markdown table on stdout")
-        ("out", po::value(&out)->value_name("DIR")->default_value("compare"),
-         "folder for table.md, distances.md and the figures")
         ("paper", po::value(&paper)->value_name("FILE"),
          "published rows to add to the Table (JSON lines: name, c_mean, c_rms, ...; e.g.\n"
          "share/data/paper/massey2004_table.jsonl)")
@@ -93,6 +91,12 @@ void CompareSettings::declare(ProgramOptions& options) {
         ("mag-s", po::value(&cuts.mag_s)->default_value(25.0), "magnitude limit for S")
         ("bootstrap", po::value(&cuts.resamples)->default_value(1000)
              ->notifier(in_range("bootstrap", 2, 1000000)), "bootstrap resamples for the errors");
+    options.group("Output").add_options()
+        ("output,o", po::value<std::string>()->value_name("FILE"),
+         "write the catalogue (or a --compare-colours/--compare-sky report) to FILE instead of "
+         "stdout, as FILE.tmp.<pid> renamed when complete; with --compare: the folder for "
+         "table.md, distances.md and the figures (default: compare)");
+    options.alias("out", "output");
 }
 
 void CompareSettings::write_report(const Log& log) const {

@@ -22,7 +22,7 @@ struct CompareSettings {
     /// The group "Compare".
     void declare(ProgramOptions& options);
     /// --compare: read the catalogues (and --paper's rows), write table.md, distances.md, the
-    /// figures' data and script into --out, and run gnuplot on it when gnuplot is there.
+    /// figures' data and script into -o (--output), and run gnuplot on it when gnuplot is there.
     void write_report(const Log& log) const;
     /// --compare-colours: the markdown colour report of galaxies brighter than `mag_limit`.
     void write_colours(std::ostream& out, double mag_limit, int threads) const;

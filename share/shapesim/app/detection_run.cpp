@@ -14,12 +14,10 @@ namespace shapesim::app {
 
 void DetectionSettings::declare(ProgramOptions& options, bool image_required) {
     DetectionSettings& s = *this;
-    if (image_required)
-        options.hidden().add_options()("image", po::value(&s.image)->required(), "input image");
-    else
-        options.hidden().add_options()("image", po::value(&s.image), "input image");
-    options.positional("image", 1);
+    auto image = po::value(&s.image)->value_name("IMAGE");
+    if (image_required) image->required();
     options.group("Input").add_options()
+        ("input,i", image, "the image (FITS; cfitsio [HDU] syntax allowed), or the first argument")
         ("weight", po::value(&s.weight)->value_name("FILE"),
          "noise map of the image (same size; cfitsio [HDU] syntax allowed)")
         ("weight-type", po::value(&s.weight_type)->value_name("TYPE")->default_value("weight"),
@@ -33,6 +31,7 @@ void DetectionSettings::declare(ProgramOptions& options, bool image_required) {
          "with --pixel-scale: Dec of the image centre")
         ("zero-point", po::value(&s.zero_point)->value_name("MAG"),
          "AB magnitude of one image unit (default: header MAGZPT/ZP/PHOTFLAM…, else 0)");
+    options.positional("input", 1);
     DetectionOptions& d = s.detection;
     options.group("Detection (SExtractor parameters)").add_options()
         ("detect-thresh", po::value(&d.detect_thresh)->default_value(1.3)
@@ -64,7 +63,7 @@ void DetectionSettings::declare(ProgramOptions& options, bool image_required) {
     options.group("Stars").add_options()
         ("psf-fwhm", po::value(&s.psf_fwhm)->value_name("ARCSEC")->default_value(0.15)
              ->notifier(in_range("psf-fwhm", 1e-6, 3600.0)),
-         "Gaussian PSF for the stellarity (SEEING_FWHM), unless --psf-image/--psf-model")
+         "Gaussian PSF for the stellarity (SEEING_FWHM), unless --psf-image/--psf")
         ("psf-image", po::value(&s.psf_image)->value_name("FILE"),
          "PSF image (finer or equal sampling) for the stellarity")
         ("psf-pixel-scale", po::value(&s.psf_pixel_scale)->value_name("ARCSEC")
@@ -73,11 +72,12 @@ void DetectionSettings::declare(ProgramOptions& options, bool image_required) {
         ("psf-box", po::value(&s.psf_box)->value_name("ARCSEC")->multitoken(),
          "convolve --psf-image with square boxes of these widths first (the detector "
          "pixel, a drizzle drop: a subsampled TinyTim PSF lacks both)")
-        ("psf-model", po::value(&s.psf_model)->value_name("FILE"),
+        ("psf", po::value(&s.psf_model)->value_name("FILE"),
          "PSF as a shapesim.shapelet/1 record (first line of FILE)")
         ("star-threshold", po::value(&s.star_threshold)->default_value(0.97)
              ->notifier(in_range("star-threshold", 0.0, 1.0)),
          "objects with stellarity above this are stars");
+    options.alias("psf-model", "psf");
 }
 
 namespace {
@@ -94,7 +94,7 @@ void check_options(DetectionSettings& s, const ProgramOptions& options) {
     if (options.given("ra") != options.given("dec"))
         throw po::error("--ra and --dec go together");
     if (!s.psf_image.empty() && !s.psf_model.empty())
-        throw po::error("--psf-image and --psf-model exclude each other");
+        throw po::error("--psf-image and --psf exclude each other");
 }
 
 // The image's geometry (its WCS, else --pixel-scale and --ra/--dec) and zero point (given,
@@ -137,7 +137,7 @@ std::unique_ptr<ImageArray> read_inverse_variance(const DetectionSettings& s,
     return inverse_variance;
 }
 
-// The point-source locus for the stellarity, from --psf-image, --psf-model or the Gaussian of
+// The point-source locus for the stellarity, from --psf-image, --psf or the Gaussian of
 // --psf-fwhm, and the note that names it in the summary line.
 void point_source_locus(const DetectionSettings& s, const ProgramOptions& options,
                         double pixel_scale, DetectionRun& r) {
@@ -159,7 +159,7 @@ void point_source_locus(const DetectionSettings& s, const ProgramOptions& option
         std::ostringstream note;
         note << "a Gaussian PSF of FWHM " << s.psf_fwhm << "\""
              << (options.given("psf-fwhm") ? ""
-                                           : ", the --psf-fwhm default; give --psf-model or "
+                                           : ", the --psf-fwhm default; give --psf or "
                                              "--psf-image for this image's own");
         r.locus_note = note.str();
     }

@@ -24,7 +24,7 @@ field() {
   mkdir "$name" && cd "$name"
   "$BIN/shapesim-decompose" -q --psf-image "$image$star" "${psf_scale[@]}" "${like[@]}" >psf.jsonl ||
     fail "$name: PSF failed"
-  "$BIN/shapesim-detect" -q "$image" "$@" --psf-model psf.jsonl --stamps stamps.fits \
+  "$BIN/shapesim-detect" -q "$image" "$@" --psf psf.jsonl --stamps stamps.fits \
     --stars stars.jsonl --noise-model noise.jsonl >sources.jsonl || fail "$name: detect failed"
   "$BIN/shapesim-decompose" -q -j 2 --psf psf.jsonl --stars stars.jsonl <sources.jsonl \
     >intrinsic.jsonl || fail "$name: decompose failed"
@@ -34,9 +34,9 @@ field() {
     fail "$name: sample failed"
   "$BIN/shapesim-render" -q --psf psf.jsonl --noise-model noise.jsonl "${like[@]}" --seed 7 \
     -o delta.fits <objects.jsonl || fail "$name: render failed"
-  "$BIN/shapesim-measure" -q "$image" "$@" --psf-model psf.jsonl >real.morph.jsonl ||
+  "$BIN/shapesim-measure" -q "$image" "$@" --psf psf.jsonl >real.morph.jsonl ||
     fail "$name: measure (real) failed"
-  "$BIN/shapesim-measure" -q delta.fits --psf-model psf.jsonl >delta.morph.jsonl ||
+  "$BIN/shapesim-measure" -q delta.fits --psf psf.jsonl >delta.morph.jsonl ||
     fail "$name: measure (δ) failed"
   cd ..
 }
