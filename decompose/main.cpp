@@ -2,12 +2,12 @@
 // with optimised centre, β and n_max (paper §2.2; DESIGN §1–3). The work is in the library:
 // decompose_job.hpp (each source's job), decompose.hpp (the optimiser and the record), lsq.hpp
 // (the linear fit), psf.hpp (PSF mode); the options in app/decompose_options.hpp.
-#include "shapesim/app/atomic_file.hpp"
 #include "shapesim/app/decompose_options.hpp"
 #include "shapesim/app/options.hpp"
 #include "shapesim/app/progress.hpp"
 #include "shapesim/app/provenance.hpp"
 #include "shapesim/app/run_main.hpp"
+#include "shapesim/atomic_file.hpp"
 #include "shapesim/decompose_job.hpp"
 #include "shapesim/fits_io.hpp"
 #include "shapesim/jsonl.hpp"
@@ -46,7 +46,7 @@ const char* const description =
 
 // PSF mode: one record of the PSF image's shapelet model at the target pixel scale.
 int run_psf(const app::DecomposeSettings& s, const app::ProgramOptions& options,
-            const app::Log& log, app::AtomicTextFile& file) {
+            const app::Log& log, AtomicTextFile& file) {
     const double target = s.psf_target_scale(options);
     const PsfImage image = read_psf_image(
         s.psf_image,
@@ -86,7 +86,7 @@ int run(int argc, const char* const argv[]) {
     if (!options.parse(argc, argv)) return 0;
     const app::Log log("shapesim-decompose", options.common().verbosity);
     s.check();
-    app::AtomicTextFile file(options.common().output_or_stdout());
+    AtomicTextFile file(options.common().output_or_stdout());
     if (!s.psf_image.empty()) return run_psf(s, options, log, file);
 
     std::vector<SourceRecord> stars;

@@ -2,11 +2,11 @@
 // stamps in a multi-extension FITS file (paper §2.1; DESIGN §1, §2, §4).
 // The work is in the library: detect.hpp (background, detection, photometry), stellarity.hpp
 // (star/galaxy), stamps.hpp (stamps and local noise), sources.hpp (records).
-#include "shapesim/app/atomic_file.hpp"
 #include "shapesim/app/detection_run.hpp"
 #include "shapesim/app/options.hpp"
 #include "shapesim/app/provenance.hpp"
 #include "shapesim/app/run_main.hpp"
+#include "shapesim/atomic_file.hpp"
 #include "shapesim/bands.hpp"
 #include "shapesim/detect.hpp"
 #include "shapesim/fits_io.hpp"
@@ -80,8 +80,8 @@ int run(int argc, const char* const argv[]) {
 
     // Refuse unwritable outputs before the work.
     for (const std::string* path : {&s.stamps, &s.stars, &s.segmentation, &s.noise_model})
-        if (!path->empty()) app::check_writable(*path);
-    app::AtomicTextFile file(options.common().output_or_stdout());
+        if (!path->empty()) check_writable(*path);
+    AtomicTextFile file(options.common().output_or_stdout());
 
     std::vector<BandRecord> band_list;
     if (!s.bands.empty()) band_list = BandRecord::read_all(s.bands);
@@ -103,10 +103,10 @@ int run(int argc, const char* const argv[]) {
     if (!s.stamps.empty())
         stamps = std::make_unique<FitsWriter>(s.stamps, "shapesim-detect",
                                               app::provenance_keywords(options, outputs));
-    std::unique_ptr<app::AtomicTextFile> stars_file;
+    std::unique_ptr<AtomicTextFile> stars_file;
     std::unique_ptr<JsonlWriter> stars_out;
     if (!s.stars.empty()) {
-        stars_file = std::make_unique<app::AtomicTextFile>(s.stars);
+        stars_file = std::make_unique<AtomicTextFile>(s.stars);
         stars_out = std::make_unique<JsonlWriter>(stars_file->stream(), s.stars);
     }
     JsonlWriter out(file.stream(), file.name());
@@ -126,7 +126,7 @@ int run(int argc, const char* const argv[]) {
         seg.commit();
     }
     if (noise) {
-        app::AtomicTextFile noise_file(s.noise_model);
+        AtomicTextFile noise_file(s.noise_model);
         JsonlWriter(noise_file.stream(), s.noise_model).write(noise->to_json());
         noise_file.commit();
         log.info("sky noise: rms ", noise->rms, " (MAD σ ", noise->mad_sigma, ") over ",

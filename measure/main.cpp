@@ -2,12 +2,12 @@
 // DESIGN §5) as shapesim.morph/1 records. Detection is shapesim-detect's own
 // (app/detection_run.hpp), the statistics are measure.hpp / morphometry.hpp; the comparison
 // modes are app/compare_run.hpp.
-#include "shapesim/app/atomic_file.hpp"
 #include "shapesim/app/compare_run.hpp"
 #include "shapesim/app/detection_run.hpp"
 #include "shapesim/app/options.hpp"
 #include "shapesim/app/progress.hpp"
 #include "shapesim/app/run_main.hpp"
+#include "shapesim/atomic_file.hpp"
 #include "shapesim/error.hpp"
 #include "shapesim/jsonl.hpp"
 #include "shapesim/measure.hpp"
@@ -69,7 +69,7 @@ int run(int argc, const char* const argv[]) {
     if (!compare.colours.empty()) {
         if (!detection.image.empty() || !compare.inputs.empty() || !compare.skies.empty())
             throw po::error("--compare-colours: not with an IMAGE, --compare or --compare-sky");
-        app::AtomicTextFile file(options.common().output_or_stdout());
+        AtomicTextFile file(options.common().output_or_stdout());
         compare.write_colours(file.stream(), options.given("mag-limit") ? mag_limit : 99.0,
                               options.common().threads);
         file.commit();
@@ -78,7 +78,7 @@ int run(int argc, const char* const argv[]) {
     if (!compare.skies.empty()) {
         if (!detection.image.empty() || !compare.inputs.empty())
             throw po::error("--compare-sky: not with an IMAGE or --compare");
-        app::AtomicTextFile file(options.common().output_or_stdout());
+        AtomicTextFile file(options.common().output_or_stdout());
         compare.write_skies(file.stream());
         file.commit();
         return 0;
@@ -90,7 +90,7 @@ int run(int argc, const char* const argv[]) {
         return 0;
     }
     if (detection.image.empty()) throw po::error("give an IMAGE to measure (or --compare)");
-    app::AtomicTextFile file(options.common().output_or_stdout());
+    AtomicTextFile file(options.common().output_or_stdout());
 
     const app::DetectionRun detected = detection.run(options, log);
     const DetectionResult& field = detected.field;

@@ -1,11 +1,11 @@
 // shapesim-render: shapesim.object/1 records → a FITS image with a WCS (paper §4.3;
 // DESIGN §3, §6). The work is in the library: scene.hpp (reading and placing the objects,
 // lensing, convolution, stamps, painting, noise, the truth), convolve.hpp, render.hpp.
-#include "shapesim/app/atomic_file.hpp"
 #include "shapesim/app/field_options.hpp"
 #include "shapesim/app/options.hpp"
 #include "shapesim/app/provenance.hpp"
 #include "shapesim/app/run_main.hpp"
+#include "shapesim/atomic_file.hpp"
 #include "shapesim/fits_io.hpp"
 #include "shapesim/scene.hpp"
 #include "shapesim/sources.hpp"
@@ -116,8 +116,8 @@ int run(int argc, const char* const argv[]) {
     const std::string& output = options.common().output;
     if (output.empty()) throw po::error("give the output image: -o FILE");
     if (s.bitpix != -32 && s.bitpix != -64) throw po::error("--bitpix: -32 or -64");
-    app::check_writable(output);
-    if (!s.truth.empty()) app::check_writable(s.truth);
+    check_writable(output);
+    if (!s.truth.empty()) check_writable(s.truth);
     if (!s.galaxy_psf.empty() && s.psf.empty()) throw po::error("--galaxy-psf needs --psf");
     const bool rms_given = options.given("noise-rms") || options.given("noise-correlation");
     if (options.given("noise-like") && rms_given)
@@ -169,9 +169,9 @@ int run(int argc, const char* const argv[]) {
     FitsWriter fits(output, "shapesim-render",
                     app::provenance_keywords(options, {"output", "truth"}));
     fits.write_image(scene.image, scene_image_spec(scene, records, o, kernels, labels, s.bitpix));
-    std::unique_ptr<app::AtomicTextFile> truth;
+    std::unique_ptr<AtomicTextFile> truth;
     if (!s.truth.empty()) {
-        truth = std::make_unique<app::AtomicTextFile>(s.truth);
+        truth = std::make_unique<AtomicTextFile>(s.truth);
         JsonlWriter out(truth->stream(), s.truth);
         for (const TruthRecord& t : truth_records(scene, records)) out.write(t.to_json());
     }

@@ -1,10 +1,10 @@
 // shapesim-sample: the morphology model (shapesim-smooth) → new objects over a sky field as
 // shapesim.object/1 records on stdout (paper §4.1–4.2; DESIGN §4, §6). The work is in the
 // library: morphology.hpp (the draws), sample.hpp (the field, stars, tiles).
-#include "shapesim/app/atomic_file.hpp"
 #include "shapesim/app/field_options.hpp"
 #include "shapesim/app/options.hpp"
 #include "shapesim/app/run_main.hpp"
+#include "shapesim/atomic_file.hpp"
 #include "shapesim/geometry.hpp"
 #include "shapesim/jsonl.hpp"
 #include "shapesim/morphology.hpp"
@@ -96,7 +96,7 @@ int run(int argc, const char* const argv[]) {
     const app::Log log("shapesim-sample", options.common().verbosity);
 
     const FieldGeometry field = s.field.field(options);
-    app::AtomicTextFile file(options.common().output_or_stdout());
+    AtomicTextFile file(options.common().output_or_stdout());
     if (options.given("tile-grid")) {
         if (s.tile_grid.empty() || s.tile_grid.size() > 2 || s.tile_grid.front() < 1 || s.tile_grid.back() < 1)
             throw po::error("--tile-grid takes W [H], whole numbers of pixels >= 1");

@@ -1,9 +1,9 @@
 // shapesim-smooth: shapelet records (shapesim-decompose) → the morphology model, one JSON
 // document (paper §3–4.1; DESIGN §4). The work is in the library: morphology.hpp.
-#include "shapesim/app/atomic_file.hpp"
 #include "shapesim/app/options.hpp"
 #include "shapesim/app/run_main.hpp"
 #include "shapesim/app/source_fields.hpp"
+#include "shapesim/atomic_file.hpp"
 #include "shapesim/error.hpp"
 #include "shapesim/jsonl.hpp"
 #include "shapesim/morphology.hpp"
@@ -97,7 +97,7 @@ int run(int argc, const char* const argv[]) {
     options.positional("input", 1);
     options.alias("k", "lambda-factor");
     if (!options.parse(argc, argv)) return 0;
-    app::AtomicTextFile file(options.common().output_or_stdout());
+    AtomicTextFile file(options.common().output_or_stdout());
     const app::Log log("shapesim-smooth", options.common().verbosity);
 
     SmoothOptions& smooth = s.smooth;

@@ -1,7 +1,7 @@
-#include "shapesim/version.hpp"
 #include "shapesim/fits_io.hpp"
+#include "shapesim/version.hpp"
 
-#include "shapesim/app/atomic_file.hpp"
+#include "shapesim/atomic_file.hpp"
 #include "shapesim/error.hpp"
 
 #include <fitsio.h>
@@ -414,7 +414,7 @@ bool valid_bitpix(int bitpix) {
 }  // namespace
 
 struct FitsWriter::Impl {
-    app::AtomicFile file;  // declared first: destroyed after the cfitsio handle is closed
+    AtomicFile file;  // declared first: destroyed after the cfitsio handle is closed
     fitsfile* f = nullptr;
     int images = 0;
 
@@ -436,7 +436,7 @@ FitsWriter::FitsWriter(const std::string& path, const std::string& program,
         throw Error("an output path cannot carry [...] specifiers", path);
     if (path.size() > 3 && path.compare(path.size() - 3, 3, ".gz") == 0)
         throw Error("compressed (.gz) output is not supported", path);
-    app::check_writable(path);
+    check_writable(path);
     impl_ = std::make_unique<Impl>(path);
     // "!" lets cfitsio replace a stale temporary of a crashed run with the same pid.
     int status = 0;

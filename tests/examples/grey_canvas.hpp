@@ -2,7 +2,7 @@
 // images pasted through an asinh stretch, written as a binary PGM (convert with pnmtopng).
 #pragma once
 
-#include "shapesim/app/atomic_file.hpp"
+#include "shapesim/atomic_file.hpp"
 #include "shapesim/error.hpp"
 #include "shapesim/image.hpp"
 
@@ -54,7 +54,7 @@ public:
     }
     /// Write the binary PGM atomically.
     void write(const std::string& path) const {
-        app::AtomicTextFile out(path);
+        AtomicTextFile out(path);
         out.stream() << "P5\n" << nx_ << " " << ny_ << "\n255\n";
         out.stream().write(reinterpret_cast<const char*>(pixels_.data()),
                            std::streamsize(pixels_.size()));

@@ -9,8 +9,8 @@
 // asinh composite: with I = (r + g + b)/3, every channel times asinh(I/S)/I, so colours keep
 // their ratios while the brightness is stretched; the sky sits at black, S = 3 (noise units)
 // and 400σ of I saturate. Panels of different sizes are top-aligned; 4 black columns between.
-#include "shapesim/app/atomic_file.hpp"
 #include "shapesim/app/run_main.hpp"
+#include "shapesim/atomic_file.hpp"
 #include "shapesim/error.hpp"
 #include "shapesim/fits_io.hpp"
 #include "grey_canvas.hpp"
@@ -79,7 +79,7 @@ int run(int argc, const char* const argv[]) {
             }
         left += int(p[0].cols()) + gap;
     }
-    app::AtomicTextFile out(argv[1]);
+    AtomicTextFile out(argv[1]);
     out.stream() << "P6\n" << nx << " " << ny << "\n255\n";
     out.stream().write(reinterpret_cast<const char*>(pixels.data()), std::streamsize(pixels.size()));
     out.commit();

@@ -1,5 +1,5 @@
-// app/atomic_file: outputs appear whole or not at all; unwritable outputs fail before work.
-#include "shapesim/app/atomic_file.hpp"
+// atomic_file: outputs appear whole or not at all; unwritable outputs fail before work.
+#include "shapesim/atomic_file.hpp"
 #include "shapesim/error.hpp"
 
 #include <gtest/gtest.h>
@@ -33,14 +33,14 @@ protected:
 }  // namespace
 
 TEST_F(AtomicFileTest, TempNameIsBesideTheTarget) {
-    app::AtomicFile file(path("out.fits"));
+    AtomicFile file(path("out.fits"));
     EXPECT_EQ(file.temp_path(), path("out.fits") + ".tmp." + std::to_string(getpid()));
     EXPECT_FALSE(file.committed());
 }
 
 TEST_F(AtomicFileTest, CommitRenamesOntoTarget) {
     {
-        app::AtomicFile file(path("out.txt"));
+        AtomicFile file(path("out.txt"));
         std::ofstream(file.temp_path()) << "complete\n";
         EXPECT_FALSE(fs::exists(path("out.txt")));  // nothing at the target before commit
         file.commit();
@@ -53,7 +53,7 @@ TEST_F(AtomicFileTest, CommitRenamesOntoTarget) {
 TEST_F(AtomicFileTest, UncommittedTemporaryIsRemovedAndTargetKept) {
     std::ofstream(path("out.txt")) << "old\n";
     try {
-        app::AtomicFile file(path("out.txt"));
+        AtomicFile file(path("out.txt"));
         std::ofstream(file.temp_path()) << "half";
         throw std::runtime_error("failure mid-write");
     } catch (const std::runtime_error&) {
@@ -63,7 +63,7 @@ TEST_F(AtomicFileTest, UncommittedTemporaryIsRemovedAndTargetKept) {
 }
 
 TEST_F(AtomicFileTest, CommitWithoutTemporaryThrowsNamingTarget) {
-    app::AtomicFile file(path("never.txt"));
+    AtomicFile file(path("never.txt"));
     try {
         file.commit();
         FAIL() << "expected Error";
@@ -74,13 +74,13 @@ TEST_F(AtomicFileTest, CommitWithoutTemporaryThrowsNamingTarget) {
 
 TEST_F(AtomicFileTest, TextFileCommitsAndDiscards) {
     {
-        app::AtomicTextFile out(path("a.jsonl"));
+        AtomicTextFile out(path("a.jsonl"));
         out.stream() << "{}\n";
         out.commit();
     }
     EXPECT_EQ(slurp(path("a.jsonl")), "{}\n");
     {
-        app::AtomicTextFile out(path("b.jsonl"));
+        AtomicTextFile out(path("b.jsonl"));
         out.stream() << "{\"half\":";
     }  // no commit: as if an exception had unwound the program
     EXPECT_FALSE(fs::exists(path("b.jsonl")));
@@ -88,22 +88,22 @@ TEST_F(AtomicFileTest, TextFileCommitsAndDiscards) {
 }
 
 TEST_F(AtomicFileTest, TextFileDashIsStdout) {
-    app::AtomicTextFile out("-");
+    AtomicTextFile out("-");
     EXPECT_EQ(&out.stream(), &std::cout);
     EXPECT_EQ(out.name(), "-");
     EXPECT_NO_THROW(out.commit());
 }
 
 TEST_F(AtomicFileTest, CheckWritable) {
-    EXPECT_NO_THROW(app::check_writable(path("new.fits")));
+    EXPECT_NO_THROW(check_writable(path("new.fits")));
     EXPECT_FALSE(fs::exists(path("new.fits")));  // checking creates nothing
     std::ofstream(path("old.fits")) << "x";
-    EXPECT_NO_THROW(app::check_writable(path("old.fits")));
-    EXPECT_NO_THROW(app::check_writable("relative-name-in-cwd.fits"));
-    EXPECT_THROW(app::check_writable(dir_), Error);  // a directory
-    EXPECT_THROW(app::check_writable(""), Error);
+    EXPECT_NO_THROW(check_writable(path("old.fits")));
+    EXPECT_NO_THROW(check_writable("relative-name-in-cwd.fits"));
+    EXPECT_THROW(check_writable(dir_), Error);  // a directory
+    EXPECT_THROW(check_writable(""), Error);
     try {
-        app::check_writable(path("missing/out.fits"));
+        check_writable(path("missing/out.fits"));
         FAIL() << "expected Error";
     } catch (const Error& e) {
         EXPECT_EQ(e.file(), path("missing/out.fits"));
@@ -111,7 +111,7 @@ TEST_F(AtomicFileTest, CheckWritable) {
     }
     if (geteuid() != 0) {  // root may write anywhere
         fs::permissions(dir_, fs::perms::owner_read | fs::perms::owner_exec);
-        EXPECT_THROW(app::check_writable(path("new.fits")), Error);
+        EXPECT_THROW(check_writable(path("new.fits")), Error);
         fs::permissions(dir_, fs::perms::owner_all);
     }
 }

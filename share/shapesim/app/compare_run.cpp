@@ -1,6 +1,6 @@
 #include "shapesim/app/compare_run.hpp"
 
-#include "shapesim/app/atomic_file.hpp"
+#include "shapesim/atomic_file.hpp"
 #include "shapesim/colours.hpp"
 #include "shapesim/error.hpp"
 #include "shapesim/jsonl.hpp"

@@ -1,6 +1,6 @@
 #include "shapesim/app/decompose_options.hpp"
 
-#include "shapesim/app/atomic_file.hpp"
+#include "shapesim/atomic_file.hpp"
 #include "shapesim/geometry.hpp"
 #include "shapesim/noise.hpp"
 #include "shapesim/psf.hpp"

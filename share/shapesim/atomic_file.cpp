@@ -1,4 +1,4 @@
-#include "shapesim/app/atomic_file.hpp"
+#include "shapesim/atomic_file.hpp"
 
 #include "shapesim/error.hpp"
 
@@ -9,7 +9,7 @@
 #include <sys/stat.h>
 #include <unistd.h>
 
-namespace shapesim::app {
+namespace shapesim {
 
 namespace {
 std::string directory_of(const std::string& path) {
@@ -82,4 +82,4 @@ void AtomicTextFile::commit() {
     if (file_) file_->commit();
 }
 
-}  // namespace shapesim::app
+}  // namespace shapesim

@@ -14,7 +14,7 @@
 #include <memory>
 #include <string>
 
-namespace shapesim::app {
+namespace shapesim {
 
 /// Throw Error unless `path` can be created or replaced: its directory exists and is
 /// writable, and `path` is not a directory. Call before any work (Gnuastro's
@@ -67,4 +67,4 @@ private:
     std::ofstream out_;
 };
 
-}  // namespace shapesim::app
+}  // namespace shapesim
