@@ -164,7 +164,7 @@ TEST(DecomposeSettings, ChecksAndPsfModeValues) {
         band.s.job_reader(band.options);
         ADD_FAILURE() << "--band-psf nofile was accepted";
     } catch (const po::error& e) {
-        EXPECT_EQ(std::string(e.what()), "--band-psf wants NAME=FILE, got \"nofile\"");
+        EXPECT_EQ(std::string(e.what()), "--band-psf takes NAME=FILE, got 'nofile'");
     }
 }
 

@@ -10,18 +10,8 @@
 
 namespace shapesim::app {
 
-namespace {
-
-// NAME=FILE of a repeatable per-band option.
-std::pair<std::string, std::string> name_and_file(const std::string& item, const char* option) {
-    const auto eq = item.find('=');
-    if (eq == std::string::npos || eq == 0 || eq + 1 == item.size())
-        throw po::error(std::string(option) + " wants NAME=FILE, got \"" + item + "\"");
-    return {item.substr(0, eq), item.substr(eq + 1)};
-}
-
-}  // namespace
-
+// One table, long because decompose has many options: split, it would read as fragments of
+// the --help it prints, in that order.
 void DecomposeSettings::declare(ProgramOptions& options) {
     DecomposeSettings& s = *this;
     DecomposeOptions& f = s.fit;
@@ -141,16 +131,12 @@ JobReader DecomposeSettings::job_reader(const ProgramOptions& options) {
     // kept) to each record's pixel scale.
     JobReader reader(std::move(settings));
     if (!psf.empty()) reader.set_psf(read_psf_model(psf, 1.0));
-    for (const std::string& item : band_psfs) {
-        const auto [band, file] = name_and_file(item, "--band-psf");
+    for (const auto& [band, file] : named_files(band_psfs, "band-psf"))
         reader.add_band_psf(band, read_psf_model(file, 1.0));
-    }
     // Measured noise correlations: the exact take-up replaces p·F² (decompose.hpp).
     if (!noise_model.empty()) fit.correlation = read_noise_record(noise_model).correlation;
-    for (const std::string& item : band_noise_models) {
-        const auto [band, file] = name_and_file(item, "--band-noise-model");
+    for (const auto& [band, file] : named_files(band_noise_models, "band-noise-model"))
         reader.add_band_correlation(band, read_noise_record(file).correlation);
-    }
     return reader;
 }
 

@@ -161,7 +161,7 @@ bad "^shapesim-render: .*object .* has no band \"u\"" \
 [ ! -e u.fits ] || fail "render left u.fits behind"
 rc=0
 "$BIN/shapesim-decompose" --band-psf f160w -i sources.jsonl >out 2>err || rc=$?
-expect_error "$rc" 2 "^shapesim-decompose: --band-psf wants NAME=FILE"  # a usage error
+expect_error "$rc" 2 "^shapesim-decompose: --band-psf takes NAME=FILE"  # a usage error
 bad "^shapesim-decompose: .*no band k (--reference-band)" \
   "$BIN/shapesim-decompose" --reference-band k -i sources.jsonl
 { head -1 bands.jsonl; head -1 bands.jsonl; } > twice.jsonl

@@ -64,7 +64,7 @@ expect_error "$rc" 2 '^shapesim-decompose: .*--ids.*(see --help)$'
 [ ! -s out ] || fail "--ids without --models wrote to stdout"
 run_error 2 '^shapesim-decompose: .*--beta-tolerance.*(see --help)$' four.jsonl --beta-tolerance 2
 run_error 2 '^shapesim-decompose: .*--n-max-cap.*(see --help)$' four.jsonl --n-max-cap 101
-run_error 2 '^shapesim-decompose: --band-noise-model wants NAME=FILE.*(see --help)$' four.jsonl \
+run_error 2 '^shapesim-decompose: --band-noise-model takes NAME=FILE.*(see --help)$' four.jsonl \
   --band-noise-model f814w
 run_error 2 '^shapesim-decompose: --white-noise and a noise model exclude.*(see --help)$' \
   four.jsonl --white-noise --noise-model noise.jsonl
