@@ -369,20 +369,11 @@ ApertureFlux circular_aperture_flux(const DetectionResult& result, int label, do
 
 namespace {
 
-// Steps 1–3 of the header: bad pixels, background subtracted, the noise map (objects,
-// segmentation and the correlated-noise factor left to the caller).
-DetectionResult noise_field(const ImageArray& image, const ImageArray* inverse_variance,
-                            const DetectionOptions& options) {
+// Step 1 of the header: pixels that are not data (NaN, infinite, the ±1e30 sentinels, zero
+// weight) are marked bad and zeroed, so no later step reads them as light.
+void mark_bad_pixels(const ImageArray& image, const ImageArray* inverse_variance,
+                     DetectionResult& result) {
     const Eigen::Index ny = image.rows(), nx = image.cols();
-    require(nx > 0 && ny > 0, "image is empty");
-    if (inverse_variance && (inverse_variance->rows() != ny || inverse_variance->cols() != nx)) {
-        std::ostringstream s;
-        s << "weight map is " << inverse_variance->cols() << "×" << inverse_variance->rows()
-          << " pixels but the image is " << nx << "×" << ny;
-        throw Error(s.str());
-    }
-
-    DetectionResult result;
     const std::size_t n = std::size_t(nx) * std::size_t(ny);
     result.bad.assign(n, 0);
     result.image = image;
@@ -401,35 +392,43 @@ DetectionResult noise_field(const ImageArray& image, const ImageArray* inverse_v
     if (result.bad_pixels == (long long)n)
         throw Error("no usable pixel: every pixel is NaN/infinite, ±1e30 or beyond, or has zero "
                     "weight");
-    // Without a weight map, a zero-filled region (a rotated mosaic's border, an empty tile)
-    // says "no data" only by being exactly 0: a pixel that is 0 with all its neighbours 0 is
-    // bad, so the background and its rms come from the data alone (noise never makes 3×3
-    // exact zeros in float data; σ ~ 1 DN integer data may lose ~1e-4 of its pixels). An image
-    // that is 0 everywhere is left to the no-noise error below.
-    if (!inverse_variance) {
-        std::vector<std::uint8_t> empty(n, 0);
-        long long count = 0;
-        for (Eigen::Index j = 0; j < ny; ++j)
-            for (Eigen::Index i = 0; i < nx; ++i) {
-                bool zero = true;
-                for (Eigen::Index b = std::max<Eigen::Index>(j - 1, 0);
-                     zero && b <= std::min<Eigen::Index>(j + 1, ny - 1); ++b)
-                    for (Eigen::Index a = std::max<Eigen::Index>(i - 1, 0);
-                         zero && a <= std::min<Eigen::Index>(i + 1, nx - 1); ++a)
-                        zero = image(b, a) == 0.0;
-                const std::size_t k = std::size_t(j * nx + i);
-                if (zero && !result.bad[k]) empty[k] = 1, ++count;
-            }
-        if (count > 0 && count < (long long)n - result.bad_pixels)
-            for (std::size_t k = 0; k < n; ++k)
-                if (empty[k]) {
-                    result.bad[k] = 1;
-                    ++result.bad_pixels;
-                    ++result.zero_noise_pixels;
-                }
-    }
+}
 
-    // Background: mesh, filter, spline; subtract.
+// Without a weight map, a zero-filled region (a rotated mosaic's border, an empty tile)
+// says "no data" only by being exactly 0: a pixel that is 0 with all its neighbours 0 is
+// bad, so the background and its rms come from the data alone (noise never makes 3×3
+// exact zeros in float data; σ ~ 1 DN integer data may lose ~1e-4 of its pixels). An image
+// that is 0 everywhere is left to the no-noise error below.
+void mark_empty_regions(const ImageArray& image, DetectionResult& result) {
+    const Eigen::Index ny = image.rows(), nx = image.cols();
+    const std::size_t n = std::size_t(nx) * std::size_t(ny);
+    std::vector<std::uint8_t> empty(n, 0);
+    long long count = 0;
+    for (Eigen::Index j = 0; j < ny; ++j)
+        for (Eigen::Index i = 0; i < nx; ++i) {
+            bool zero = true;
+            for (Eigen::Index b = std::max<Eigen::Index>(j - 1, 0);
+                 zero && b <= std::min<Eigen::Index>(j + 1, ny - 1); ++b)
+                for (Eigen::Index a = std::max<Eigen::Index>(i - 1, 0);
+                     zero && a <= std::min<Eigen::Index>(i + 1, nx - 1); ++a)
+                    zero = image(b, a) == 0.0;
+            const std::size_t k = std::size_t(j * nx + i);
+            if (zero && !result.bad[k]) empty[k] = 1, ++count;
+        }
+    if (count > 0 && count < (long long)n - result.bad_pixels)
+        for (std::size_t k = 0; k < n; ++k)
+            if (empty[k]) {
+                result.bad[k] = 1;
+                ++result.bad_pixels;
+                ++result.zero_noise_pixels;
+            }
+}
+
+// Step 2: SEP's background (mesh, filter, spline) subtracted from the image, its global mean
+// and rms kept; bad pixels stay 0. The background is returned for its rms map.
+std::unique_ptr<sep_bkg, BackgroundDeleter> subtract_background(DetectionResult& result,
+                                                                const DetectionOptions& options) {
+    const std::size_t n = result.bad.size();
     std::unique_ptr<sep_bkg, BackgroundDeleter> background;
     {
         const sep_image im = sep_view(result.image, nullptr, result.bad.data(), nullptr);
@@ -445,48 +444,79 @@ DetectionResult noise_field(const ImageArray& image, const ImageArray* inverse_v
     result.background_rms = sep_bkg_globalrms(background.get());
     for (std::size_t k = 0; k < n; ++k)
         if (result.bad[k]) result.image.data()[k] = 0.0;
+    return background;
+}
 
-    // Noise map for the threshold.
-    result.sigma.resize(ny, nx);
+// Step 3 with a weight map: σ = 1/√w, rescaled (--rescale-weight) so the map's median σ is
+// the background's measured rms, since drizzle weights are right only up to a factor.
+void noise_map_from_weight(const ImageArray& inverse_variance, const DetectionOptions& options,
+                           DetectionResult& result) {
+    const std::size_t n = result.bad.size();
     constexpr double infinite = std::numeric_limits<double>::infinity();
-    if (inverse_variance) {
-        std::vector<double> sigmas;
-        sigmas.reserve(n);
-        for (std::size_t k = 0; k < n; ++k)
-            if (!result.bad[k]) sigmas.push_back(1.0 / std::sqrt(inverse_variance->data()[k]));
-        const double median_sigma = upper_median(sigmas);
-        if (options.rescale_weight) {
-            if (!(result.background_rms > 0.0))
-                throw Error("background rms is zero: cannot rescale the weight map "
-                            "(a constant image?)");
-            result.weight_scale = std::pow(median_sigma / result.background_rms, 2);
+    std::vector<double> sigmas;
+    sigmas.reserve(n);
+    for (std::size_t k = 0; k < n; ++k)
+        if (!result.bad[k]) sigmas.push_back(1.0 / std::sqrt(inverse_variance.data()[k]));
+    const double median_sigma = upper_median(sigmas);
+    if (options.rescale_weight) {
+        if (!(result.background_rms > 0.0))
+            throw Error("background rms is zero: cannot rescale the weight map "
+                        "(a constant image?)");
+        result.weight_scale = std::pow(median_sigma / result.background_rms, 2);
+    }
+    const double scale = std::sqrt(result.weight_scale);
+    for (std::size_t k = 0; k < n; ++k)
+        result.sigma.data()[k] =
+            result.bad[k] ? infinite : 1.0 / (std::sqrt(inverse_variance.data()[k]) * scale);
+}
+
+// Step 3 without a weight map: SEP's local background rms.
+void noise_map_from_background(sep_bkg* background, DetectionResult& result) {
+    const std::size_t n = result.bad.size();
+    constexpr double infinite = std::numeric_limits<double>::infinity();
+    check_sep(sep_bkg_rmsarray(background, result.sigma.data(), SEP_TDOUBLE),
+              "background rms");
+    // Where the local rms is zero the image is constant: a zero-filled border around a
+    // rotated mosaic, an empty tile. Nothing can be detected there; those pixels are bad,
+    // and only an image with no noise anywhere is an error.
+    for (std::size_t k = 0; k < n; ++k) {
+        if (result.bad[k]) {
+            result.sigma.data()[k] = infinite;
+        } else if (!(result.sigma.data()[k] > 0.0)) {
+            result.bad[k] = 1;
+            result.image.data()[k] = 0.0;
+            result.sigma.data()[k] = infinite;
+            ++result.bad_pixels;
+            ++result.zero_noise_pixels;
         }
-        const double scale = std::sqrt(result.weight_scale);
-        for (std::size_t k = 0; k < n; ++k)
-            result.sigma.data()[k] =
-                result.bad[k] ? infinite : 1.0 / (std::sqrt(inverse_variance->data()[k]) * scale);
-    } else {
-        check_sep(sep_bkg_rmsarray(background.get(), result.sigma.data(), SEP_TDOUBLE),
-                  "background rms");
-        // Where the local rms is zero the image is constant: a zero-filled border around a
-        // rotated mosaic, an empty tile. Nothing can be detected there; those pixels are bad,
-        // and only an image with no noise anywhere is an error.
-        for (std::size_t k = 0; k < n; ++k) {
-            if (result.bad[k]) {
-                result.sigma.data()[k] = infinite;
-            } else if (!(result.sigma.data()[k] > 0.0)) {
-                result.bad[k] = 1;
-                result.image.data()[k] = 0.0;
-                result.sigma.data()[k] = infinite;
-                ++result.bad_pixels;
-                ++result.zero_noise_pixels;
-            }
-        }
-        if (result.bad_pixels == (long long)n)
-            throw Error("background rms is zero: the image has no noise (a constant image?); "
-                        "give a weight map");
+    }
+    if (result.bad_pixels == (long long)n)
+        throw Error("background rms is zero: the image has no noise (a constant image?); "
+                    "give a weight map");
+}
+
+// Steps 1–3 of the header: bad pixels, background subtracted, the noise map (objects,
+// segmentation and the correlated-noise factor left to the caller).
+DetectionResult noise_field(const ImageArray& image, const ImageArray* inverse_variance,
+                            const DetectionOptions& options) {
+    const Eigen::Index ny = image.rows(), nx = image.cols();
+    require(nx > 0 && ny > 0, "image is empty");
+    if (inverse_variance && (inverse_variance->rows() != ny || inverse_variance->cols() != nx)) {
+        std::ostringstream s;
+        s << "weight map is " << inverse_variance->cols() << "×" << inverse_variance->rows()
+          << " pixels but the image is " << nx << "×" << ny;
+        throw Error(s.str());
     }
 
+    DetectionResult result;
+    mark_bad_pixels(image, inverse_variance, result);
+    if (!inverse_variance) mark_empty_regions(image, result);
+    const auto background = subtract_background(result, options);
+    result.sigma.resize(ny, nx);
+    if (inverse_variance)
+        noise_map_from_weight(*inverse_variance, options, result);
+    else
+        noise_map_from_background(background.get(), result);
     return result;
 }
 
