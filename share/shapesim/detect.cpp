@@ -562,136 +562,169 @@ ApertureFlux auto_flux(const DetectionResult& result, const ImageArray& sep_sigm
 
 }  // namespace
 
+namespace {
+
+// Step 4 of the header: libsep's extraction above the threshold; the pixel stack grows when a
+// large image needs it.
+std::unique_ptr<sep_catalog, CatalogDeleter> extract_objects(const DetectionResult& result,
+                                                             const ImageArray& sep_sigma,
+                                                             const DetectionOptions& options) {
+    const std::size_t n = result.bad.size();
+    std::unique_ptr<sep_catalog, CatalogDeleter> catalog;
+    const sep_image im = sep_view(result.image, &sep_sigma, result.bad.data(), nullptr);
+    std::size_t stack = std::max<std::size_t>(300000, n / 4);
+    for (int attempt = 0;; ++attempt) {
+        sep_set_extract_pixstack(stack);
+        sep_catalog* raw = nullptr;
+        const int status = sep_extract(
+            &im, float(options.detect_thresh), SEP_THRESH_REL, options.min_area,
+            options.filter.values.data(), options.filter.nx, options.filter.ny,
+            options.filter_mode == FilterMode::matched ? SEP_FILTER_MATCHED
+                                                       : SEP_FILTER_CONV,
+            options.deblend_nthresh, options.deblend_mincont, options.clean ? 1 : 0,
+            options.clean_param, &raw);
+        if (status == 0) {
+            catalog.reset(raw);
+            break;
+        }
+        // Status 2 is libsep's PIXSTACK_FULL ("internal pixel buffer full"): retry with
+        // a bigger stack.
+        if (status == 2 && attempt < 4 && stack < n) {
+            stack = std::min(stack * 4, n);
+            continue;
+        }
+        check_sep(status, "extraction");
+    }
+    return catalog;
+}
+
+// The segmentation map from the objects' pixel lists: object k is label k + 1, 0 is sky.
+LabelArray segmentation_map(const sep_catalog& cat, Eigen::Index ny, Eigen::Index nx) {
+    LabelArray segmentation = LabelArray::Zero(ny, nx);
+    for (int k = 0; k < cat.nobj; ++k)
+        for (int p = 0; p < cat.npix[k]; ++p) segmentation.data()[cat.pix[k][p]] = k + 1;
+    return segmentation;
+}
+
+// Object k's θ, radians. libsep stores θ as a float: float(π/2) read back exceeds π/2, which
+// its own aperture functions then reject. Clamp once, to (−π/2, π/2].
+double sep_theta(const sep_catalog& cat, int k) {
+    double theta = std::clamp(double(cat.theta[k]), -0.5 * pi, 0.5 * pi);
+    if (theta == -0.5 * pi) theta = 0.5 * pi;
+    return theta;
+}
+
+// Object k as libsep found it, in FITS pixels (1-based), with its flags.
+Detection catalog_detection(const sep_catalog& cat, int k, const DetectionResult& result,
+                            const DetectionOptions& options) {
+    Detection d;
+    d.label = k + 1;
+    d.x = cat.x[k] + 1.0;
+    d.y = cat.y[k] + 1.0;
+    d.x_peak = cat.xpeak[k] + 1;
+    d.y_peak = cat.ypeak[k] + 1;
+    d.xmin = cat.xmin[k] + 1;
+    d.xmax = cat.xmax[k] + 1;
+    d.ymin = cat.ymin[k] + 1;
+    d.ymax = cat.ymax[k] + 1;
+    d.a = cat.a[k];
+    d.b = cat.b[k];
+    d.theta = sep_theta(cat, k) * 180.0 / pi;
+    d.cxx = cat.cxx[k];
+    d.cyy = cat.cyy[k];
+    d.cxy = cat.cxy[k];
+    d.flux_iso = cat.flux[k];
+    d.peak = cat.peak[k];
+    d.npix = cat.npix[k];
+    d.sigma = result.sigma(cat.ypeak[k], cat.xpeak[k]);
+    d.threshold = options.detect_thresh * d.sigma;
+    if (cat.flag[k] & SEP_OBJ_MERGED) d.flags.push_back("blended");
+    if (cat.flag[k] & SEP_OBJ_TRUNC) d.flags.push_back("truncated");
+    if (cat.flag[k] & SEP_OBJ_SINGU) d.flags.push_back("singular");
+    return d;
+}
+
+// Isophotal area above the analysis threshold on the image; the FWHM from the object's pixels
+// (SExtractor's fit, sextractor_fwhm), the threshold its lowest per pixel. `pixels` is a
+// workspace reused across objects.
+void measure_iso_and_fwhm(Detection& d, const sep_catalog& cat, int k,
+                          const DetectionResult& result, const DetectionOptions& options,
+                          std::vector<std::array<double, 3>>& pixels) {
+    pixels.clear();
+    double lowest = std::numeric_limits<double>::infinity();
+    const int nx = int(result.image.cols());
+    for (int p = 0; p < cat.npix[k]; ++p) {
+        const int pixel = cat.pix[k][p];
+        const double value = result.image.data()[pixel], sigma = result.sigma.data()[pixel];
+        if (value > options.analysis_thresh * sigma) ++d.iso_area;
+        lowest = std::min(lowest, options.detect_thresh * sigma);
+        pixels.push_back({value, double(pixel % nx) - cat.x[k], double(pixel / nx) - cat.y[k]});
+    }
+    d.fwhm = sextractor_fwhm(pixels, cat.peak[k], lowest, cat.a[k], cat.b[k]);
+    // An unresolved spike (a hot pixel, a cosmic ray) has a fitted core narrower than the
+    // undersampling correction: no FWHM, flagged, and the catalogue goes on (issue 15).
+    if (!(d.fwhm > 0.0) || !std::isfinite(d.fwhm)) {
+        d.fwhm = std::numeric_limits<double>::quiet_NaN();
+        d.flags.push_back("fwhm_failed");
+    }
+}
+
+// Kron radius within 6 a (SExtractor), then the AUTO ellipse, each on a cutout with the
+// neighbours mirrored out.
+void measure_auto(Detection& d, const sep_catalog& cat, int k, const DetectionResult& result,
+                  const ImageArray& sep_sigma, const DetectionOptions& options) {
+    const double theta = sep_theta(cat, k);
+    const double x0 = cat.x[k], y0 = cat.y[k];
+    // A degenerate ellipse (a line of pixels) still needs a usable aperture.
+    const double a_ap = std::max(d.a, 0.5), b_ap = std::max(d.b, 0.5);
+    // Half-extents of the ellipse of semi-axes (r a, r b) at angle θ.
+    const auto half_x = [&](double r) {
+        return r * std::hypot(a_ap * std::cos(theta), b_ap * std::sin(theta));
+    };
+    const auto half_y = [&](double r) {
+        return r * std::hypot(a_ap * std::sin(theta), b_ap * std::cos(theta));
+    };
+    double kron = 0.0;
+    short flag = 0;
+    {
+        const Cutout c = corrected_cutout(result.image, nullptr, result.bad.data(),
+                                          &result.segmentation, d.label, x0, y0,
+                                          half_x(6.0), half_y(6.0));
+        const sep_image ci = sep_view(c.image, nullptr, nullptr, nullptr);
+        check_sep(sep_kron_radius(&ci, x0 - c.i0, y0 - c.j0, d.cxx, d.cyy, d.cxy, 6.0, 0,
+                                  &kron, &flag),
+                  "Kron radius of object " + std::to_string(d.label));
+    }
+    if (!(kron > 0.0) || !std::isfinite(kron)) kron = 0.0;
+    d.kron_radius = kron;
+    const double radius = std::max(options.kron_factor * kron, options.kron_min_radius);
+    const ApertureFlux automatic =
+        auto_flux(result, sep_sigma, {d.label, x0, y0, a_ap, b_ap, theta, radius}, options);
+    d.flux_auto = automatic.flux;
+    d.flux_auto_err = automatic.error;
+    if (automatic.truncated) d.flags.push_back("aperture_truncated");
+    if (automatic.masked) d.flags.push_back("aperture_masked");
+}
+
+}  // namespace
+
 DetectionResult detect_sources(const ImageArray& image, const ImageArray* inverse_variance,
                                const DetectionOptions& options) {
     options.validate();
     DetectionResult result = noise_field(image, inverse_variance, options);
-    const Eigen::Index ny = image.rows(), nx = image.cols();
-    const std::size_t n = std::size_t(nx) * std::size_t(ny);
     const ImageArray sep_sigma = sep_noise(result);
-
-    // Extraction; the pixel stack grows when a large image needs it.
-    std::unique_ptr<sep_catalog, CatalogDeleter> catalog;
-    {
-        const sep_image im = sep_view(result.image, &sep_sigma, result.bad.data(), nullptr);
-        std::size_t stack = std::max<std::size_t>(300000, n / 4);
-        for (int attempt = 0;; ++attempt) {
-            sep_set_extract_pixstack(stack);
-            sep_catalog* raw = nullptr;
-            const int status = sep_extract(
-                &im, float(options.detect_thresh), SEP_THRESH_REL, options.min_area,
-                options.filter.values.data(), options.filter.nx, options.filter.ny,
-                options.filter_mode == FilterMode::matched ? SEP_FILTER_MATCHED
-                                                           : SEP_FILTER_CONV,
-                options.deblend_nthresh, options.deblend_mincont, options.clean ? 1 : 0,
-                options.clean_param, &raw);
-            if (status == 0) {
-                catalog.reset(raw);
-                break;
-            }
-            // Status 2 is libsep's PIXSTACK_FULL ("internal pixel buffer full"): retry with
-            // a bigger stack.
-            if (status == 2 && attempt < 4 && stack < n) {
-                stack = std::min(stack * 4, n);
-                continue;
-            }
-            check_sep(status, "extraction");
-        }
-    }
-
-    // Segmentation map from the objects' pixel lists.
+    const auto catalog = extract_objects(result, sep_sigma, options);
     const sep_catalog& cat = *catalog;
-    result.segmentation = LabelArray::Zero(ny, nx);
-    for (int k = 0; k < cat.nobj; ++k)
-        for (int p = 0; p < cat.npix[k]; ++p) result.segmentation.data()[cat.pix[k][p]] = k + 1;
-
+    result.segmentation = segmentation_map(cat, image.rows(), image.cols());
     result.noise_correlation = correlated_noise_factor(result);
 
     // Measurements.
     result.objects.reserve(std::size_t(cat.nobj));
     std::vector<std::array<double, 3>> pixels;
     for (int k = 0; k < cat.nobj; ++k) {
-        Detection d;
-        d.label = k + 1;
-        d.x = cat.x[k] + 1.0;
-        d.y = cat.y[k] + 1.0;
-        d.x_peak = cat.xpeak[k] + 1;
-        d.y_peak = cat.ypeak[k] + 1;
-        d.xmin = cat.xmin[k] + 1;
-        d.xmax = cat.xmax[k] + 1;
-        d.ymin = cat.ymin[k] + 1;
-        d.ymax = cat.ymax[k] + 1;
-        d.a = cat.a[k];
-        d.b = cat.b[k];
-        // libsep stores θ as a float: float(π/2) read back exceeds π/2, which its own
-        // aperture functions then reject. Clamp once, to (−π/2, π/2].
-        double theta = std::clamp(double(cat.theta[k]), -0.5 * pi, 0.5 * pi);
-        if (theta == -0.5 * pi) theta = 0.5 * pi;
-        d.theta = theta * 180.0 / pi;
-        d.cxx = cat.cxx[k];
-        d.cyy = cat.cyy[k];
-        d.cxy = cat.cxy[k];
-        d.flux_iso = cat.flux[k];
-        d.peak = cat.peak[k];
-        d.npix = cat.npix[k];
-        d.sigma = result.sigma(cat.ypeak[k], cat.xpeak[k]);
-        d.threshold = options.detect_thresh * d.sigma;
-        if (cat.flag[k] & SEP_OBJ_MERGED) d.flags.push_back("blended");
-        if (cat.flag[k] & SEP_OBJ_TRUNC) d.flags.push_back("truncated");
-        if (cat.flag[k] & SEP_OBJ_SINGU) d.flags.push_back("singular");
-
-        // Isophotal area above the analysis threshold on the image; the FWHM from the
-        // object's pixels (SExtractor's fit, above), the threshold its lowest per pixel.
-        pixels.clear();
-        double lowest = std::numeric_limits<double>::infinity();
-        const int nx = int(result.image.cols());
-        for (int p = 0; p < cat.npix[k]; ++p) {
-            const int pixel = cat.pix[k][p];
-            const double value = result.image.data()[pixel], sigma = result.sigma.data()[pixel];
-            if (value > options.analysis_thresh * sigma) ++d.iso_area;
-            lowest = std::min(lowest, options.detect_thresh * sigma);
-            pixels.push_back({value, double(pixel % nx) - cat.x[k], double(pixel / nx) - cat.y[k]});
-        }
-        d.fwhm = sextractor_fwhm(pixels, cat.peak[k], lowest, cat.a[k], cat.b[k]);
-        // An unresolved spike (a hot pixel, a cosmic ray) has a fitted core narrower than the
-        // undersampling correction: no FWHM, flagged, and the catalogue goes on (issue 15).
-        if (!(d.fwhm > 0.0) || !std::isfinite(d.fwhm)) {
-            d.fwhm = std::numeric_limits<double>::quiet_NaN();
-            d.flags.push_back("fwhm_failed");
-        }
-
-        // Kron radius within 6 a (SExtractor), then the AUTO ellipse, each on a cutout with
-        // the neighbours mirrored out.
-        const double x0 = cat.x[k], y0 = cat.y[k];
-        // A degenerate ellipse (a line of pixels) still needs a usable aperture.
-        const double a_ap = std::max(d.a, 0.5), b_ap = std::max(d.b, 0.5);
-        // Half-extents of the ellipse of semi-axes (r a, r b) at angle θ.
-        const auto half_x = [&](double r) {
-            return r * std::hypot(a_ap * std::cos(theta), b_ap * std::sin(theta));
-        };
-        const auto half_y = [&](double r) {
-            return r * std::hypot(a_ap * std::sin(theta), b_ap * std::cos(theta));
-        };
-        double kron = 0.0;
-        short flag = 0;
-        {
-            const Cutout c = corrected_cutout(result.image, nullptr, result.bad.data(),
-                                              &result.segmentation, d.label, x0, y0,
-                                              half_x(6.0), half_y(6.0));
-            const sep_image ci = sep_view(c.image, nullptr, nullptr, nullptr);
-            check_sep(sep_kron_radius(&ci, x0 - c.i0, y0 - c.j0, d.cxx, d.cyy, d.cxy, 6.0, 0,
-                                      &kron, &flag),
-                      "Kron radius of object " + std::to_string(d.label));
-        }
-        if (!(kron > 0.0) || !std::isfinite(kron)) kron = 0.0;
-        d.kron_radius = kron;
-        const double radius = std::max(options.kron_factor * kron, options.kron_min_radius);
-        const ApertureFlux automatic =
-            auto_flux(result, sep_sigma, {d.label, x0, y0, a_ap, b_ap, theta, radius}, options);
-        d.flux_auto = automatic.flux;
-        d.flux_auto_err = automatic.error;
-        if (automatic.truncated) d.flags.push_back("aperture_truncated");
-        if (automatic.masked) d.flags.push_back("aperture_masked");
+        Detection d = catalog_detection(cat, k, result, options);
+        measure_iso_and_fwhm(d, cat, k, result, options, pixels);
+        measure_auto(d, cat, k, result, sep_sigma, options);
         result.objects.push_back(std::move(d));
     }
     return result;
