@@ -1,17 +1,12 @@
 // shapesim-render: shapesim.object/1 records → a FITS image with a WCS (paper §4.3;
 // DESIGN §3, §6). The work is in the library: scene.hpp (reading and placing the objects,
 // lensing, convolution, stamps, painting, noise, the truth), convolve.hpp, render.hpp.
-#include "shapesim/app/field_options.hpp"
 #include "shapesim/app/options.hpp"
-#include "shapesim/app/provenance.hpp"
+#include "shapesim/app/render_settings.hpp"
 #include "shapesim/app/run_main.hpp"
-#include "shapesim/atomic_file.hpp"
-#include "shapesim/fits_io.hpp"
 #include "shapesim/scene.hpp"
-#include "shapesim/sources.hpp"
 
 #include <chrono>
-#include <cmath>
 
 namespace {
 
@@ -31,27 +26,17 @@ const char* const description =
     "      --noise-like sources.jsonl --seed 7 -o sim.fits < objects.jsonl\n"
     "  shapesim-render --psf psf.jsonl --size 1 --noise-free -o clean.fits < objects.jsonl";
 
-struct Settings {
-    std::string input = "-", psf, galaxy_psf, truth, noise_like, noise_model, noise_weight, band;
-    app::FieldOptions field;
-    std::vector<double> shear;
-    double kappa = 0.0, exposure = 1.0;
-    int bitpix = -32, difference_order = -1;
-    bool keep_negative = false;
-    SceneOptions scene;
-};
-
 int run(int argc, const char* const argv[]) {
-    app::ProgramOptions options("shapesim-render", "[OPTION]... -o IMAGE", description,
-                                app::Common::output | app::Common::quiet | app::Common::verbose |
+    app::ProgramOptions options("shapesim-render", "[OPTION]... [FILE] -o IMAGE", description,
+                                app::Common::quiet | app::Common::verbose |
                                     app::Common::threads | app::Common::seed | app::Common::like |
                                     app::Common::config | app::Common::print_params);
-    Settings s;
+    app::RenderSettings s;
     SceneOptions& o = s.scene;
     using app::in_range;
     options.group("Input").add_options()
         ("input,i", po::value(&s.input)->value_name("FILE")->default_value("-"),
-         "object records (default: stdin)")
+         "object records, or the first argument (default: stdin)")
         ("band", po::value(&s.band)->value_name("NAME"),
          "draw every object as it is in this band of its \"bands\" (multi-band records); the "
          "noise is this band's own realisation of --seed")
@@ -107,51 +92,23 @@ int run(int argc, const char* const argv[]) {
          "pixels below zero are set to zero, since light is never negative and a truncated "
          "series rings; the truth's flux is what was drawn)");
     options.group("Output").add_options()
+        ("output,o", po::value<std::string>()->value_name("IMAGE"),
+         "the FITS image to write (required); written as IMAGE.tmp.<pid> and renamed when "
+         "complete")
         ("truth", po::value(&s.truth)->value_name("FILE"),
          "write what was drawn, for the objects centred in the image or --tile (JSON lines:\n"
          "position, true flux and shape, stamp)")
         ("bitpix", po::value(&s.bitpix)->default_value(-32), "-32 or -64");
+    options.positional("input", 1);
     if (!options.parse(argc, argv)) return 0;
     const app::Log log("shapesim-render", options.common().verbosity);
-    const std::string& output = options.common().output;
-    if (output.empty()) throw po::error("give the output image: -o FILE");
-    if (s.bitpix != -32 && s.bitpix != -64) throw po::error("--bitpix: -32 or -64");
-    check_writable(output);
-    if (!s.truth.empty()) check_writable(s.truth);
-    if (!s.galaxy_psf.empty() && s.psf.empty()) throw po::error("--galaxy-psf needs --psf");
-    const bool rms_given = options.given("noise-rms") || options.given("noise-correlation");
-    if (options.given("noise-like") && rms_given)
-        throw po::error("--noise-like sets --noise-rms and --noise-correlation");
-    if (options.given("noise-model") && (options.given("noise-like") || rms_given))
-        throw po::error("--noise-model sets the noise: not with --noise-like, --noise-rms, "
-                        "--noise-correlation");
-    if (!s.shear.empty() && s.shear.size() != 2)
-        throw po::error("--shear takes two numbers: G1 G2");
-    if (!s.shear.empty() && !(std::hypot(s.shear[0], s.shear[1]) < 1.0))
-        throw po::error("--shear: |g| must be < 1");
-    const double g1 = s.shear.empty() ? 0.0 : s.shear[0], g2 = s.shear.empty() ? 0.0 : s.shear[1];
-    if (!s.shear.empty() || s.kappa != 0.0) o.lensing = Lensing{g1, g2, s.kappa};
+    s.check(options);
 
-    // The field and its window; the noise (shapesim-detect's records, or the sky's measured
-    // noise and weight map); the kernels.
+    // The field and its window; the noise and the rest of the scene's options; the kernels.
     const FieldGeometry field = s.field.field(options);
     const Tile window =
         s.field.window(options, field, true).value_or(Tile{1, 1, field.nx, field.ny});
-    if (!s.noise_like.empty()) {
-        const FieldNoise noise = read_field_noise(s.noise_like);
-        o.noise_rms = noise.rms;
-        o.noise_correlation = noise.correlation;
-    }
-    if (!s.noise_model.empty()) use_sky_noise(o, read_noise_record(s.noise_model));
-    if (o.noise_kernel) log.verbose("noise kernel radius ", o.noise_kernel->radius, ", ",
-                                    o.noise_kernel->columns.size(), " separable terms");
-    if (!s.noise_weight.empty())
-        o.noise_scale = read_noise_scale(s.noise_weight, field.nx, field.ny);
-    o.gain *= s.exposure;
-    o.seed = s.band.empty() ? options.common().seed : band_seed(options.common().seed, s.band);
-    o.threads = options.common().threads;
-    o.clip_negative = !s.keep_negative;
-    o.validate();
+    s.finish_scene(options, field, log);
     const SceneKernels kernels =
         read_scene_kernels(s.psf, s.galaxy_psf, field.pixel_scale, s.difference_order);
 
@@ -163,32 +120,14 @@ int run(int argc, const char* const argv[]) {
     const auto t_prepare = clock::now();
     const RenderedScene scene = render_field(records, field, kernels, o, window, s.input);
     const auto t_write = clock::now();
-    std::string noise = s.noise_model.empty() ? "drizzle-like 3x3 (NOISECOR)" : s.noise_model;
-    if (!s.noise_weight.empty()) noise += ", scaled by the weight map";
-    const SceneLabels labels{options.common().seed, s.psf.empty() ? "none" : s.psf, noise, s.band};
-    FitsWriter fits(output, "shapesim-render",
-                    app::provenance_keywords(options, {"output", "truth"}));
-    fits.write_image(scene.image, scene_image_spec(scene, records, o, kernels, labels, s.bitpix));
-    std::unique_ptr<AtomicTextFile> truth;
-    if (!s.truth.empty()) {
-        truth = std::make_unique<AtomicTextFile>(s.truth);
-        JsonlWriter out(truth->stream(), s.truth);
-        for (const TruthRecord& t : truth_records(scene, records)) out.write(t.to_json());
-    }
-    fits.commit();
-    if (truth) truth->commit();
+    s.write_outputs(options, scene, records, kernels);
     const auto t_end = clock::now();
-    if (const ClippedSummary c = summarise_clipped(scene); c.galaxies > 0)
-        log.info(c.galaxies, " galaxies had negative model light, set to zero (at most ", c.largest,
-                 " of a galaxy's flux; deepest pixel ", c.deepest, o.noise_rms > 0.0
-                 ? " = " + std::to_string(c.deepest / o.noise_rms) + " sigma" : std::string(), ")");
+    if (const std::string note = clipped_note(summarise_clipped(scene), o.noise_rms); !note.empty())
+        log.info(note);
     auto seconds = [](auto a, auto b) { return std::chrono::duration<double>(b - a).count(); };
-    log.info(scene.objects.size(), " of ", records.size(), " objects drawn into ",
-             window.x1 - window.x0 + 1, " x ", window.y1 - window.y0 + 1,
-             " pixels; galaxy kernel: ", kernels.galaxy_note, "; read ",
-             seconds(t_read, t_prepare), " s, prepare (lens, convolve) ", scene.prepare_seconds,
-             " s, paint ", scene.paint_seconds, " s, noise ", scene.noise_seconds, " s, write ",
-             seconds(t_write, t_end), " s; peak memory ", app::Log::peak_memory_mib(), " MiB");
+    log.info(render_summary(scene, records.size(), window, kernels, seconds(t_read, t_prepare),
+                            seconds(t_write, t_end)),
+             "; peak memory ", app::Log::peak_memory_mib(), " MiB");
     return 0;
 }
 

@@ -369,20 +369,11 @@ ApertureFlux circular_aperture_flux(const DetectionResult& result, int label, do
 
 namespace {
 
-// Steps 1–3 of the header: bad pixels, background subtracted, the noise map (objects,
-// segmentation and the correlated-noise factor left to the caller).
-DetectionResult noise_field(const ImageArray& image, const ImageArray* inverse_variance,
-                            const DetectionOptions& options) {
+// Step 1 of the header: pixels that are not data (NaN, infinite, the ±1e30 sentinels, zero
+// weight) are marked bad and zeroed, so no later step reads them as light.
+void mark_bad_pixels(const ImageArray& image, const ImageArray* inverse_variance,
+                     DetectionResult& result) {
     const Eigen::Index ny = image.rows(), nx = image.cols();
-    require(nx > 0 && ny > 0, "image is empty");
-    if (inverse_variance && (inverse_variance->rows() != ny || inverse_variance->cols() != nx)) {
-        std::ostringstream s;
-        s << "weight map is " << inverse_variance->cols() << "×" << inverse_variance->rows()
-          << " pixels but the image is " << nx << "×" << ny;
-        throw Error(s.str());
-    }
-
-    DetectionResult result;
     const std::size_t n = std::size_t(nx) * std::size_t(ny);
     result.bad.assign(n, 0);
     result.image = image;
@@ -401,35 +392,43 @@ DetectionResult noise_field(const ImageArray& image, const ImageArray* inverse_v
     if (result.bad_pixels == (long long)n)
         throw Error("no usable pixel: every pixel is NaN/infinite, ±1e30 or beyond, or has zero "
                     "weight");
-    // Without a weight map, a zero-filled region (a rotated mosaic's border, an empty tile)
-    // says "no data" only by being exactly 0: a pixel that is 0 with all its neighbours 0 is
-    // bad, so the background and its rms come from the data alone (noise never makes 3×3
-    // exact zeros in float data; σ ~ 1 DN integer data may lose ~1e-4 of its pixels). An image
-    // that is 0 everywhere is left to the no-noise error below.
-    if (!inverse_variance) {
-        std::vector<std::uint8_t> empty(n, 0);
-        long long count = 0;
-        for (Eigen::Index j = 0; j < ny; ++j)
-            for (Eigen::Index i = 0; i < nx; ++i) {
-                bool zero = true;
-                for (Eigen::Index b = std::max<Eigen::Index>(j - 1, 0);
-                     zero && b <= std::min<Eigen::Index>(j + 1, ny - 1); ++b)
-                    for (Eigen::Index a = std::max<Eigen::Index>(i - 1, 0);
-                         zero && a <= std::min<Eigen::Index>(i + 1, nx - 1); ++a)
-                        zero = image(b, a) == 0.0;
-                const std::size_t k = std::size_t(j * nx + i);
-                if (zero && !result.bad[k]) empty[k] = 1, ++count;
-            }
-        if (count > 0 && count < (long long)n - result.bad_pixels)
-            for (std::size_t k = 0; k < n; ++k)
-                if (empty[k]) {
-                    result.bad[k] = 1;
-                    ++result.bad_pixels;
-                    ++result.zero_noise_pixels;
-                }
-    }
+}
 
-    // Background: mesh, filter, spline; subtract.
+// Without a weight map, a zero-filled region (a rotated mosaic's border, an empty tile)
+// says "no data" only by being exactly 0: a pixel that is 0 with all its neighbours 0 is
+// bad, so the background and its rms come from the data alone (noise never makes 3×3
+// exact zeros in float data; σ ~ 1 DN integer data may lose ~1e-4 of its pixels). An image
+// that is 0 everywhere is left to the no-noise error below.
+void mark_empty_regions(const ImageArray& image, DetectionResult& result) {
+    const Eigen::Index ny = image.rows(), nx = image.cols();
+    const std::size_t n = std::size_t(nx) * std::size_t(ny);
+    std::vector<std::uint8_t> empty(n, 0);
+    long long count = 0;
+    for (Eigen::Index j = 0; j < ny; ++j)
+        for (Eigen::Index i = 0; i < nx; ++i) {
+            bool zero = true;
+            for (Eigen::Index b = std::max<Eigen::Index>(j - 1, 0);
+                 zero && b <= std::min<Eigen::Index>(j + 1, ny - 1); ++b)
+                for (Eigen::Index a = std::max<Eigen::Index>(i - 1, 0);
+                     zero && a <= std::min<Eigen::Index>(i + 1, nx - 1); ++a)
+                    zero = image(b, a) == 0.0;
+            const std::size_t k = std::size_t(j * nx + i);
+            if (zero && !result.bad[k]) empty[k] = 1, ++count;
+        }
+    if (count > 0 && count < (long long)n - result.bad_pixels)
+        for (std::size_t k = 0; k < n; ++k)
+            if (empty[k]) {
+                result.bad[k] = 1;
+                ++result.bad_pixels;
+                ++result.zero_noise_pixels;
+            }
+}
+
+// Step 2: SEP's background (mesh, filter, spline) subtracted from the image, its global mean
+// and rms kept; bad pixels stay 0. The background is returned for its rms map.
+std::unique_ptr<sep_bkg, BackgroundDeleter> subtract_background(DetectionResult& result,
+                                                                const DetectionOptions& options) {
+    const std::size_t n = result.bad.size();
     std::unique_ptr<sep_bkg, BackgroundDeleter> background;
     {
         const sep_image im = sep_view(result.image, nullptr, result.bad.data(), nullptr);
@@ -445,48 +444,79 @@ DetectionResult noise_field(const ImageArray& image, const ImageArray* inverse_v
     result.background_rms = sep_bkg_globalrms(background.get());
     for (std::size_t k = 0; k < n; ++k)
         if (result.bad[k]) result.image.data()[k] = 0.0;
+    return background;
+}
 
-    // Noise map for the threshold.
-    result.sigma.resize(ny, nx);
+// Step 3 with a weight map: σ = 1/√w, rescaled (--rescale-weight) so the map's median σ is
+// the background's measured rms, since drizzle weights are right only up to a factor.
+void noise_map_from_weight(const ImageArray& inverse_variance, const DetectionOptions& options,
+                           DetectionResult& result) {
+    const std::size_t n = result.bad.size();
     constexpr double infinite = std::numeric_limits<double>::infinity();
-    if (inverse_variance) {
-        std::vector<double> sigmas;
-        sigmas.reserve(n);
-        for (std::size_t k = 0; k < n; ++k)
-            if (!result.bad[k]) sigmas.push_back(1.0 / std::sqrt(inverse_variance->data()[k]));
-        const double median_sigma = upper_median(sigmas);
-        if (options.rescale_weight) {
-            if (!(result.background_rms > 0.0))
-                throw Error("background rms is zero: cannot rescale the weight map "
-                            "(a constant image?)");
-            result.weight_scale = std::pow(median_sigma / result.background_rms, 2);
+    std::vector<double> sigmas;
+    sigmas.reserve(n);
+    for (std::size_t k = 0; k < n; ++k)
+        if (!result.bad[k]) sigmas.push_back(1.0 / std::sqrt(inverse_variance.data()[k]));
+    const double median_sigma = upper_median(sigmas);
+    if (options.rescale_weight) {
+        if (!(result.background_rms > 0.0))
+            throw Error("background rms is zero: cannot rescale the weight map "
+                        "(a constant image?)");
+        result.weight_scale = std::pow(median_sigma / result.background_rms, 2);
+    }
+    const double scale = std::sqrt(result.weight_scale);
+    for (std::size_t k = 0; k < n; ++k)
+        result.sigma.data()[k] =
+            result.bad[k] ? infinite : 1.0 / (std::sqrt(inverse_variance.data()[k]) * scale);
+}
+
+// Step 3 without a weight map: SEP's local background rms.
+void noise_map_from_background(sep_bkg* background, DetectionResult& result) {
+    const std::size_t n = result.bad.size();
+    constexpr double infinite = std::numeric_limits<double>::infinity();
+    check_sep(sep_bkg_rmsarray(background, result.sigma.data(), SEP_TDOUBLE),
+              "background rms");
+    // Where the local rms is zero the image is constant: a zero-filled border around a
+    // rotated mosaic, an empty tile. Nothing can be detected there; those pixels are bad,
+    // and only an image with no noise anywhere is an error.
+    for (std::size_t k = 0; k < n; ++k) {
+        if (result.bad[k]) {
+            result.sigma.data()[k] = infinite;
+        } else if (!(result.sigma.data()[k] > 0.0)) {
+            result.bad[k] = 1;
+            result.image.data()[k] = 0.0;
+            result.sigma.data()[k] = infinite;
+            ++result.bad_pixels;
+            ++result.zero_noise_pixels;
         }
-        const double scale = std::sqrt(result.weight_scale);
-        for (std::size_t k = 0; k < n; ++k)
-            result.sigma.data()[k] =
-                result.bad[k] ? infinite : 1.0 / (std::sqrt(inverse_variance->data()[k]) * scale);
-    } else {
-        check_sep(sep_bkg_rmsarray(background.get(), result.sigma.data(), SEP_TDOUBLE),
-                  "background rms");
-        // Where the local rms is zero the image is constant: a zero-filled border around a
-        // rotated mosaic, an empty tile. Nothing can be detected there; those pixels are bad,
-        // and only an image with no noise anywhere is an error.
-        for (std::size_t k = 0; k < n; ++k) {
-            if (result.bad[k]) {
-                result.sigma.data()[k] = infinite;
-            } else if (!(result.sigma.data()[k] > 0.0)) {
-                result.bad[k] = 1;
-                result.image.data()[k] = 0.0;
-                result.sigma.data()[k] = infinite;
-                ++result.bad_pixels;
-                ++result.zero_noise_pixels;
-            }
-        }
-        if (result.bad_pixels == (long long)n)
-            throw Error("background rms is zero: the image has no noise (a constant image?); "
-                        "give a weight map");
+    }
+    if (result.bad_pixels == (long long)n)
+        throw Error("background rms is zero: the image has no noise (a constant image?); "
+                    "give a weight map");
+}
+
+// Steps 1–3 of the header: bad pixels, background subtracted, the noise map (objects,
+// segmentation and the correlated-noise factor left to the caller).
+DetectionResult noise_field(const ImageArray& image, const ImageArray* inverse_variance,
+                            const DetectionOptions& options) {
+    const Eigen::Index ny = image.rows(), nx = image.cols();
+    require(nx > 0 && ny > 0, "image is empty");
+    if (inverse_variance && (inverse_variance->rows() != ny || inverse_variance->cols() != nx)) {
+        std::ostringstream s;
+        s << "weight map is " << inverse_variance->cols() << "×" << inverse_variance->rows()
+          << " pixels but the image is " << nx << "×" << ny;
+        throw Error(s.str());
     }
 
+    DetectionResult result;
+    mark_bad_pixels(image, inverse_variance, result);
+    if (!inverse_variance) mark_empty_regions(image, result);
+    const auto background = subtract_background(result, options);
+    result.sigma.resize(ny, nx);
+    if (inverse_variance)
+        noise_map_from_weight(*inverse_variance, options, result);
+    else
+        noise_map_from_background(background.get(), result);
     return result;
 }
 
@@ -532,136 +562,169 @@ ApertureFlux auto_flux(const DetectionResult& result, const ImageArray& sep_sigm
 
 }  // namespace
 
+namespace {
+
+// Step 4 of the header: libsep's extraction above the threshold; the pixel stack grows when a
+// large image needs it.
+std::unique_ptr<sep_catalog, CatalogDeleter> extract_objects(const DetectionResult& result,
+                                                             const ImageArray& sep_sigma,
+                                                             const DetectionOptions& options) {
+    const std::size_t n = result.bad.size();
+    std::unique_ptr<sep_catalog, CatalogDeleter> catalog;
+    const sep_image im = sep_view(result.image, &sep_sigma, result.bad.data(), nullptr);
+    std::size_t stack = std::max<std::size_t>(300000, n / 4);
+    for (int attempt = 0;; ++attempt) {
+        sep_set_extract_pixstack(stack);
+        sep_catalog* raw = nullptr;
+        const int status = sep_extract(
+            &im, float(options.detect_thresh), SEP_THRESH_REL, options.min_area,
+            options.filter.values.data(), options.filter.nx, options.filter.ny,
+            options.filter_mode == FilterMode::matched ? SEP_FILTER_MATCHED
+                                                       : SEP_FILTER_CONV,
+            options.deblend_nthresh, options.deblend_mincont, options.clean ? 1 : 0,
+            options.clean_param, &raw);
+        if (status == 0) {
+            catalog.reset(raw);
+            break;
+        }
+        // Status 2 is libsep's PIXSTACK_FULL ("internal pixel buffer full"): retry with
+        // a bigger stack.
+        if (status == 2 && attempt < 4 && stack < n) {
+            stack = std::min(stack * 4, n);
+            continue;
+        }
+        check_sep(status, "extraction");
+    }
+    return catalog;
+}
+
+// The segmentation map from the objects' pixel lists: object k is label k + 1, 0 is sky.
+LabelArray segmentation_map(const sep_catalog& cat, Eigen::Index ny, Eigen::Index nx) {
+    LabelArray segmentation = LabelArray::Zero(ny, nx);
+    for (int k = 0; k < cat.nobj; ++k)
+        for (int p = 0; p < cat.npix[k]; ++p) segmentation.data()[cat.pix[k][p]] = k + 1;
+    return segmentation;
+}
+
+// Object k's θ, radians. libsep stores θ as a float: float(π/2) read back exceeds π/2, which
+// its own aperture functions then reject. Clamp once, to (−π/2, π/2].
+double sep_theta(const sep_catalog& cat, int k) {
+    double theta = std::clamp(double(cat.theta[k]), -0.5 * pi, 0.5 * pi);
+    if (theta == -0.5 * pi) theta = 0.5 * pi;
+    return theta;
+}
+
+// Object k as libsep found it, in FITS pixels (1-based), with its flags.
+Detection catalog_detection(const sep_catalog& cat, int k, const DetectionResult& result,
+                            const DetectionOptions& options) {
+    Detection d;
+    d.label = k + 1;
+    d.x = cat.x[k] + 1.0;
+    d.y = cat.y[k] + 1.0;
+    d.x_peak = cat.xpeak[k] + 1;
+    d.y_peak = cat.ypeak[k] + 1;
+    d.xmin = cat.xmin[k] + 1;
+    d.xmax = cat.xmax[k] + 1;
+    d.ymin = cat.ymin[k] + 1;
+    d.ymax = cat.ymax[k] + 1;
+    d.a = cat.a[k];
+    d.b = cat.b[k];
+    d.theta = sep_theta(cat, k) * 180.0 / pi;
+    d.cxx = cat.cxx[k];
+    d.cyy = cat.cyy[k];
+    d.cxy = cat.cxy[k];
+    d.flux_iso = cat.flux[k];
+    d.peak = cat.peak[k];
+    d.npix = cat.npix[k];
+    d.sigma = result.sigma(cat.ypeak[k], cat.xpeak[k]);
+    d.threshold = options.detect_thresh * d.sigma;
+    if (cat.flag[k] & SEP_OBJ_MERGED) d.flags.push_back("blended");
+    if (cat.flag[k] & SEP_OBJ_TRUNC) d.flags.push_back("truncated");
+    if (cat.flag[k] & SEP_OBJ_SINGU) d.flags.push_back("singular");
+    return d;
+}
+
+// Isophotal area above the analysis threshold on the image; the FWHM from the object's pixels
+// (SExtractor's fit, sextractor_fwhm), the threshold its lowest per pixel. `pixels` is a
+// workspace reused across objects.
+void measure_iso_and_fwhm(Detection& d, const sep_catalog& cat, int k,
+                          const DetectionResult& result, const DetectionOptions& options,
+                          std::vector<std::array<double, 3>>& pixels) {
+    pixels.clear();
+    double lowest = std::numeric_limits<double>::infinity();
+    const int nx = int(result.image.cols());
+    for (int p = 0; p < cat.npix[k]; ++p) {
+        const int pixel = cat.pix[k][p];
+        const double value = result.image.data()[pixel], sigma = result.sigma.data()[pixel];
+        if (value > options.analysis_thresh * sigma) ++d.iso_area;
+        lowest = std::min(lowest, options.detect_thresh * sigma);
+        pixels.push_back({value, double(pixel % nx) - cat.x[k], double(pixel / nx) - cat.y[k]});
+    }
+    d.fwhm = sextractor_fwhm(pixels, cat.peak[k], lowest, cat.a[k], cat.b[k]);
+    // An unresolved spike (a hot pixel, a cosmic ray) has a fitted core narrower than the
+    // undersampling correction: no FWHM, flagged, and the catalogue goes on (issue 15).
+    if (!(d.fwhm > 0.0) || !std::isfinite(d.fwhm)) {
+        d.fwhm = std::numeric_limits<double>::quiet_NaN();
+        d.flags.push_back("fwhm_failed");
+    }
+}
+
+// Kron radius within 6 a (SExtractor), then the AUTO ellipse, each on a cutout with the
+// neighbours mirrored out.
+void measure_auto(Detection& d, const sep_catalog& cat, int k, const DetectionResult& result,
+                  const ImageArray& sep_sigma, const DetectionOptions& options) {
+    const double theta = sep_theta(cat, k);
+    const double x0 = cat.x[k], y0 = cat.y[k];
+    // A degenerate ellipse (a line of pixels) still needs a usable aperture.
+    const double a_ap = std::max(d.a, 0.5), b_ap = std::max(d.b, 0.5);
+    // Half-extents of the ellipse of semi-axes (r a, r b) at angle θ.
+    const auto half_x = [&](double r) {
+        return r * std::hypot(a_ap * std::cos(theta), b_ap * std::sin(theta));
+    };
+    const auto half_y = [&](double r) {
+        return r * std::hypot(a_ap * std::sin(theta), b_ap * std::cos(theta));
+    };
+    double kron = 0.0;
+    short flag = 0;
+    {
+        const Cutout c = corrected_cutout(result.image, nullptr, result.bad.data(),
+                                          &result.segmentation, d.label, x0, y0,
+                                          half_x(6.0), half_y(6.0));
+        const sep_image ci = sep_view(c.image, nullptr, nullptr, nullptr);
+        check_sep(sep_kron_radius(&ci, x0 - c.i0, y0 - c.j0, d.cxx, d.cyy, d.cxy, 6.0, 0,
+                                  &kron, &flag),
+                  "Kron radius of object " + std::to_string(d.label));
+    }
+    if (!(kron > 0.0) || !std::isfinite(kron)) kron = 0.0;
+    d.kron_radius = kron;
+    const double radius = std::max(options.kron_factor * kron, options.kron_min_radius);
+    const ApertureFlux automatic =
+        auto_flux(result, sep_sigma, {d.label, x0, y0, a_ap, b_ap, theta, radius}, options);
+    d.flux_auto = automatic.flux;
+    d.flux_auto_err = automatic.error;
+    if (automatic.truncated) d.flags.push_back("aperture_truncated");
+    if (automatic.masked) d.flags.push_back("aperture_masked");
+}
+
+}  // namespace
+
 DetectionResult detect_sources(const ImageArray& image, const ImageArray* inverse_variance,
                                const DetectionOptions& options) {
     options.validate();
     DetectionResult result = noise_field(image, inverse_variance, options);
-    const Eigen::Index ny = image.rows(), nx = image.cols();
-    const std::size_t n = std::size_t(nx) * std::size_t(ny);
     const ImageArray sep_sigma = sep_noise(result);
-
-    // Extraction; the pixel stack grows when a large image needs it.
-    std::unique_ptr<sep_catalog, CatalogDeleter> catalog;
-    {
-        const sep_image im = sep_view(result.image, &sep_sigma, result.bad.data(), nullptr);
-        std::size_t stack = std::max<std::size_t>(300000, n / 4);
-        for (int attempt = 0;; ++attempt) {
-            sep_set_extract_pixstack(stack);
-            sep_catalog* raw = nullptr;
-            const int status = sep_extract(
-                &im, float(options.detect_thresh), SEP_THRESH_REL, options.min_area,
-                options.filter.values.data(), options.filter.nx, options.filter.ny,
-                options.filter_mode == FilterMode::matched ? SEP_FILTER_MATCHED
-                                                           : SEP_FILTER_CONV,
-                options.deblend_nthresh, options.deblend_mincont, options.clean ? 1 : 0,
-                options.clean_param, &raw);
-            if (status == 0) {
-                catalog.reset(raw);
-                break;
-            }
-            // Status 2 is libsep's PIXSTACK_FULL ("internal pixel buffer full"): retry with
-            // a bigger stack.
-            if (status == 2 && attempt < 4 && stack < n) {
-                stack = std::min(stack * 4, n);
-                continue;
-            }
-            check_sep(status, "extraction");
-        }
-    }
-
-    // Segmentation map from the objects' pixel lists.
+    const auto catalog = extract_objects(result, sep_sigma, options);
     const sep_catalog& cat = *catalog;
-    result.segmentation = LabelArray::Zero(ny, nx);
-    for (int k = 0; k < cat.nobj; ++k)
-        for (int p = 0; p < cat.npix[k]; ++p) result.segmentation.data()[cat.pix[k][p]] = k + 1;
-
+    result.segmentation = segmentation_map(cat, image.rows(), image.cols());
     result.noise_correlation = correlated_noise_factor(result);
 
     // Measurements.
     result.objects.reserve(std::size_t(cat.nobj));
     std::vector<std::array<double, 3>> pixels;
     for (int k = 0; k < cat.nobj; ++k) {
-        Detection d;
-        d.label = k + 1;
-        d.x = cat.x[k] + 1.0;
-        d.y = cat.y[k] + 1.0;
-        d.x_peak = cat.xpeak[k] + 1;
-        d.y_peak = cat.ypeak[k] + 1;
-        d.xmin = cat.xmin[k] + 1;
-        d.xmax = cat.xmax[k] + 1;
-        d.ymin = cat.ymin[k] + 1;
-        d.ymax = cat.ymax[k] + 1;
-        d.a = cat.a[k];
-        d.b = cat.b[k];
-        // libsep stores θ as a float: float(π/2) read back exceeds π/2, which its own
-        // aperture functions then reject. Clamp once, to (−π/2, π/2].
-        double theta = std::clamp(double(cat.theta[k]), -0.5 * pi, 0.5 * pi);
-        if (theta == -0.5 * pi) theta = 0.5 * pi;
-        d.theta = theta * 180.0 / pi;
-        d.cxx = cat.cxx[k];
-        d.cyy = cat.cyy[k];
-        d.cxy = cat.cxy[k];
-        d.flux_iso = cat.flux[k];
-        d.peak = cat.peak[k];
-        d.npix = cat.npix[k];
-        d.sigma = result.sigma(cat.ypeak[k], cat.xpeak[k]);
-        d.threshold = options.detect_thresh * d.sigma;
-        if (cat.flag[k] & SEP_OBJ_MERGED) d.flags.push_back("blended");
-        if (cat.flag[k] & SEP_OBJ_TRUNC) d.flags.push_back("truncated");
-        if (cat.flag[k] & SEP_OBJ_SINGU) d.flags.push_back("singular");
-
-        // Isophotal area above the analysis threshold on the image; the FWHM from the
-        // object's pixels (SExtractor's fit, above), the threshold its lowest per pixel.
-        pixels.clear();
-        double lowest = std::numeric_limits<double>::infinity();
-        const int nx = int(result.image.cols());
-        for (int p = 0; p < cat.npix[k]; ++p) {
-            const int pixel = cat.pix[k][p];
-            const double value = result.image.data()[pixel], sigma = result.sigma.data()[pixel];
-            if (value > options.analysis_thresh * sigma) ++d.iso_area;
-            lowest = std::min(lowest, options.detect_thresh * sigma);
-            pixels.push_back({value, double(pixel % nx) - cat.x[k], double(pixel / nx) - cat.y[k]});
-        }
-        d.fwhm = sextractor_fwhm(pixels, cat.peak[k], lowest, cat.a[k], cat.b[k]);
-        // An unresolved spike (a hot pixel, a cosmic ray) has a fitted core narrower than the
-        // undersampling correction: no FWHM, flagged, and the catalogue goes on (issue 15).
-        if (!(d.fwhm > 0.0) || !std::isfinite(d.fwhm)) {
-            d.fwhm = std::numeric_limits<double>::quiet_NaN();
-            d.flags.push_back("fwhm_failed");
-        }
-
-        // Kron radius within 6 a (SExtractor), then the AUTO ellipse, each on a cutout with
-        // the neighbours mirrored out.
-        const double x0 = cat.x[k], y0 = cat.y[k];
-        // A degenerate ellipse (a line of pixels) still needs a usable aperture.
-        const double a_ap = std::max(d.a, 0.5), b_ap = std::max(d.b, 0.5);
-        // Half-extents of the ellipse of semi-axes (r a, r b) at angle θ.
-        const auto half_x = [&](double r) {
-            return r * std::hypot(a_ap * std::cos(theta), b_ap * std::sin(theta));
-        };
-        const auto half_y = [&](double r) {
-            return r * std::hypot(a_ap * std::sin(theta), b_ap * std::cos(theta));
-        };
-        double kron = 0.0;
-        short flag = 0;
-        {
-            const Cutout c = corrected_cutout(result.image, nullptr, result.bad.data(),
-                                              &result.segmentation, d.label, x0, y0,
-                                              half_x(6.0), half_y(6.0));
-            const sep_image ci = sep_view(c.image, nullptr, nullptr, nullptr);
-            check_sep(sep_kron_radius(&ci, x0 - c.i0, y0 - c.j0, d.cxx, d.cyy, d.cxy, 6.0, 0,
-                                      &kron, &flag),
-                      "Kron radius of object " + std::to_string(d.label));
-        }
-        if (!(kron > 0.0) || !std::isfinite(kron)) kron = 0.0;
-        d.kron_radius = kron;
-        const double radius = std::max(options.kron_factor * kron, options.kron_min_radius);
-        const ApertureFlux automatic =
-            auto_flux(result, sep_sigma, {d.label, x0, y0, a_ap, b_ap, theta, radius}, options);
-        d.flux_auto = automatic.flux;
-        d.flux_auto_err = automatic.error;
-        if (automatic.truncated) d.flags.push_back("aperture_truncated");
-        if (automatic.masked) d.flags.push_back("aperture_masked");
+        Detection d = catalog_detection(cat, k, result, options);
+        measure_iso_and_fwhm(d, cat, k, result, options, pixels);
+        measure_auto(d, cat, k, result, sep_sigma, options);
         result.objects.push_back(std::move(d));
     }
     return result;

@@ -15,6 +15,7 @@
 #include <chrono>
 #include <cmath>
 #include <optional>
+#include <sstream>
 #include <thread>
 
 namespace shapesim {
@@ -471,6 +472,41 @@ ClippedSummary summarise_clipped(const RenderedScene& scene) {
         summary.deepest = std::min(summary.deepest, c.deepest);
     }
     return summary;
+}
+
+void write_truth_records(std::ostream& out, const std::string& name, const RenderedScene& scene,
+                         const std::vector<ObjectRecord>& records) {
+    JsonlWriter writer(out, name);
+    for (const TruthRecord& t : truth_records(scene, records)) writer.write(t.to_json());
+}
+
+std::string clipped_note(const ClippedSummary& c, double noise_rms) {
+    if (c.galaxies <= 0) return {};
+    std::ostringstream note;
+    note << c.galaxies << " galaxies had negative model light, set to zero (at most " << c.largest
+         << " of a galaxy's flux; deepest pixel " << c.deepest
+         << (noise_rms > 0.0 ? " = " + std::to_string(c.deepest / noise_rms) + " sigma"
+                             : std::string())
+         << ")";
+    return note.str();
+}
+
+std::string render_summary(const RenderedScene& scene, std::size_t records, const Tile& window,
+                           const SceneKernels& kernels, double read_seconds, double write_seconds) {
+    std::ostringstream line;
+    line << scene.objects.size() << " of " << records << " objects drawn into "
+         << window.x1 - window.x0 + 1 << " x " << window.y1 - window.y0 + 1
+         << " pixels; galaxy kernel: " << kernels.galaxy_note << "; read " << read_seconds
+         << " s, prepare (lens, convolve) " << scene.prepare_seconds << " s, paint "
+         << scene.paint_seconds << " s, noise " << scene.noise_seconds << " s, write "
+         << write_seconds << " s";
+    return line.str();
+}
+
+std::string noise_label(const std::string& noise_model, bool weighted) {
+    std::string label = noise_model.empty() ? "drizzle-like 3x3 (NOISECOR)" : noise_model;
+    if (weighted) label += ", scaled by the weight map";
+    return label;
 }
 
 FitsImageSpec scene_image_spec(const RenderedScene& scene, const std::vector<ObjectRecord>& records,

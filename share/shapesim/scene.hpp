@@ -52,6 +52,7 @@
 #include "shapesim/transform.hpp"
 
 #include <cstdint>
+#include <iosfwd>
 #include <optional>
 #include <string>
 #include <vector>
@@ -215,6 +216,10 @@ TruthRecord truth_record(const PreparedObject& object, const ObjectRecord& recor
 std::vector<TruthRecord> truth_records(const RenderedScene& scene,
                                        const std::vector<ObjectRecord>& records);
 
+/// Write truth_records() as JSON lines (shapesim.truth/1) to `out`, named `name` in errors.
+void write_truth_records(std::ostream& out, const std::string& name, const RenderedScene& scene,
+                         const std::vector<ObjectRecord>& records);
+
 /// The objects' own zero point, mag + 2.5 log₁₀ flux, when every object with a mag and a
 /// positive flux agrees on it to 1e-6 (nullopt when they disagree or none has both): a
 /// simulation measured without --zero-point gets its true magnitudes.
@@ -228,6 +233,17 @@ struct ClippedSummary {
 };
 ClippedSummary summarise_clipped(const RenderedScene& scene);
 
+/// The line saying what clip_negative took (`clipped`, summarise_clipped()): how many galaxies,
+/// the largest fraction of a galaxy's flux, the deepest pixel and, when `noise_rms` > 0, that
+/// pixel in σ. Empty when no galaxy lost light (nothing worth saying).
+std::string clipped_note(const ClippedSummary& clipped, double noise_rms);
+
+/// The stage line of a rendered window: objects drawn of `records`, the window's size, the
+/// galaxy kernel in words, and the seconds of each step (`read_seconds`, `write_seconds` the
+/// caller's; prepare, paint, noise the scene's). Timings go to stderr, never into outputs.
+std::string render_summary(const RenderedScene& scene, std::size_t records, const Tile& window,
+                           const SceneKernels& kernels, double read_seconds, double write_seconds);
+
 /// What a rendered image's header names besides SceneOptions: the run's seed (a band's noise
 /// seed is drawn from it), the PSF record ("none"), the background's correlation in words, the
 /// band drawn (empty: none).
@@ -235,6 +251,11 @@ struct SceneLabels {
     std::uint64_t seed = 0;
     std::string psf = "none", noise, band;
 };
+
+/// SceneLabels::noise: the background's correlation in words — the measured noise record at
+/// `noise_model` (use_sky_noise), else the drizzle-like 3×3 kernel (NOISECOR) — and whether a
+/// weight map scales it (`weighted`, read_noise_scale).
+std::string noise_label(const std::string& noise_model, bool weighted);
 
 /// The image HDU of a rendered scene: EXTNAME SCI, `bitpix`, the field's BUNIT and its WCS moved
 /// to the window, and cards saying how it was made (seed, truncation, noise, gain, sky,

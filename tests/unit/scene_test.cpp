@@ -14,6 +14,7 @@
 #include <fstream>
 #include <iostream>
 #include <map>
+#include <sstream>
 
 using namespace shapesim;
 
@@ -718,6 +719,16 @@ TEST(Scene, TruthListsEachObjectOnceAcrossTiles) {
         }
     }
     EXPECT_EQ(long(truths.size()), long(listed.size()));
+    // Written as JSON lines, one per truth, in that order.
+    std::ostringstream written;
+    write_truth_records(written, "t.jsonl", whole, records);
+    std::istringstream lines(written.str());
+    std::size_t n = 0;
+    for (std::string line; std::getline(lines, line); ++n) {
+        ASSERT_LT(n, truths.size());
+        EXPECT_EQ(Json::parse(line), truths[n].to_json()) << line;
+    }
+    EXPECT_EQ(n, truths.size());
     EXPECT_GT(clipped, 0);
     // The summary: every drawn galaxy that lost light, listed or not.
     const ClippedSummary summary = summarise_clipped(whole);
@@ -828,4 +839,30 @@ TEST(Scene, ImageSpecCarriesTheWindowsWcsAndTheRunsCards) {
         EXPECT_NE(c.name, "BAND");
         EXPECT_NE(c.name, "MAGZERO");
     }
+}
+
+// The lines shapesim-render says on stderr and the NOISEMOD label, word for word.
+TEST(Scene, ReportTexts) {
+    const ClippedSummary clipped{3, 0.25, -0.5};
+    EXPECT_EQ(clipped_note(clipped, 0.0),
+              "3 galaxies had negative model light, set to zero (at most 0.25 of a galaxy's "
+              "flux; deepest pixel -0.5)");
+    EXPECT_EQ(clipped_note(clipped, 0.25),
+              "3 galaxies had negative model light, set to zero (at most 0.25 of a galaxy's "
+              "flux; deepest pixel -0.5 = -2.000000 sigma)");
+    EXPECT_EQ(clipped_note(ClippedSummary{}, 1.0), "");
+
+    RenderedScene scene;
+    scene.prepare_seconds = 1.5;
+    scene.paint_seconds = 2.0;
+    scene.noise_seconds = 0.5;
+    SceneKernels kernels;
+    kernels.galaxy_note = "the PSF";
+    EXPECT_EQ(render_summary(scene, 4, Tile{11, 21, 210, 170}, kernels, 0.25, 0.125),
+              "0 of 4 objects drawn into 200 x 150 pixels; galaxy kernel: the PSF; read 0.25 s, "
+              "prepare (lens, convolve) 1.5 s, paint 2 s, noise 0.5 s, write 0.125 s");
+
+    EXPECT_EQ(noise_label("", false), "drizzle-like 3x3 (NOISECOR)");
+    EXPECT_EQ(noise_label("", true), "drizzle-like 3x3 (NOISECOR), scaled by the weight map");
+    EXPECT_EQ(noise_label("sky.jsonl", true), "sky.jsonl, scaled by the weight map");
 }

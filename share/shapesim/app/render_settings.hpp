@@ -1,0 +1,40 @@
+// shapesim-render's settings: what its options fill in (render/main.cpp declares them, so
+// --help reads in one place), the checks between them, and the SceneOptions they make — the
+// noise (--noise-like, --noise-model, --noise-weight), gain × exposure, the band's seed.
+#pragma once
+
+#include "shapesim/app/field_options.hpp"
+#include "shapesim/app/log.hpp"
+#include "shapesim/app/options.hpp"
+#include "shapesim/scene.hpp"
+
+#include <string>
+#include <vector>
+
+namespace shapesim::app {
+
+struct RenderSettings {
+    std::string input = "-", psf, galaxy_psf, truth, noise_like, noise_model, noise_weight, band;
+    FieldOptions field;
+    std::vector<double> shear;
+    double kappa = 0.0, exposure = 1.0;
+    int bitpix = -32, difference_order = -1;
+    bool keep_negative = false;
+    SceneOptions scene;
+
+    /// Check the options against each other before any work (po::error naming the rule): an
+    /// output, --bitpix, writable outputs, --galaxy-psf with --psf, one source of the noise,
+    /// --shear as G1 G2 with |g| < 1; then set the scene's lensing.
+    void check(const ProgramOptions& options);
+    /// Finish `scene` for `field`: the noise from the records, the sky's noise record and the
+    /// weight map; gain × exposure, the (band's) seed, threads, clipping; validated.
+    void finish_scene(const ProgramOptions& options, const FieldGeometry& field, const Log& log);
+    /// The image header's labels (SceneLabels).
+    SceneLabels labels(const ProgramOptions& options) const;
+    /// Write the image (-o, with the run's provenance) and --truth, each atomically: both
+    /// files appear only when both were written.
+    void write_outputs(const ProgramOptions& options, const RenderedScene& rendered,
+                       const std::vector<ObjectRecord>& records, const SceneKernels& kernels) const;
+};
+
+}  // namespace shapesim::app
