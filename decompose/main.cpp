@@ -17,7 +17,6 @@
 #include <algorithm>
 #include <memory>
 #include <optional>
-#include <set>
 #include <string>
 #include <vector>
 
@@ -78,9 +77,9 @@ int run_psf(const app::DecomposeSettings& s, const app::ProgramOptions& options,
 
 int run(int argc, const char* const argv[]) {
     app::ProgramOptions options("shapesim-decompose", "[OPTION]... [FILE]", description,
-                                app::Common::output | app::Common::quiet | app::Common::verbose | app::Common::threads |
-                                    app::Common::like | app::Common::config |
-                                    app::Common::print_params);
+                                app::Common::output | app::Common::quiet | app::Common::verbose |
+                                    app::Common::threads | app::Common::like |
+                                    app::Common::config | app::Common::print_params);
     app::DecomposeSettings s;
     s.declare(options);
     if (!options.parse(argc, argv)) return 0;
@@ -114,9 +113,10 @@ int run(int argc, const char* const argv[]) {
     });
 
     std::unique_ptr<FitsWriter> models;
-    if (!s.models.empty()) models = std::make_unique<FitsWriter>(s.models, "shapesim-decompose");
+    if (!s.models.empty())
+        models = std::make_unique<FitsWriter>(s.models, "shapesim-decompose",
+                                              app::provenance_keywords(options, {"models"}));
     const std::vector<std::string> listed = app::split_list(s.ids);
-    const std::set<std::string> wanted(listed.begin(), listed.end());
     JsonlWriter out(file.stream(), file.name());
     long converged = 0, failed = 0;
     for (std::size_t k = 0; k < jobs.size(); ++k) {
@@ -134,7 +134,7 @@ int run(int argc, const char* const argv[]) {
         out.write(o.record->to_json());
         log.verbose("object ", job.source.id, ": n_max ", o.record->n_max, " chi2r ",
                     *o.record->chi2r, " (", o.decomposition->stop, ")");
-        if (models && (wanted.empty() || wanted.count(job.source.id)))
+        if (models && (listed.empty() || std::count(listed.begin(), listed.end(), job.source.id)))
             write_fit_images(*models, job, o.decomposition->fit);
     }
     if (models) models->commit();

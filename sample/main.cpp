@@ -41,8 +41,8 @@ struct Settings {
 
 int run(int argc, const char* const argv[]) {
     app::ProgramOptions options("shapesim-sample", "[OPTION]... MODEL", description,
-                                app::Common::output | app::Common::quiet | app::Common::verbose | app::Common::seed |
-                                    app::Common::like | app::Common::config |
+                                app::Common::output | app::Common::quiet | app::Common::verbose |
+                                    app::Common::seed | app::Common::like | app::Common::config |
                                     app::Common::print_params);
     Settings s;
     SampleOptions& o = s.sample;

@@ -43,8 +43,9 @@ struct Settings {
 
 int run(int argc, const char* const argv[]) {
     app::ProgramOptions options("shapesim-smooth", "[OPTION]... [FILE]", description,
-                                app::Common::output | app::Common::quiet | app::Common::verbose | app::Common::config |
-                                    app::Common::like | app::Common::print_params);
+                                app::Common::output | app::Common::quiet | app::Common::verbose |
+                                    app::Common::config | app::Common::like |
+                                    app::Common::print_params);
     Settings s;
     using app::in_range;
     options.group("Input").add_options()
