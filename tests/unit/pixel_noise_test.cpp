@@ -156,7 +156,9 @@ TEST(CorrelatedNoise, EqualsTheDirectSum) {
     for (int dy = -6; dy <= 6; ++dy)
         for (int dx = -6; dx <= 6; ++dx)
             xi.values[std::size_t((dy + 6) * 13 + dx + 6)] = std::exp(-(dx * dx + 1.5 * dy * dy + dx * dy) / 4.0);
-    for (const NoiseKernel& kernel : {drizzle_noise_kernel(1.84), correlated_noise_kernel(xi)}) {
+    // F = 1 is white noise: one unit tap, the row returned as drawn.
+    for (const NoiseKernel& kernel :
+         {drizzle_noise_kernel(1.0), drizzle_noise_kernel(1.84), correlated_noise_kernel(xi)}) {
         const int K = kernel.radius, w = 2 * K + 1;
         const std::vector<double> k = kernel.dense();
         const long first = 37, nx = 53;
