@@ -127,6 +127,9 @@ private:
 namespace detail {
 double log_factorial(double k);
 std::uint64_t poisson_inversion(double mean, double u);
+/// 1/k, 1 ≤ k < 64: the inversion's step p_k = p_{k−1} · (μ · poisson_step(k)) (the same
+/// numbers for the vectorised photon noise, pixel_noise.cpp).
+double poisson_step(int k);
 void check_poisson_mean(double mean);  ///< throws Error unless 0 ≤ μ ≤ 2⁶², finite
 }  // namespace detail
 

@@ -12,6 +12,7 @@
 
 #include <cmath>
 #include <iostream>
+#include <optional>
 
 using namespace shapesim;
 using test::ks_p_value;
@@ -182,4 +183,61 @@ TEST(CorrelatedNoise, EqualsTheDirectSum) {
         EXPECT_LT(worst, 2e-5) << K;
         EXPECT_THROW(noise.row(2), Error);
     }
+}
+
+// Photon noise (four pixels at a time with AVX2) equals the documented per-pixel draw: the
+// pixel's Philox4x32 block, then its own RandomStream, through poisson_deviate, bit for bit.
+// Means from 1e-3 to 1e7 photons, across the inversion/PTRS split at 10 and with runs broken
+// by dark pixels, so that every lane position, group tail and fallback is taken.
+TEST(PhotonNoise, EqualsThePerPixelDraw) {
+    static constexpr std::uint64_t seed = 0x5eed5eedULL;
+    constexpr std::uint64_t purpose = fnv1a_64("photon noise");
+    struct Source {
+        const std::uint32_t* block;
+        std::uint64_t pixel;
+        int used = 0;
+        std::optional<RandomStream> more;
+        std::uint64_t next() {
+            if (used < 2) {
+                const std::uint64_t w = block[2 * used] | (std::uint64_t(block[2 * used + 1]) << 32);
+                ++used;
+                return w;
+            }
+            if (!more) more.emplace(seed, pixel, "photon noise more");
+            return more->next_u64();
+        }
+        double uniform() { return double(next() >> 11) * 0x1.0p-53; }
+        double uniform_open() { return (double(next() >> 11) + 0.5) * 0x1.0p-53; }
+    };
+    const PhotonNoise photon(seed);
+    const double gain = 4.0, least = 1e-3;
+    const long width = 3001, first = 17;
+    std::vector<double> pixels(static_cast<std::size_t>(width)), expect(pixels.size());
+    long drawn = 0, fallback = 0;
+    for (const long row : {0L, 5L, 123456L}) {
+        RandomStream pick(seed, std::uint64_t(row), "test signal");
+        for (long i = 0; i < width; ++i) {
+            const double s = i % 11 == 3 ? 0.0 : std::pow(10.0, pick.uniform(-3.0, 7.0)) / gain;
+            pixels[std::size_t(i)] = i % 29 == 0 ? -s : s;  // a few negative: left alone
+        }
+        for (long i = 0; i < width; ++i) {
+            const double s = pixels[std::size_t(i)];
+            expect[std::size_t(i)] = s;
+            if (!(s > 0.0 && s >= least)) continue;
+            std::uint32_t block[4];
+            const std::uint32_t column = std::uint32_t(first + i + WhiteNoise::margin);
+            philox4x32_blocks(seed, column, std::uint32_t(row + WhiteNoise::margin),
+                              std::uint32_t(purpose), std::uint32_t(purpose >> 32), 1, block);
+            Source source{block, (std::uint64_t(row + WhiteNoise::margin) << 32) + column, 0, std::nullopt};
+            expect[std::size_t(i)] = double(poisson_deviate(s * gain, source)) / gain;
+            ++drawn;
+            fallback += source.used > 2 || (s * gain >= 10.0 && source.more.has_value());
+        }
+        photon.row(row, first, width, gain, least, pixels.data());
+        for (long i = 0; i < width; ++i)
+            ASSERT_EQ(pixels[std::size_t(i)], expect[std::size_t(i)]) << "row " << row << " pixel " << i;
+    }
+    EXPECT_GT(drawn, 6000);
+    EXPECT_GT(fallback, 10);  // draws that needed more than their block's two words
+    EXPECT_THROW(photon.row(0, 0, 1, gain, least, std::vector<double>{1e300}.data()), Error);
 }
