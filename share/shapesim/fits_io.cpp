@@ -464,9 +464,20 @@ const std::string& FitsWriter::path() const { return impl_->file.target(); }
 bool fits_in_float(const ImageArray& image) {
     constexpr double lowest = std::numeric_limits<float>::min();  // smallest normal float
     constexpr double highest = std::numeric_limits<float>::max();
-    for (Eigen::Index k = 0; k < image.size(); ++k) {
-        const double v = std::abs(image.data()[k]);
-        if (std::isfinite(v) && v != 0.0 && (v < lowest || v > highest)) return false;
+    constexpr double inf = std::numeric_limits<double>::infinity();
+    // Blocks without an early exit, so the compiler vectorises the test (it is a pass over
+    // every pixel of a written image: 16.7 M of them for a 4096² scene).
+    constexpr Eigen::Index block = 4096;
+    const double* data = image.data();
+    for (Eigen::Index k0 = 0; k0 < image.size(); k0 += block) {
+        const Eigen::Index k1 = std::min(image.size(), k0 + block);
+        bool outside = false;
+        for (Eigen::Index k = k0; k < k1; ++k) {
+            const double v = std::abs(data[k]);
+            // NaN and ±inf are written as such; 0 is a float.
+            outside |= (v < lowest && v != 0.0) | (v > highest && v != inf);
+        }
+        if (outside) return false;
     }
     return true;
 }

@@ -272,6 +272,12 @@ TEST_F(FitsTest, ValuesBeyondAFloatPromoteTheHduToDouble) {
     EXPECT_TRUE(fits_in_float(ordinary));
     EXPECT_FALSE(fits_in_float(weights));
     EXPECT_FALSE(fits_in_float(tiny));
+    // Tested in blocks of pixels: the last pixel of a large image counts too.
+    ImageArray large = ImageArray::Constant(3, 5000, 1.0);
+    large(2, 4999) = std::numeric_limits<double>::infinity();
+    EXPECT_TRUE(fits_in_float(large));
+    large(2, 4998) = -1e39;
+    EXPECT_FALSE(fits_in_float(large));
     {
         FitsWriter out(path("range.fits"), "test");
         out.write_image(ordinary, {"ORDINARY", -32, "", {}, {}, {}});
