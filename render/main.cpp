@@ -118,15 +118,12 @@ int run(int argc, const char* const argv[]) {
     const std::vector<ObjectRecord> records =
         read_objects(s.input, field.wcs, s.band, kernels.star.has_value(), o.threads);
     const auto t_prepare = clock::now();
-    const RenderedScene scene = render_field(records, field, kernels, o, window, s.input);
-    const auto t_write = clock::now();
-    s.write_outputs(options, scene, records, kernels);
-    const auto t_end = clock::now();
+    RenderedScene scene = prepare_field(records, field, kernels, o, window, s.input);
+    s.draw_and_write(options, scene, records, kernels);
     if (const std::string note = clipped_note(summarise_clipped(scene), o.noise_rms); !note.empty())
         log.info(note);
-    auto seconds = [](auto a, auto b) { return std::chrono::duration<double>(b - a).count(); };
-    log.info(render_summary(scene, records.size(), window, kernels, seconds(t_read, t_prepare),
-                            seconds(t_write, t_end)),
+    log.info(render_summary(scene, records.size(), window, kernels,
+                            std::chrono::duration<double>(t_prepare - t_read).count()),
              "; peak memory ", app::Log::peak_memory_mib(), " MiB");
     return 0;
 }

@@ -9,6 +9,7 @@
 
 #include <cerrno>
 #include <cmath>
+#include <cstdint>
 #include <cstdio>
 #include <cstdlib>
 #include <cstring>
@@ -417,6 +418,11 @@ struct FitsWriter::Impl {
     AtomicFile file;  // declared first: destroyed after the cfitsio handle is closed
     fitsfile* f = nullptr;
     int images = 0;
+    // The image begun by begin_image: its place, width, rows still to come, next element.
+    std::string open_place;
+    long open_nx = 0, open_rows_left = 0;
+    int open_bitpix = 0;
+    LONGLONG next_element = 1;
 
     explicit Impl(const std::string& path) : file(path) {}
     ~Impl() { close_quietly(); }
@@ -461,44 +467,50 @@ FitsWriter& FitsWriter::operator=(FitsWriter&&) noexcept = default;
 
 const std::string& FitsWriter::path() const { return impl_->file.target(); }
 
-bool fits_in_float(const ImageArray& image) {
+// Four pixels a lane group, blocks without an early exit (a pass over every written pixel:
+// 16.7 M of them for a 4096² scene); NaN and ±inf are written as they are, 0 is a float.
+__attribute__((target_clones("avx2", "default"))) bool fits_in_float(const ImageArray& image) {
+    using Doubles4 = double __attribute__((vector_size(32)));
+    using Bits4 = std::int64_t __attribute__((vector_size(32)));
     constexpr double lowest = std::numeric_limits<float>::min();  // smallest normal float
     constexpr double highest = std::numeric_limits<float>::max();
     constexpr double inf = std::numeric_limits<double>::infinity();
-    // Blocks without an early exit, so the compiler vectorises the test (it is a pass over
-    // every pixel of a written image: 16.7 M of them for a 4096² scene).
-    constexpr Eigen::Index block = 4096;
+    auto outside = [&](double v) {
+        v = std::abs(v);
+        return (v < lowest && v != 0.0) || (v > highest && v != inf);
+    };
     const double* data = image.data();
-    for (Eigen::Index k0 = 0; k0 < image.size(); k0 += block) {
-        const Eigen::Index k1 = std::min(image.size(), k0 + block);
-        bool outside = false;
-        for (Eigen::Index k = k0; k < k1; ++k) {
-            const double v = std::abs(data[k]);
-            // NaN and ±inf are written as such; 0 is a float.
-            outside |= (v < lowest && v != 0.0) | (v > highest && v != inf);
+    const Eigen::Index n = image.size();
+    constexpr Eigen::Index block = 4096;
+    Eigen::Index k = 0;
+    for (; k + block <= n; k += block) {
+        Bits4 any = {0, 0, 0, 0};
+        for (Eigen::Index i = k; i < k + block; i += 4) {
+            Doubles4 v;
+            std::memcpy(&v, data + i, sizeof v);
+            const Doubles4 a = Doubles4(Bits4(v) & std::numeric_limits<std::int64_t>::max());
+            any |= ((a < lowest) & (a != 0.0)) | ((a > highest) & (a != inf));
         }
-        if (outside) return false;
+        if (any[0] | any[1] | any[2] | any[3]) return false;
     }
+    for (; k < n; ++k)
+        if (outside(data[k])) return false;
     return true;
 }
 
-void FitsWriter::write_image(const ImageArray& image, const FitsImageSpec& spec) {
-    require(impl_ && impl_->f, "FitsWriter: write_image after commit");
+// The header of a new ny × nx image HDU of BITPIX `bitpix`; returns its place.
+std::string FitsWriter::start_hdu(long ny, long nx, int bitpix, const FitsImageSpec& spec) {
+    require(impl_ && impl_->f, "FitsWriter: an image after commit");
+    require(impl_->open_rows_left == 0, "FitsWriter: the image begun is not finished");
     const std::string place =
         path() + "[" + (spec.extname.empty() ? std::to_string(impl_->images + 1) : spec.extname) +
         "]";
     if (!valid_bitpix(spec.bitpix))
         throw Error("BITPIX must be 8, 16, 32, -32 or -64, got " + std::to_string(spec.bitpix),
                     place, 0, "BITPIX");
-    if (image.size() == 0) throw Error("cannot write an empty image", place, 0, "NAXIS");
-    if (spec.bitpix > 0 && !image.isFinite().all())
-        throw Error("integer BITPIX cannot hold NaN or infinite pixels", place, 0, "BITPIX");
-    // BITPIX −32 keeps files small, but a float cannot hold every double: the inverse variance
-    // of an image in physical units (σ ~ 1e−21 erg/s/cm²/Å: weights ~ 1e42) overflows it,
-    // and a tiny σ underflows. Such an HDU is written as −64 instead, so no pixel is lost.
-    const int bitpix = spec.bitpix == -32 && !fits_in_float(image) ? -64 : spec.bitpix;
+    if (ny <= 0 || nx <= 0) throw Error("cannot write an empty image", place, 0, "NAXIS");
     int status = 0;
-    long naxes[2] = {long(image.cols()), long(image.rows())};
+    long naxes[2] = {nx, ny};
     fits_create_img(impl_->f, bitpix, 2, naxes, &status);
     check(status, place);
     ++impl_->images;
@@ -507,15 +519,55 @@ void FitsWriter::write_image(const ImageArray& image, const FitsImageSpec& spec)
     if (spec.wcs) write_wcs(impl_->f, *spec.wcs, place);
     for (const auto& key : spec.keywords) write_keyword(impl_->f, key, place);
     write_history(impl_->f, spec.history, place);
+    return place;
+}
+
+void FitsWriter::write_pixels(const ImageArray& pixels, LONGLONG first, const std::string& place,
+                              int bitpix) {
+    if (bitpix > 0 && !pixels.isFinite().all())
+        throw Error("integer BITPIX cannot hold NaN or infinite pixels", place, 0, "BITPIX");
     // Row-major ImageArray = FITS order; cfitsio converts doubles to BITPIX and reports
     // NUM_OVERFLOW for integer pixels out of range.
-    fits_write_img(impl_->f, TDOUBLE, 1, LONGLONG(image.size()), const_cast<double*>(image.data()),
-                   &status);
+    int status = 0;
+    fits_write_img(impl_->f, TDOUBLE, first, LONGLONG(pixels.size()),
+                   const_cast<double*>(pixels.data()), &status);
     check(status, place);
+}
+
+void FitsWriter::write_image(const ImageArray& image, const FitsImageSpec& spec) {
+    // BITPIX −32 keeps files small, but a float cannot hold every double: the inverse variance
+    // of an image in physical units (σ ~ 1e−21 erg/s/cm²/Å: weights ~ 1e42) overflows it,
+    // and a tiny σ underflows. Such an HDU is written as −64 instead, so no pixel is lost.
+    const int bitpix = spec.bitpix == -32 && !fits_in_float(image) ? -64 : spec.bitpix;
+    const std::string place = start_hdu(long(image.rows()), long(image.cols()), bitpix, spec);
+    write_pixels(image, 1, place, bitpix);
+}
+
+void FitsWriter::begin_image(long ny, long nx, const FitsImageSpec& spec) {
+    impl_->open_place = start_hdu(ny, nx, spec.bitpix, spec);
+    impl_->open_nx = nx;
+    impl_->open_bitpix = spec.bitpix;
+    impl_->open_rows_left = ny;
+    impl_->next_element = 1;
+}
+
+void FitsWriter::write_rows(const ImageArray& rows) {
+    require(impl_ && impl_->f && rows.cols() == impl_->open_nx &&
+                rows.rows() <= impl_->open_rows_left,
+            "FitsWriter: rows beyond the image begun");
+    const int bitpix = impl_->open_bitpix;
+    // Without the whole image the HDU cannot be promoted to −64 any more: refuse instead.
+    if (bitpix == -32 && !fits_in_float(rows))
+        throw FloatRangeError("a pixel is beyond the range of a float (BITPIX -32)",
+                              impl_->open_place, 0, "BITPIX");
+    write_pixels(rows, impl_->next_element, impl_->open_place, bitpix);
+    impl_->next_element += LONGLONG(rows.size());
+    impl_->open_rows_left -= long(rows.rows());
 }
 
 void FitsWriter::commit() {
     require(impl_ && impl_->f, "FitsWriter: commit twice");
+    require(impl_->open_rows_left == 0, "FitsWriter: the image begun is not finished");
     int status = 0;
     fits_close_file(impl_->f, &status);  // flushes: write errors (disk full) surface here
     impl_->f = nullptr;

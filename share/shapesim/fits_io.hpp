@@ -24,6 +24,7 @@
 // as IRAF's LTV1/LTV2 (physical = logical − LTV), which ds9 shows as "physical" coordinates.
 #pragma once
 
+#include "shapesim/error.hpp"
 #include "shapesim/geometry.hpp"
 #include "shapesim/image.hpp"
 
@@ -170,12 +171,26 @@ public:
     const std::string& path() const;
     /// Append `image` as a new image HDU. Integer BITPIX needs finite values in range.
     void write_image(const ImageArray& image, const FitsImageSpec& spec);
+    /// Append an ny × nx image HDU whose rows come in order by write_rows(), so the image need
+    /// not be held whole. Its BITPIX is spec.bitpix as given (−32 is not promoted).
+    void begin_image(long ny, long nx, const FitsImageSpec& spec);
+    /// The next rows of the image begun. FloatRangeError when BITPIX is −32 and a value is
+    /// beyond a float (write the image whole, with write_image, to have it promoted).
+    void write_rows(const ImageArray& rows);
     /// Close the file and rename it onto `path`. Throws Error; the writer is then finished.
     void commit();
 
 private:
+    std::string start_hdu(long ny, long nx, int bitpix, const FitsImageSpec& spec);
+    void write_pixels(const ImageArray& pixels, long long first, const std::string& place, int bitpix);
     struct Impl;
     std::unique_ptr<Impl> impl_;
+};
+
+/// A value a BITPIX −32 image begun row by row cannot hold (FitsWriter::write_rows).
+class FloatRangeError : public Error {
+public:
+    using Error::Error;
 };
 
 /// One object's postage stamp (DESIGN §2). All three planes have the same size.

@@ -5,7 +5,11 @@
 
 #include <algorithm>
 #include <atomic>
+#include <condition_variable>
 #include <cstddef>
+#include <exception>
+#include <mutex>
+#include <optional>
 #include <thread>
 #include <vector>
 
@@ -25,6 +29,70 @@ void parallel_for(std::size_t count, int threads, const Work& work) {
     for (int t = 1; t < n; ++t) pool.emplace_back(run, t);
     run(0);
     for (auto& thread : pool) thread.join();
+}
+
+/// produce(k) for every k in [0, count) on min(threads, count) threads, and consume(k, item)
+/// in order k = 0, 1, …, each by whichever thread holds the next item (one at a time), so
+/// consuming (writing a file) overlaps producing. At most threads + 1 items wait at once, so
+/// memory is bounded by the items in flight. produce and consume may throw: no new item is
+/// started after the first exception, which is rethrown here once every thread has stopped.
+template <class Produce, class Consume>
+void parallel_in_order(std::size_t count, int threads, const Produce& produce, const Consume& consume) {
+    using Item = decltype(produce(std::size_t(0)));
+    const std::size_t n = std::max<std::size_t>(1, std::min<std::size_t>(std::size_t(std::max(threads, 1)), count));
+    const std::size_t in_flight = n + 1;
+    std::mutex m;
+    std::condition_variable cv;
+    std::vector<std::optional<Item>> ready(count);
+    std::size_t next_take = 0, next_consume = 0;
+    bool consuming = false;
+    std::exception_ptr error;
+    auto fail = [&](std::unique_lock<std::mutex>& lock) {
+        if (!lock.owns_lock()) lock.lock();
+        if (!error) error = std::current_exception();
+        cv.notify_all();
+    };
+    auto run = [&] {
+        std::unique_lock<std::mutex> lock(m);
+        for (;;) {
+            cv.wait(lock, [&] { return error || next_take >= count || next_take < next_consume + in_flight; });
+            if (error || next_take >= count) return;
+            const std::size_t k = next_take++;
+            lock.unlock();
+            try {
+                Item item = produce(k);
+                lock.lock();
+                ready[k].emplace(std::move(item));
+            } catch (...) {
+                fail(lock);
+                return;
+            }
+            // Consume what is next in order, unless another thread is doing so.
+            while (!consuming && !error && next_consume < count && ready[next_consume]) {
+                consuming = true;
+                const std::size_t c = next_consume;
+                Item item = std::move(*ready[c]);
+                ready[c].reset();
+                lock.unlock();
+                try {
+                    consume(c, std::move(item));
+                } catch (...) {
+                    fail(lock);
+                    consuming = false;
+                    return;
+                }
+                lock.lock();
+                consuming = false;
+                ++next_consume;
+                cv.notify_all();
+            }
+        }
+    };
+    std::vector<std::thread> pool;
+    for (std::size_t t = 1; t < n; ++t) pool.emplace_back(run);
+    run();
+    for (auto& thread : pool) thread.join();
+    if (error) std::rethrow_exception(error);
 }
 
 }  // namespace shapesim

@@ -390,29 +390,91 @@ void add_noise(ImageArray& image, const Tile& window, long field_nx, const Scene
     });
 }
 
-RenderedScene render_field(const std::vector<ObjectRecord>& records, const FieldGeometry& field,
-                           const SceneKernels& kernels, const SceneOptions& options,
-                           const Tile& window, const std::string& source) {
-    using clock = std::chrono::steady_clock;
-    auto seconds = [](auto a, auto b) { return std::chrono::duration<double>(b - a).count(); };
+RenderedScene prepare_field(const std::vector<ObjectRecord>& records, const FieldGeometry& field,
+                            const SceneKernels& kernels, const SceneOptions& options,
+                            const Tile& window, const std::string& source) {
+    const auto start = std::chrono::steady_clock::now();
     RenderedScene scene;
     scene.field = field;
     scene.window = window;
-    const auto t_prepare = clock::now();
     try {
         scene.objects = prepare_scene(records, field.pixel_scale, kernels, options, window);
     } catch (const Error& e) {
         throw e.at(source);
     }
-    const auto t_paint = clock::now();
-    scene.image = paint(scene.objects, window, options, &scene.clipped);
-    const auto t_noise = clock::now();
-    add_noise(scene.image, window, field.nx, options);
-    const auto t_end = clock::now();
-    scene.prepare_seconds = seconds(t_prepare, t_paint);
-    scene.paint_seconds = seconds(t_paint, t_noise);
-    scene.noise_seconds = seconds(t_noise, t_end);
+    scene.clipped.assign(scene.objects.size(), ClippedLight{});
+    scene.prepare_seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
     return scene;
+}
+
+RenderedScene render_field(const std::vector<ObjectRecord>& records, const FieldGeometry& field,
+                           const SceneKernels& kernels, const SceneOptions& options,
+                           const Tile& window, const std::string& source) {
+    RenderedScene scene = prepare_field(records, field, kernels, options, window, source);
+    draw_whole(scene, options);
+    return scene;
+}
+
+void draw_whole(RenderedScene& scene, const SceneOptions& options) {
+    using clock = std::chrono::steady_clock;
+    auto seconds = [](auto a, auto b) { return std::chrono::duration<double>(b - a).count(); };
+    const auto t_paint = clock::now();
+    scene.image = paint(scene.objects, scene.window, options, &scene.clipped);
+    const auto t_noise = clock::now();
+    add_noise(scene.image, scene.window, scene.field.nx, options);
+    scene.paint_seconds = seconds(t_paint, t_noise);
+    scene.noise_seconds = seconds(t_noise, clock::now());
+}
+
+long default_strip_rows(long width) {
+    // About 2 M pixels (16 MB of doubles) a strip: reused memory instead of fresh pages, and
+    // few objects cut by a strip's edge (each such stamp is rendered once per strip it touches).
+    return std::max(64L, (2L << 20) / std::max(1L, width));
+}
+
+void draw_in_strips(RenderedScene& scene, const SceneOptions& options, long strip_rows,
+                    const StripSink& sink) {
+    using clock = std::chrono::steady_clock;
+    auto seconds = [](auto a, auto b) { return std::chrono::duration<double>(b - a).count(); };
+    const Tile& window = scene.window;
+    const long ny = window.y1 - window.y0 + 1;
+    require(strip_rows > 0 && ny > 0, "draw_in_strips: no rows");
+    const long strips = (ny + strip_rows - 1) / strip_rows;
+    // Threads share the strips, one strip each; a strip is then painted on one thread.
+    SceneOptions one = options;
+    one.threads = 1;
+    struct Strip {
+        ImageArray image;
+        std::vector<ClippedLight> clipped;
+        double paint_seconds, noise_seconds;
+    };
+    double sink_seconds = 0.0;
+    parallel_in_order(
+        std::size_t(strips), options.threads,
+        [&](std::size_t k) {
+            const long first = long(k) * strip_rows, last = std::min(ny, first + strip_rows);
+            const Tile part{window.x0, window.y0 + first, window.x1, window.y0 + last - 1};
+            Strip strip;
+            const auto t0 = clock::now();
+            strip.image = paint(scene.objects, part, one, &strip.clipped);
+            const auto t1 = clock::now();
+            add_noise(strip.image, part, scene.field.nx, one);
+            strip.paint_seconds = seconds(t0, t1);
+            strip.noise_seconds = seconds(t1, clock::now());
+            return strip;
+        },
+        [&](std::size_t k, Strip&& strip) {
+            const auto t0 = clock::now();
+            sink(long(k) * strip_rows, strip.image);
+            sink_seconds += seconds(t0, clock::now());
+            // Each strip a stamp reaches reports its whole stamp's clipped light: the same.
+            for (std::size_t i = 0; i < strip.clipped.size(); ++i)
+                if (strip.clipped[i].flux != 0.0 || strip.clipped[i].deepest != 0.0)
+                    scene.clipped[i] = strip.clipped[i];
+            scene.paint_seconds += strip.paint_seconds;
+            scene.noise_seconds += strip.noise_seconds;
+        });
+    scene.sink_seconds = sink_seconds;
 }
 
 TruthRecord truth_record(const PreparedObject& object, const ObjectRecord& record,
@@ -492,14 +554,14 @@ std::string clipped_note(const ClippedSummary& c, double noise_rms) {
 }
 
 std::string render_summary(const RenderedScene& scene, std::size_t records, const Tile& window,
-                           const SceneKernels& kernels, double read_seconds, double write_seconds) {
+                           const SceneKernels& kernels, double read_seconds) {
     std::ostringstream line;
     line << scene.objects.size() << " of " << records << " objects drawn into "
          << window.x1 - window.x0 + 1 << " x " << window.y1 - window.y0 + 1
          << " pixels; galaxy kernel: " << kernels.galaxy_note << "; read " << read_seconds
          << " s, prepare (lens, convolve) " << scene.prepare_seconds << " s, paint "
          << scene.paint_seconds << " s, noise " << scene.noise_seconds << " s, write "
-         << write_seconds << " s";
+         << scene.sink_seconds << " s";
     return line.str();
 }
 

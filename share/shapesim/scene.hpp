@@ -52,6 +52,7 @@
 #include "shapesim/transform.hpp"
 
 #include <cstdint>
+#include <functional>
 #include <iosfwd>
 #include <optional>
 #include <string>
@@ -196,11 +197,36 @@ struct RenderedScene {
     std::vector<PreparedObject> objects;  ///< prepare_scene()'s, in input order
     std::vector<ClippedLight> clipped;    ///< clipped[i]: what objects[i] lost (paint())
     ImageArray image;                     ///< the window's pixels, noise included
-    double prepare_seconds = 0.0, paint_seconds = 0.0, noise_seconds = 0.0;
+    /// Seconds each step took; drawn in strips, paint and noise are summed over the threads
+    /// and sink_seconds is the time the sink (writing) took, overlapping the others.
+    double prepare_seconds = 0.0, paint_seconds = 0.0, noise_seconds = 0.0, sink_seconds = 0.0;
 };
 
-/// The window `window` of the field `field` holding `records` (x, y set): prepare_scene(),
-/// paint(), add_noise(). An object's failure is an Error at `source`, the records' file.
+/// prepare_scene() for `window` of `field`: the objects drawn, no pixels yet (clipped all 0).
+/// An object's failure is an Error at `source`, the records' file.
+RenderedScene prepare_field(const std::vector<ObjectRecord>& records, const FieldGeometry& field,
+                            const SceneKernels& kernels, const SceneOptions& options,
+                            const Tile& window, const std::string& source);
+
+/// paint() and add_noise() for a prepared scene, the whole window at once into scene.image.
+void draw_whole(RenderedScene& scene, const SceneOptions& options);
+
+/// Rows first … first + strip.rows() − 1 (0-based, of the window) of the finished image.
+using StripSink = std::function<void(long first, const ImageArray& strip)>;
+
+/// The rows of a strip of about 2 M pixels of a window `width` pixels wide.
+long default_strip_rows(long width);
+
+/// paint() and add_noise() for a prepared scene, `strip_rows` rows at a time, top to bottom,
+/// each strip handed to `sink` in order: the same bits as render_field's image (every pixel
+/// is a function of its field pixel), holding only the strips in flight (threads + 1), not
+/// the window. The threads share the strips; the sink runs on one thread at a time while the
+/// others draw. Fills scene.clipped and the times; scene.image stays empty.
+void draw_in_strips(RenderedScene& scene, const SceneOptions& options, long strip_rows,
+                    const StripSink& sink);
+
+/// The window `window` of the field `field` holding `records` (x, y set): prepare_field(),
+/// paint(), add_noise(), the whole window in memory.
 RenderedScene render_field(const std::vector<ObjectRecord>& records, const FieldGeometry& field,
                            const SceneKernels& kernels, const SceneOptions& options,
                            const Tile& window, const std::string& source);
@@ -239,10 +265,11 @@ ClippedSummary summarise_clipped(const RenderedScene& scene);
 std::string clipped_note(const ClippedSummary& clipped, double noise_rms);
 
 /// The stage line of a rendered window: objects drawn of `records`, the window's size, the
-/// galaxy kernel in words, and the seconds of each step (`read_seconds`, `write_seconds` the
-/// caller's; prepare, paint, noise the scene's). Timings go to stderr, never into outputs.
+/// galaxy kernel in words, and the seconds of each step (`read_seconds` the caller's; prepare,
+/// paint, noise and write the scene's: drawn in strips, paint and noise are summed over the
+/// threads). Timings go to stderr, never into outputs.
 std::string render_summary(const RenderedScene& scene, std::size_t records, const Tile& window,
-                           const SceneKernels& kernels, double read_seconds, double write_seconds);
+                           const SceneKernels& kernels, double read_seconds);
 
 /// What a rendered image's header names besides SceneOptions: the run's seed (a band's noise
 /// seed is drawn from it), the PSF record ("none"), the background's correlation in words, the

@@ -263,6 +263,41 @@ TEST_F(FitsTest, RadesysRoundTrips) {
     EXPECT_EQ(read_wcs(bare).radesys, "ICRS");
 }
 
+// An image written row by row (begin_image, write_rows) is the image written whole, bytes and
+// all; BITPIX −32 begun cannot be promoted, so a value beyond a float is refused; an image
+// not finished cannot be committed, and rows past its end are refused.
+TEST_F(FitsTest, RowsWrittenInOrderEqualTheWholeImage) {
+    ImageArray image = index_image(7, 5) * 0.37;
+    image(3, 2) = std::numeric_limits<double>::quiet_NaN();
+    const FitsImageSpec spec{"SCI", -32, "", {}, {}, {}};
+    {
+        FitsWriter whole(path("whole.fits"), "test");
+        whole.write_image(image, spec);
+        whole.commit();
+        FitsWriter rows(path("rows.fits"), "test");
+        rows.begin_image(7, 5, spec);
+        for (const auto& [first, count] : {std::pair{0, 3}, {3, 1}, {4, 3}})
+            rows.write_rows(image.block(first, 0, count, 5));
+        rows.commit();
+    }
+    std::ifstream a(path("whole.fits"), std::ios::binary), b(path("rows.fits"), std::ios::binary);
+    const std::string bytes_a((std::istreambuf_iterator<char>(a)), {}),
+        bytes_b((std::istreambuf_iterator<char>(b)), {});
+    EXPECT_EQ(bytes_a, bytes_b);
+
+    FitsWriter bad(path("bad.fits"), "test");
+    bad.begin_image(2, 5, spec);
+    ImageArray beyond = ImageArray::Constant(1, 5, 1.0);
+    beyond(0, 4) = 1e40;
+    EXPECT_THROW(bad.write_rows(beyond), FloatRangeError);
+    bad.write_rows(ImageArray::Constant(1, 5, 1.0));
+    EXPECT_THROW(bad.commit(), Error);  // one row of two written
+    EXPECT_THROW(bad.write_rows(ImageArray::Constant(2, 5, 1.0)), Error);
+    bad.write_rows(ImageArray::Constant(1, 5, 2.0));
+    bad.commit();
+    EXPECT_EQ(read_fits_image(path("bad.fits")).sum(), 15.0);
+}
+
 TEST_F(FitsTest, ValuesBeyondAFloatPromoteTheHduToDouble) {
     ImageArray ordinary = index_image(4, 3);
     ordinary(0, 0) = 0.0;
@@ -276,8 +311,14 @@ TEST_F(FitsTest, ValuesBeyondAFloatPromoteTheHduToDouble) {
     ImageArray large = ImageArray::Constant(3, 5000, 1.0);
     large(2, 4999) = std::numeric_limits<double>::infinity();
     EXPECT_TRUE(fits_in_float(large));
-    large(2, 4998) = -1e39;
+    large(2, 4998) = -1e39;  // in the tail after the blocks
     EXPECT_FALSE(fits_in_float(large));
+    large(2, 4998) = 1.0;
+    large(1, 17) = -1e-39;  // inside a block: below the smallest normal float
+    EXPECT_FALSE(fits_in_float(large));
+    large(1, 17) = -0.0;
+    large(0, 3) = std::numeric_limits<double>::quiet_NaN();
+    EXPECT_TRUE(fits_in_float(large));
     {
         FitsWriter out(path("range.fits"), "test");
         out.write_image(ordinary, {"ORDINARY", -32, "", {}, {}, {}});

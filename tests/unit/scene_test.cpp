@@ -675,6 +675,61 @@ TEST(Scene, ReadObjectsPlacesThemThroughTheWcs) {
     }
 }
 
+// Drawn in strips, a window gives render_field's image bit for bit, with photon noise and a
+// correlated background, on 1 and 3 threads, for strips of 1, 7 and 64 rows and one strip of
+// the whole window (the stamps cut by a strip's edge are drawn in each strip they reach), and
+// the same clipped light; the strips arrive in order, each once.
+TEST(Scene, StripsGiveTheWholeWindow) {
+    SceneOptions o;
+    o.noise_rms = 0.05;
+    o.noise_correlation = 1.84;
+    o.gain = 40.0;
+    o.seed = 9;
+    o.clip_negative = true;
+    SceneKernels k;
+    k.galaxy = k.star = to_cartesian(psf_model());
+    const std::vector<ObjectRecord> records = crowded_records();
+    FieldGeometry field;
+    field.nx = 200;
+    field.ny = 150;
+    field.pixel_scale = 0.04;
+    const Tile window{11, 6, 190, 150};
+    const RenderedScene whole = render_field(records, field, k, o, window, "x.jsonl");
+    long with_holes = 0;
+    for (const ClippedLight& c : whole.clipped) with_holes += c.flux > 0.0;
+    EXPECT_GT(with_holes, 0);
+    for (const int threads : {1, 3})
+        for (const long rows : {1L, 7L, 64L, 145L}) {
+            SceneOptions t = o;
+            t.threads = threads;
+            RenderedScene scene = prepare_field(records, field, k, t, window, "x.jsonl");
+            ImageArray image = ImageArray::Constant(145, 180, -1.0);
+            long next = 0;
+            draw_in_strips(scene, t, rows, [&](long first, const ImageArray& strip) {
+                EXPECT_EQ(first, next);
+                EXPECT_EQ(strip.cols(), 180);
+                image.block(first, 0, strip.rows(), 180) = strip;
+                next = first + strip.rows();
+            });
+            EXPECT_EQ(next, 145);
+            EXPECT_TRUE((image == whole.image).all()) << threads << " threads, " << rows << " rows";
+            EXPECT_EQ(scene.image.size(), 0);
+            for (std::size_t i = 0; i < whole.clipped.size(); ++i) {
+                EXPECT_EQ(scene.clipped[i].flux, whole.clipped[i].flux) << i;
+                EXPECT_EQ(scene.clipped[i].deepest, whole.clipped[i].deepest) << i;
+            }
+        }
+    // A sink that fails stops the drawing; its error reaches the caller.
+    RenderedScene scene = prepare_field(records, field, k, o, window, "x.jsonl");
+    long calls = 0;
+    EXPECT_THROW(draw_in_strips(scene, o, 10,
+                                [&](long, const ImageArray&) {
+                                    if (++calls == 3) throw Error("disk full");
+                                }),
+                 Error);
+    EXPECT_EQ(calls, 3);
+}
+
 // A rendered field is prepare_scene + paint + add_noise; its truths are the objects centred in
 // the window, so a grid of tiles lists every drawn object once, with the flux drawn (clipped
 // light added back), the mag moved by it and the galaxies' intrinsic shape.
@@ -856,9 +911,10 @@ TEST(Scene, ReportTexts) {
     scene.prepare_seconds = 1.5;
     scene.paint_seconds = 2.0;
     scene.noise_seconds = 0.5;
+    scene.sink_seconds = 0.125;
     SceneKernels kernels;
     kernels.galaxy_note = "the PSF";
-    EXPECT_EQ(render_summary(scene, 4, Tile{11, 21, 210, 170}, kernels, 0.25, 0.125),
+    EXPECT_EQ(render_summary(scene, 4, Tile{11, 21, 210, 170}, kernels, 0.25),
               "0 of 4 objects drawn into 200 x 150 pixels; galaxy kernel: the PSF; read 0.25 s, "
               "prepare (lens, convolve) 1.5 s, paint 2 s, noise 0.5 s, write 0.125 s");
 

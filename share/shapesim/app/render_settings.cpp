@@ -5,6 +5,7 @@
 #include "shapesim/fits_io.hpp"
 #include "shapesim/sources.hpp"
 
+#include <chrono>
 #include <cmath>
 #include <optional>
 
@@ -55,18 +56,40 @@ SceneLabels RenderSettings::labels(const ProgramOptions& options) const {
                        noise_label(noise_model, !noise_weight.empty()), band};
 }
 
-void RenderSettings::write_outputs(const ProgramOptions& options, const RenderedScene& rendered,
-                                   const std::vector<ObjectRecord>& records,
-                                   const SceneKernels& kernels) const {
-    FitsWriter fits(options.common().output, "shapesim-render",
-                    provenance_keywords(options, {"output", "truth"}));
-    fits.write_image(rendered.image,
-                     scene_image_spec(rendered, records, scene, kernels, labels(options), bitpix));
+void RenderSettings::draw_and_write(const ProgramOptions& options, RenderedScene& rendered,
+                                    const std::vector<ObjectRecord>& records,
+                                    const SceneKernels& kernels) const {
+    using clock = std::chrono::steady_clock;
+    const FitsImageSpec spec = scene_image_spec(rendered, records, scene, kernels, labels(options), bitpix);
+    auto open = [&](std::optional<FitsWriter>& fits) {
+        fits.reset();  // the temporary of a writer given up is removed before the next one
+        fits.emplace(options.common().output, "shapesim-render",
+                     provenance_keywords(options, {"output", "truth"}));
+    };
+    std::optional<FitsWriter> fits;
+    open(fits);
+    const Tile& w = rendered.window;
+    try {
+        fits->begin_image(w.y1 - w.y0 + 1, w.x1 - w.x0 + 1, spec);
+        draw_in_strips(rendered, scene, default_strip_rows(w.x1 - w.x0 + 1),
+                       [&](long, const ImageArray& strip) { fits->write_rows(strip); });
+    } catch (const FloatRangeError&) {
+        // A pixel a float cannot hold (BITPIX −32): the whole window, promoted to −64.
+        open(fits);
+        rendered.clipped.assign(rendered.objects.size(), ClippedLight{});
+        rendered.paint_seconds = rendered.noise_seconds = rendered.sink_seconds = 0.0;
+        draw_whole(rendered, scene);
+        const auto t0 = clock::now();
+        fits->write_image(rendered.image, spec);
+        rendered.sink_seconds = std::chrono::duration<double>(clock::now() - t0).count();
+    }
+    const auto t0 = clock::now();
     std::optional<AtomicTextFile> file;
     if (!truth.empty())
         write_truth_records(file.emplace(truth).stream(), truth, rendered, records);
-    fits.commit();
+    fits->commit();
     if (file) file->commit();
+    rendered.sink_seconds += std::chrono::duration<double>(clock::now() - t0).count();
 }
 
 }  // namespace shapesim::app

@@ -31,10 +31,12 @@ struct RenderSettings {
     void finish_scene(const ProgramOptions& options, const FieldGeometry& field, const Log& log);
     /// The image header's labels (SceneLabels).
     SceneLabels labels(const ProgramOptions& options) const;
-    /// Write the image (-o, with the run's provenance) and --truth, each atomically: both
-    /// files appear only when both were written.
-    void write_outputs(const ProgramOptions& options, const RenderedScene& rendered,
-                       const std::vector<ObjectRecord>& records, const SceneKernels& kernels) const;
+    /// Draw the prepared scene (`scene` options) and write the image (-o, with the run's
+    /// provenance) and --truth, each atomically: both files appear only when both were
+    /// written. The image is drawn and written in strips (draw_in_strips), unless BITPIX −32
+    /// cannot hold a pixel: then it is drawn whole and written as −64, so nothing is lost.
+    void draw_and_write(const ProgramOptions& options, RenderedScene& rendered,
+                        const std::vector<ObjectRecord>& records, const SceneKernels& kernels) const;
 };
 
 }  // namespace shapesim::app
