@@ -13,6 +13,26 @@ namespace {
 constexpr double kPiQuarterInv = 0.75112554446494248286;  // π^{-1/4}
 constexpr double kRescale = 1e100;                          // keeps ψ_n far from overflow
 const double kLogRescale = std::log(kRescale);
+
+// The recurrences' coefficients √(2/(n+1)) and √(n/(n+1)), tabulated: the same correctly
+// rounded numbers as computed in place, without two square roots and two divisions a step
+// (they were most of the time of a stamp's basis).
+struct Recurrence {
+    static constexpr int size = 1024;
+    double up[size], down[size];
+    Recurrence() {
+        for (int n = 0; n < size; ++n) {
+            up[n] = std::sqrt(2.0 / (n + 1));
+            down[n] = std::sqrt(double(n) / (n + 1));
+        }
+    }
+    double raise(int n) const { return n < size ? up[n] : std::sqrt(2.0 / (n + 1)); }
+    double lower(int n) const { return n < size ? down[n] : std::sqrt(double(n) / (n + 1)); }
+};
+const Recurrence& recurrence() {
+    static const Recurrence table;
+    return table;
+}
 }  // namespace
 
 void hermite_functions(double u, int n_max, double* out) {
@@ -23,9 +43,9 @@ void hermite_functions(double u, int n_max, double* out) {
     double factor = std::exp(log_scale);
     double psi_prev = 0.0, psi = kPiQuarterInv;
     out[0] = psi * factor;
+    const Recurrence& c = recurrence();
     for (int n = 0; n < n_max; ++n) {
-        const double psi_next = std::sqrt(2.0 / (n + 1)) * u * psi -
-                                std::sqrt(double(n) / (n + 1)) * psi_prev;
+        const double psi_next = c.raise(n) * u * psi - c.lower(n) * psi_prev;
         psi_prev = psi;
         psi = psi_next;
         if (std::abs(psi) > kRescale) {
@@ -53,9 +73,9 @@ void integrals_from_edges(double i0, const double* phi_a, const double* phi_b, i
                           double* out) {
     out[0] = i0;
     if (n_max >= 1) out[1] = -std::sqrt(2.0) * (phi_b[0] - phi_a[0]);
+    const Recurrence& c = recurrence();
     for (int n = 1; n < n_max; ++n)
-        out[n + 1] = std::sqrt(double(n) / (n + 1)) * out[n - 1] -
-                     std::sqrt(2.0 / (n + 1)) * (phi_b[n] - phi_a[n]);
+        out[n + 1] = c.lower(n) * out[n - 1] - c.raise(n) * (phi_b[n] - phi_a[n]);
 }
 }  // namespace
 
