@@ -2,6 +2,7 @@
 
 #include "shapesim/constants.hpp"
 #include "shapesim/error.hpp"
+#include "shapesim/exact_aperture.hpp"
 #include "shapesim/optimize.hpp"
 
 extern "C" {
@@ -330,7 +331,7 @@ double circular_petrosian(const Apertures& on_z, double x, double y, double r_ma
 
 // The asymmetry about a centre, in a circle of radius r (statmorph): Σ|I − I₁₈₀| less the sky's
 // share, over Σ|I|, with the mask made symmetric. Minimised over the centre (Nelder–Mead), so
-// it is a hot loop: only the box of pixels the aperture can touch is built.
+// it is a hot loop: one walk over the aperture's pixels, no images built.
 class Asymmetry {
 public:
     Asymmetry(const Grid& z, const Mask& masked, double r, double sky_asymmetry)
@@ -343,30 +344,28 @@ public:
             left_stamp_ = true;
             return 100.0;
         }
-        // Only the box of pixels the aperture can touch (its radius and 3 pixels, clipped to
-        // the stamp, as sep clips the circle's own box): each of its pixels takes the same
-        // values as in the whole stamp, and the sums run over the same pixels in the same
-        // order, so the asymmetry is the same number, at the cost of the aperture alone.
+        // The box of pixels the aperture can touch (its radius and 3 pixels, clipped to the
+        // stamp, as sep clips the circle's own box), with the aperture's centre in it: sep's
+        // sums over its images |I|, |I₁₈₀ − I| and the unmasked indicator are those over the
+        // whole stamp. One walk gives all three (exact_aperture.hpp: sep's own arithmetic),
+        // computing each pixel's overlap once and rotating only the pixels the circle reaches.
         const Window box = aperture_box(xc, yc, r_, nx, ny);
-        Grid img = z_.block(box.y0, box.x0, box.ny, box.nx), rot(box.ny, box.nx),
-             unmasked(box.ny, box.nx);
-        for (long b = 0; b < box.ny; ++b)
-            for (long a = 0; a < box.nx; ++a) {
+        const double bx = xc - double(box.x0), by = yc - double(box.y0);  // exact
+        double s_abs = 0.0, d = 0.0, area = 0.0;
+        if (r_ > 0.0)
+            visit_circle(int(box.nx), int(box.ny), bx, by, r_, [&](int a, int b, double weight) {
                 const long j = box.y0 + b, i = box.x0 + a;
-                rot(b, a) = rotated180(z_, xc, yc, j, i);
+                double img = z_(j, i), rot = rotated180(z_, xc, yc, j, i);
                 // The mask rotated by nearest neighbour (half away from zero), then OR.
                 const double x = 2.0 * xc - double(i), y = 2.0 * yc - double(j);
                 const long ri = round_half_away(x), rj = round_half_away(y);
                 const bool mirror = ri >= 0 && rj >= 0 && ri < nx && rj < ny && masked_(rj, ri);
                 const bool sym = masked_(j, i) || mirror;
-                if (sym) img(b, a) = rot(b, a) = 0.0;
-                unmasked(b, a) = sym ? 0.0 : 1.0;
-            }
-        const Grid absolute = img.abs(), difference = (rot - img).abs();
-        const double bx = xc - double(box.x0), by = yc - double(box.y0);  // exact
-        const double s_abs = Apertures(absolute).circle(bx, by, r_);
-        const double d = Apertures(difference).circle(bx, by, r_);
-        const double area = Apertures(unmasked).circle(bx, by, r_);
+                if (sym) img = rot = 0.0;
+                s_abs += sep_term(std::abs(img), weight);
+                d += sep_term(std::abs(rot - img), weight);
+                area += sep_term(sym ? 0.0 : 1.0, weight);
+            });
         if (!(s_abs > 0.0)) return nan;
         return (d - area * sky_asymmetry_) / s_abs;
     }
