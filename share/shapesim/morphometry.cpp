@@ -151,21 +151,31 @@ long reflect(long i, long n) {
 }
 
 // A separable filter with weights w[0..K) over offsets first..first+K−1, reflecting edges.
+// Each output is 0 + w[0]·v₀ + w[1]·v₁ + … in this order; the loops run over k outside and
+// the pixels inside (contiguous, vectorisable) without changing any sum.
 Grid separable_filter(const Grid& in, const std::vector<double>& w, long first) {
-    const long ny = in.rows(), nx = in.cols();
-    Grid rows(ny, nx), out(ny, nx);
-    for (long j = 0; j < ny; ++j)
-        for (long i = 0; i < nx; ++i) {
-            double s = 0.0;
-            for (std::size_t k = 0; k < w.size(); ++k) s += w[k] * in(j, reflect(i + first + long(k), nx));
-            rows(j, i) = s;
+    const long ny = in.rows(), nx = in.cols(), taps = long(w.size());
+    Grid rows = Grid::Zero(ny, nx), out = Grid::Zero(ny, nx);
+    if (nx == 0 || ny == 0) return out;
+    std::vector<double> padded(std::size_t(nx + taps - 1));  // a row, reflected at both ends
+    for (long j = 0; j < ny; ++j) {
+        for (long t = 0; t < nx + taps - 1; ++t)
+            padded[std::size_t(t)] = in(j, reflect(t + first, nx));
+        double* row = rows.data() + j * nx;
+        for (long k = 0; k < taps; ++k) {
+            const double wk = w[std::size_t(k)];
+            const double* src = padded.data() + k;
+            for (long i = 0; i < nx; ++i) row[i] += wk * src[i];
         }
-    for (long j = 0; j < ny; ++j)
-        for (long i = 0; i < nx; ++i) {
-            double s = 0.0;
-            for (std::size_t k = 0; k < w.size(); ++k) s += w[k] * rows(reflect(j + first + long(k), ny), i);
-            out(j, i) = s;
+    }
+    for (long j = 0; j < ny; ++j) {
+        double* row = out.data() + j * nx;
+        for (long k = 0; k < taps; ++k) {
+            const double wk = w[std::size_t(k)];
+            const double* src = rows.data() + reflect(j + first + k, ny) * nx;
+            for (long i = 0; i < nx; ++i) row[i] += wk * src[i];
         }
+    }
     return out;
 }
 
