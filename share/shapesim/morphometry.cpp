@@ -62,9 +62,10 @@ private:
     sep_image im_{};
 };
 
-// Brent's root finder on a bracket [a, b] with f(a)·f(b) ≤ 0, absolute tolerance `tol`.
-double brent(const std::function<double(double)>& f, double a, double b, double tol) {
-    double fa = f(a), fb = f(b);
+// Brent's root finder on a bracket [a, b] with f(a)·f(b) ≤ 0 (fa = f(a) and fb = f(b), known
+// to the caller, whose search found the bracket), absolute tolerance `tol`.
+double brent(const std::function<double(double)>& f, double a, double b, double fa, double fb,
+             double tol) {
     if (fa == 0.0) return a;
     if (fb == 0.0) return b;
     double c = a, fc = fa, d = b - a, e = d;
@@ -122,7 +123,7 @@ double brent(const std::function<double(double)>& f, double a, double b, double 
 // refined by Brent; `lo` when f < 0 already there, `hi` when f never turns negative.
 double first_root(const std::function<double(double)>& f, double lo, double hi, int points,
                   bool* bracketed) {
-    double r_prev = lo;
+    double r_prev = lo, v_prev = 0.0;
     *bracketed = true;
     for (int k = 0; k < points; ++k) {
         const double r = lo + (hi - lo) * k / (points - 1);
@@ -133,9 +134,10 @@ double first_root(const std::function<double(double)>& f, double lo, double hi, 
                 *bracketed = false;
                 return lo;
             }
-            return brent(f, r_prev, r, 1e-6);
+            return brent(f, r_prev, r, v_prev, v, 1e-6);
         }
         r_prev = r;
+        v_prev = v;
     }
     *bracketed = false;
     return hi;
@@ -425,16 +427,25 @@ void measure_concentration(const Apertures& on_z, const Centre& centre,
         return;
     }
     flux_total = std::abs(flux_total);
+    // The three searches walk the same radii: each radius' flux is measured once.
+    std::array<double, 100> walked;
+    int known = 0;  // walked[1 .. known] hold |flux| within r_total·k/99
     auto radius_of = [&](double fraction) {
-        auto g = [&](double r) {
-            return (r > 0.0 ? std::abs(on_z.circle(centre[0], centre[1], r)) : 0.0) / flux_total -
-                   fraction;
+        auto flux = [&](double r) {
+            return r > 0.0 ? std::abs(on_z.circle(centre[0], centre[1], r)) : 0.0;
         };
-        double prev = 0.0;
+        auto g = [&](double r) { return flux(r) / flux_total - fraction; };
+        double prev = 0.0, g_prev = g(prev);
         for (int k = 1; k < 100; ++k) {
             const double r = r_total * k / 99.0;
-            if (g(r) > 0.0) return brent(g, prev, r, 1e-6);
+            if (k > known) {
+                walked[std::size_t(k)] = flux(r);
+                known = k;
+            }
+            const double g_r = walked[std::size_t(k)] / flux_total - fraction;
+            if (g_r > 0.0) return brent(g, prev, r, g_prev, g_r, 1e-6);
             prev = r;
+            g_prev = g_r;
         }
         return r_total;
     };
