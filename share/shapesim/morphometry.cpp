@@ -15,6 +15,7 @@ extern "C" {
 #include <functional>
 #include <limits>
 #include <numeric>
+#include <type_traits>
 
 namespace shapesim {
 
@@ -201,18 +202,6 @@ Grid gaussian(const Grid& in, double sigma) {
     return separable_filter(in, w, -radius);
 }
 
-// Pixel (j, i) of I rotated by 180° about (xc, yc): bilinear, zero outside.
-double rotated180(const Grid& in, double xc, double yc, long j, long i) {
-    const long ny = in.rows(), nx = in.cols();
-    auto at = [&](long b, long a) { return (a < 0 || b < 0 || a >= nx || b >= ny) ? 0.0 : in(b, a); };
-    const double x = 2.0 * xc - double(i), y = 2.0 * yc - double(j);
-    const double x0 = std::floor(x), y0 = std::floor(y);
-    const double fx = x - x0, fy = y - y0;
-    const long i0 = long(x0), j0 = long(y0);
-    return (1 - fy) * ((1 - fx) * at(j0, i0) + fx * at(j0, i0 + 1)) +
-           fy * ((1 - fx) * at(j0 + 1, i0) + fx * at(j0 + 1, i0 + 1));
-}
-
 // std::round (half away from zero), exactly, without the library call: x − trunc(x) is exact.
 long round_half_away(double x) {
     const double t = std::trunc(x);
@@ -363,21 +352,75 @@ public:
         // computing each pixel's overlap once and rotating only the pixels the circle reaches.
         const Window box = aperture_box(xc, yc, r_, nx, ny);
         const double bx = xc - double(box.x0), by = yc - double(box.y0);  // exact
-        double s_abs = 0.0, d = 0.0, area = 0.0;
+        // The weights first, then the sums in the same order in a loop free of calls (whose
+        // accumulators stay in registers), row by row: what depends on the row only (I₁₈₀'s two
+        // source rows, the mirrored mask's row) is found once per row, by the same arithmetic.
+        runs_.clear();
+        weights_.clear();
         if (r_ > 0.0)
             visit_circle(int(box.nx), int(box.ny), bx, by, r_, [&](int a, int b, double weight) {
                 const long j = box.y0 + b, i = box.x0 + a;
-                double img = z_(j, i), rot = rotated180(z_, xc, yc, j, i);
-                // The mask rotated by nearest neighbour (half away from zero), then OR.
-                const double x = 2.0 * xc - double(i), y = 2.0 * yc - double(j);
-                const long ri = round_half_away(x), rj = round_half_away(y);
-                const bool mirror = ri >= 0 && rj >= 0 && ri < nx && rj < ny && masked_(rj, ri);
-                const bool sym = masked_(j, i) || mirror;
-                if (sym) img = rot = 0.0;
-                s_abs += sep_term(std::abs(img), weight);
-                d += sep_term(std::abs(rot - img), weight);
-                area += sep_term(sym ? 0.0 : 1.0, weight);
+                if (runs_.empty() || runs_.back().j != j || runs_.back().end != i)
+                    runs_.push_back({j, i, i, weights_.size()});
+                runs_.back().end = i + 1;
+                weights_.push_back(weight);
             });
+        double s_abs = 0.0, d = 0.0, area = 0.0;
+        for (const Run& run : runs_) {
+            const long j = run.j;
+            // I₁₈₀(j, i) = I(2 yc − j, 2 xc − i), bilinear, zero outside the stamp.
+            const double y = 2.0 * yc - double(j);
+            const double y0 = std::floor(y), fy = y - y0;
+            const long j0 = long(y0), rj = round_half_away(y);
+            const double* above = j0 >= 0 && j0 < ny ? &z_(j0, 0) : nullptr;
+            const double* below = j0 + 1 >= 0 && j0 + 1 < ny ? &z_(j0 + 1, 0) : nullptr;
+            const bool* mirror_row = rj >= 0 && rj < ny ? &masked_(rj, 0) : nullptr;
+            const double* here = &z_(j, 0);
+            const bool* masked_here = &masked_(j, 0);
+            const double* weights = weights_.data() + run.first_weight;
+            // Each pixel's four sources and mirrored mask pixel; `checked`: any may lie off the
+            // stamp (then 0, unmasked), else none does and the tests are left out.
+            auto sum_run = [&](auto checked) {
+                auto at = [&](const double* row, long a) {
+                    if constexpr (decltype(checked)::value)
+                        return (row == nullptr || a < 0 || a >= nx) ? 0.0 : row[a];
+                    else
+                        return row[a];
+                };
+                for (long i = run.begin; i < run.end; ++i) {
+                    const double x = 2.0 * xc - double(i);
+                    const double x0 = std::floor(x), fx = x - x0;
+                    const long i0 = long(x0);
+                    double rot = (1 - fy) * ((1 - fx) * at(above, i0) + fx * at(above, i0 + 1)) +
+                                 fy * ((1 - fx) * at(below, i0) + fx * at(below, i0 + 1));
+                    double img = here[i];
+                    // The mask rotated by nearest neighbour (half away from zero), then OR.
+                    const long ri = round_half_away(x);
+                    bool mirror;
+                    if constexpr (decltype(checked)::value)
+                        mirror = mirror_row != nullptr && ri >= 0 && ri < nx && mirror_row[ri];
+                    else
+                        mirror = mirror_row[ri];
+                    const bool sym = masked_here[i] || mirror;
+                    if (sym) img = rot = 0.0;
+                    const double weight = weights[i - run.begin];
+                    s_abs += sep_term(std::abs(img), weight);
+                    d += sep_term(std::abs(rot - img), weight);
+                    area += sep_term(sym ? 0.0 : 1.0, weight);
+                }
+            };
+            // x = 2 xc − i falls with i, and so do ⌊x⌋ and x rounded: the run's ends bound them.
+            const double x_first = 2.0 * xc - double(run.begin),
+                         x_last = 2.0 * xc - double(run.end - 1);
+            const bool inside = above != nullptr && below != nullptr && mirror_row != nullptr &&
+                                long(std::floor(x_last)) >= 0 &&
+                                long(std::floor(x_first)) + 1 < nx &&
+                                round_half_away(x_last) >= 0 && round_half_away(x_first) < nx;
+            if (inside)
+                sum_run(std::false_type{});
+            else
+                sum_run(std::true_type{});
+        }
         if (!(s_abs > 0.0)) return nan;
         return (d - area * sky_asymmetry_) / s_abs;
     }
@@ -389,6 +432,14 @@ private:
     const Mask& masked_;
     double r_, sky_asymmetry_;
     mutable bool left_stamp_ = false;
+    // The aperture's pixels, as runs along rows (stamp row j, columns begin … end − 1, their
+    // weights from weights_[first_weight]), and the weights, kept from call to call.
+    struct Run {
+        long j, begin, end;
+        std::size_t first_weight;
+    };
+    mutable std::vector<Run> runs_;
+    mutable std::vector<double> weights_;
 };
 
 // Elongation and orientation from the second moments of `zs` about `centre`, regularised (as
