@@ -276,15 +276,22 @@ Centre centroid(const Grid& zs, double total) {
 Grid find_sky_box(const Grid& z, const LabelArray& labels, const MaskArray* mask, int size,
                   Morphometry& out) {
     const long ny = z.rows(), nx = z.cols();
+    // dirty(j, i): the segment or user-mask pixels above and left of (j, i), so that a box's
+    // count is four look-ups.
+    Eigen::Array<long, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor> dirty(ny + 1, nx + 1);
+    dirty.row(0).setZero();
+    dirty.col(0).setZero();
+    for (long j = 0; j < ny; ++j)
+        for (long i = 0; i < nx; ++i)
+            dirty(j + 1, i + 1) = dirty(j, i + 1) + dirty(j + 1, i) - dirty(j, i) +
+                                  (labels(j, i) != 0 || (mask && (*mask)(j, i)) ? 1 : 0);
     Grid sky;
     for (; size > 2 && out.sky_box == 0; size /= 2)
         for (long j = 0; j + size < ny && out.sky_box == 0; ++j)
             for (long i = 0; i + size < nx; ++i) {
-                bool clean = true;
-                for (long b = 0; b < size && clean; ++b)
-                    for (long a = 0; a < size && clean; ++a)
-                        if (labels(j + b, i + a) != 0 || (mask && (*mask)(j + b, i + a))) clean = false;
-                if (clean) {
+                const long count = dirty(j + size, i + size) - dirty(j, i + size) -
+                                   dirty(j + size, i) + dirty(j, i);
+                if (count == 0) {
                     out.sky_box = size;
                     sky = z.block(j, i, size, size);
                     break;
