@@ -356,15 +356,23 @@ public:
         // accumulators stay in registers), row by row: what depends on the row only (I₁₈₀'s two
         // source rows, the mirrored mask's row) is found once per row, by the same arithmetic.
         runs_.clear();
-        weights_.clear();
-        if (r_ > 0.0)
+        if (weights_.size() < std::size_t(box.nx * box.ny))
+            weights_.resize(std::size_t(box.nx * box.ny));  // at most one per pixel of the box
+        if (r_ > 0.0) {
+            double* weights = weights_.data();
+            std::size_t count = 0;
+            Run run{-1, 0, 0, 0};
             visit_circle(int(box.nx), int(box.ny), bx, by, r_, [&](int a, int b, double weight) {
                 const long j = box.y0 + b, i = box.x0 + a;
-                if (runs_.empty() || runs_.back().j != j || runs_.back().end != i)
-                    runs_.push_back({j, i, i, weights_.size()});
-                runs_.back().end = i + 1;
-                weights_.push_back(weight);
+                if (j != run.j || i != run.end) {
+                    if (run.end > run.begin) runs_.push_back(run);
+                    run = {j, i, i, count};
+                }
+                run.end = i + 1;
+                weights[count++] = weight;
             });
+            if (run.end > run.begin) runs_.push_back(run);
+        }
         double s_abs = 0.0, d = 0.0, area = 0.0;
         for (const Run& run : runs_) {
             const long j = run.j;
