@@ -625,13 +625,25 @@ double m20_of(const Grid& z, const Segment& in) {
         }
     const double cx = yx / yt, cy = yy / yt;
     double m_total = 0.0;
-    std::vector<double> all(y.data(), y.data() + y.size());
     for (long j = 0; j < ny; ++j)
         for (long i = 0; i < nx; ++i)
             m_total += y(j, i) *
                        ((double(i) - cx) * (double(i) - cx) + (double(j) - cy) * (double(j) - cy));
+    // The cut: the value at which the ascending cumulative sum reaches 80% of the total, else
+    // the largest value. Zeros (most of the stamp) are left out of the sort: adding one leaves
+    // the sum and its test as they were, so the cut is never one, unless it is the largest value
+    // (and the cut only serves in y ≥ cut, where 0 and −0 are alike).
+    std::vector<double> all;
+    bool zero = false;
+    for (long k = 0; k < y.size(); ++k) {
+        if (y.data()[k] != 0.0)
+            all.push_back(y.data()[k]);
+        else
+            zero = true;
+    }
     std::sort(all.begin(), all.end());
-    double cumulative = 0.0, cut = all.back();
+    double cumulative = 0.0;
+    double cut = all.empty() ? 0.0 : (zero ? std::max(all.back(), 0.0) : all.back());
     for (double v : all) {
         cumulative += v;
         if (cumulative / yt >= 0.8) {
