@@ -238,13 +238,25 @@ Mask bad_pixels(const ImageArray& image, const LabelArray& labels, int label, co
                        !std::isfinite(v);
             if (!bad && n_sigma > 0.0) {
                 double m = 0.0, m2 = 0.0;
-                for (long dj = -1; dj <= 1; ++dj)
-                    for (long di = -1; di <= 1; ++di) {
-                        if (!dj && !di) continue;
-                        const double w = image(std::clamp(j + dj, 0L, ny - 1), std::clamp(i + di, 0L, nx - 1));
-                        m += w / 8.0;
-                        m2 += w * w / 8.0;
-                    }
+                auto add = [&](double w) {
+                    m += w / 8.0;
+                    m2 += w * w / 8.0;
+                };
+                if (j > 0 && i > 0 && j + 1 < ny && i + 1 < nx) {
+                    // Away from the edges the neighbours in the same order, without clamping.
+                    const double *above = &image(j - 1, i), *here = &image(j, i),
+                                 *below = &image(j + 1, i);
+                    for (const double* p : {above - 1, above, above + 1, here - 1, here + 1,
+                                            below - 1, below, below + 1})
+                        add(*p);
+                } else {
+                    for (long dj = -1; dj <= 1; ++dj)
+                        for (long di = -1; di <= 1; ++di) {
+                            if (!dj && !di) continue;
+                            add(image(std::clamp(j + dj, 0L, ny - 1),
+                                      std::clamp(i + di, 0L, nx - 1)));
+                        }
+                }
                 const double s = std::sqrt(m2 - m * m);
                 if (std::abs(v - m) > n_sigma * s) bad = true;
             }
