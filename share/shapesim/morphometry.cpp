@@ -409,24 +409,25 @@ public:
                 };
                 for (long i = run.begin; i < run.end; ++i) {
                     const double x = 2.0 * xc - double(i);
-                    const double x0 = std::floor(x), fx = x - x0;
-                    const long i0 = long(x0);
-                    double rot = (1 - fy) * ((1 - fx) * at(above, i0) + fx * at(above, i0 + 1)) +
-                                 fy * ((1 - fx) * at(below, i0) + fx * at(below, i0 + 1));
-                    double img = here[i];
-                    // The mask rotated by nearest neighbour (half away from zero), then OR.
+                    // The mask rotated by nearest neighbour (half away from zero), then OR. A
+                    // masked pixel (I and I₁₈₀ set to 0) adds ±0 to each sum, which changes none
+                    // of them (a sum that starts at +0 is never −0): left out.
                     const long ri = round_half_away(x);
                     bool mirror;
                     if constexpr (decltype(checked)::value)
                         mirror = mirror_row != nullptr && ri >= 0 && ri < nx && mirror_row[ri];
                     else
                         mirror = mirror_row[ri];
-                    const bool sym = masked_here[i] || mirror;
-                    if (sym) img = rot = 0.0;
-                    const double weight = weights[i - run.begin];
+                    if (masked_here[i] || mirror) continue;
+                    const double x0 = std::floor(x), fx = x - x0;
+                    const long i0 = long(x0);
+                    const double rot =
+                        (1 - fy) * ((1 - fx) * at(above, i0) + fx * at(above, i0 + 1)) +
+                        fy * ((1 - fx) * at(below, i0) + fx * at(below, i0 + 1));
+                    const double img = here[i], weight = weights[i - run.begin];
                     s_abs += sep_term(std::abs(img), weight);
                     d += sep_term(std::abs(rot - img), weight);
-                    area += sep_term(sym ? 0.0 : 1.0, weight);
+                    area += weight;  // sep_term(1, weight)
                 }
             };
             // x = 2 xc − i falls with i, and so do ⌊x⌋ and x rounded: the run's ends bound them.
