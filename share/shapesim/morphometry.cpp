@@ -409,18 +409,20 @@ public:
                 };
                 for (long i = run.begin; i < run.end; ++i) {
                     const double x = 2.0 * xc - double(i);
+                    const double x0 = std::floor(x), fx = x - x0;
+                    const long i0 = long(x0);
                     // The mask rotated by nearest neighbour (half away from zero), then OR. A
                     // masked pixel (I and I₁₈₀ set to 0) adds ±0 to each sum, which changes none
                     // of them (a sum that starts at +0 is never −0): left out.
-                    const long ri = round_half_away(x);
                     bool mirror;
-                    if constexpr (decltype(checked)::value)
+                    if constexpr (decltype(checked)::value) {
+                        const long ri = round_half_away(x);
                         mirror = mirror_row != nullptr && ri >= 0 && ri < nx && mirror_row[ri];
-                    else
-                        mirror = mirror_row[ri];
+                    } else {
+                        // x ≥ 0 here, where trunc is floor: round_half_away(x) from x0 and fx.
+                        mirror = mirror_row[i0 + (fx >= 0.5 ? 1 : 0)];
+                    }
                     if (masked_here[i] || mirror) continue;
-                    const double x0 = std::floor(x), fx = x - x0;
-                    const long i0 = long(x0);
                     const double rot =
                         (1 - fy) * ((1 - fx) * at(above, i0) + fx * at(above, i0 + 1)) +
                         fy * ((1 - fx) * at(below, i0) + fx * at(below, i0 + 1));
