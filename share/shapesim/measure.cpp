@@ -78,12 +78,18 @@ MorphRecord measure_object(const DetectionResult& field, const Detection& object
     if (std::isfinite(m.r_petro)) {
         const double radius = options.morphometry.petro_extent * m.r_petro;
         long inside = 0, other = 0;
-        for (long j = 0; j < labels.rows(); ++j)
+        // hypot(dx, dy) ≥ |dx| and ≥ |dy| (faithfully rounded, as glibc's is): rows and columns
+        // farther than the radius are left out before it is computed.
+        for (long j = 0; j < labels.rows(); ++j) {
+            const double dy = double(j) - m.y_asymmetry;
+            if (std::abs(dy) > radius) continue;
             for (long i = 0; i < labels.cols(); ++i) {
-                if (std::hypot(double(i) - m.x_asymmetry, double(j) - m.y_asymmetry) > radius) continue;
+                const double dx = double(i) - m.x_asymmetry;
+                if (std::abs(dx) > radius || std::hypot(dx, dy) > radius) continue;
                 ++inside;
                 if (labels(j, i) != 0 && labels(j, i) != object.label) ++other;
             }
+        }
         if (inside > 0 && double(other) > options.max_neighbour_fraction * double(inside))
             r.flags.push_back("crowded");
     }

@@ -2,6 +2,7 @@
 
 #include "shapesim/constants.hpp"
 #include "shapesim/error.hpp"
+#include "shapesim/exact_aperture.hpp"
 #include "shapesim/optimize.hpp"
 
 extern "C" {
@@ -14,6 +15,7 @@ extern "C" {
 #include <functional>
 #include <limits>
 #include <numeric>
+#include <type_traits>
 
 namespace shapesim {
 
@@ -33,12 +35,9 @@ public:
         im_.h = int(image_.rows());
         im_.noise_type = SEP_NOISE_NONE;
     }
+    // sep_sum_circle's sum, bit for bit (exact_aperture.hpp), without its per-pixel calls.
     double circle(double x, double y, double r) const {
-        if (!(r > 0.0)) return 0.0;
-        double sum = 0.0, err = 0.0, area = 0.0;
-        short flag = 0;
-        sep_sum_circle(&im_, x, y, r, 0, 0, 0, &sum, &err, &area, &flag);
-        return sum;
+        return sum_circle(image_.data(), im_.w, im_.h, x, y, r);
     }
     double annulus(double x, double y, double r_in, double r_out) const {
         return circle(x, y, r_out) - circle(x, y, std::max(r_in, 0.0));
@@ -61,9 +60,10 @@ private:
     sep_image im_{};
 };
 
-// Brent's root finder on a bracket [a, b] with f(a)·f(b) ≤ 0, absolute tolerance `tol`.
-double brent(const std::function<double(double)>& f, double a, double b, double tol) {
-    double fa = f(a), fb = f(b);
+// Brent's root finder on a bracket [a, b] with f(a)·f(b) ≤ 0 (fa = f(a) and fb = f(b), known
+// to the caller, whose search found the bracket), absolute tolerance `tol`.
+double brent(const std::function<double(double)>& f, double a, double b, double fa, double fb,
+             double tol) {
     if (fa == 0.0) return a;
     if (fb == 0.0) return b;
     double c = a, fc = fa, d = b - a, e = d;
@@ -121,7 +121,7 @@ double brent(const std::function<double(double)>& f, double a, double b, double 
 // refined by Brent; `lo` when f < 0 already there, `hi` when f never turns negative.
 double first_root(const std::function<double(double)>& f, double lo, double hi, int points,
                   bool* bracketed) {
-    double r_prev = lo;
+    double r_prev = lo, v_prev = 0.0;
     *bracketed = true;
     for (int k = 0; k < points; ++k) {
         const double r = lo + (hi - lo) * k / (points - 1);
@@ -132,9 +132,10 @@ double first_root(const std::function<double(double)>& f, double lo, double hi, 
                 *bracketed = false;
                 return lo;
             }
-            return brent(f, r_prev, r, 1e-6);
+            return brent(f, r_prev, r, v_prev, v, 1e-6);
         }
         r_prev = r;
+        v_prev = v;
     }
     *bracketed = false;
     return hi;
@@ -150,21 +151,27 @@ long reflect(long i, long n) {
 }
 
 // A separable filter with weights w[0..K) over offsets first..first+K−1, reflecting edges.
+// Each output is 0 + w[0]·v₀ + w[1]·v₁ + … in this order; the loops run over k outside and
+// the pixels inside (contiguous: Eigen vectorises them, each lane the same product and sum).
 Grid separable_filter(const Grid& in, const std::vector<double>& w, long first) {
-    const long ny = in.rows(), nx = in.cols();
-    Grid rows(ny, nx), out(ny, nx);
-    for (long j = 0; j < ny; ++j)
-        for (long i = 0; i < nx; ++i) {
-            double s = 0.0;
-            for (std::size_t k = 0; k < w.size(); ++k) s += w[k] * in(j, reflect(i + first + long(k), nx));
-            rows(j, i) = s;
+    const long ny = in.rows(), nx = in.cols(), taps = long(w.size());
+    Grid rows = Grid::Zero(ny, nx), out = Grid::Zero(ny, nx);
+    if (nx == 0 || ny == 0) return out;
+    std::vector<double> padded(std::size_t(nx + taps - 1));  // a row, reflected at both ends
+    for (long j = 0; j < ny; ++j) {
+        for (long t = 0; t < nx + taps - 1; ++t)
+            padded[std::size_t(t)] = in(j, reflect(t + first, nx));
+        Eigen::Map<Eigen::ArrayXd> row(rows.data() + j * nx, nx);
+        for (long k = 0; k < taps; ++k)
+            row += w[std::size_t(k)] * Eigen::Map<const Eigen::ArrayXd>(padded.data() + k, nx);
+    }
+    for (long j = 0; j < ny; ++j) {
+        Eigen::Map<Eigen::ArrayXd> row(out.data() + j * nx, nx);
+        for (long k = 0; k < taps; ++k) {
+            const double* src = rows.data() + reflect(j + first + k, ny) * nx;
+            row += w[std::size_t(k)] * Eigen::Map<const Eigen::ArrayXd>(src, nx);
         }
-    for (long j = 0; j < ny; ++j)
-        for (long i = 0; i < nx; ++i) {
-            double s = 0.0;
-            for (std::size_t k = 0; k < w.size(); ++k) s += w[k] * rows(reflect(j + first + long(k), ny), i);
-            out(j, i) = s;
-        }
+    }
     return out;
 }
 
@@ -186,18 +193,6 @@ Grid gaussian(const Grid& in, double sigma) {
     }
     for (double& v : w) v /= sum;
     return separable_filter(in, w, -radius);
-}
-
-// Pixel (j, i) of I rotated by 180° about (xc, yc): bilinear, zero outside.
-double rotated180(const Grid& in, double xc, double yc, long j, long i) {
-    const long ny = in.rows(), nx = in.cols();
-    auto at = [&](long b, long a) { return (a < 0 || b < 0 || a >= nx || b >= ny) ? 0.0 : in(b, a); };
-    const double x = 2.0 * xc - double(i), y = 2.0 * yc - double(j);
-    const double x0 = std::floor(x), y0 = std::floor(y);
-    const double fx = x - x0, fy = y - y0;
-    const long i0 = long(x0), j0 = long(y0);
-    return (1 - fy) * ((1 - fx) * at(j0, i0) + fx * at(j0, i0 + 1)) +
-           fy * ((1 - fx) * at(j0 + 1, i0) + fx * at(j0 + 1, i0 + 1));
 }
 
 // std::round (half away from zero), exactly, without the library call: x − trunc(x) is exact.
@@ -243,13 +238,25 @@ Mask bad_pixels(const ImageArray& image, const LabelArray& labels, int label, co
                        !std::isfinite(v);
             if (!bad && n_sigma > 0.0) {
                 double m = 0.0, m2 = 0.0;
-                for (long dj = -1; dj <= 1; ++dj)
-                    for (long di = -1; di <= 1; ++di) {
-                        if (!dj && !di) continue;
-                        const double w = image(std::clamp(j + dj, 0L, ny - 1), std::clamp(i + di, 0L, nx - 1));
-                        m += w / 8.0;
-                        m2 += w * w / 8.0;
-                    }
+                auto add = [&](double w) {
+                    m += w / 8.0;
+                    m2 += w * w / 8.0;
+                };
+                if (j > 0 && i > 0 && j + 1 < ny && i + 1 < nx) {
+                    // Away from the edges the neighbours in the same order, without clamping.
+                    const double *above = &image(j - 1, i), *here = &image(j, i),
+                                 *below = &image(j + 1, i);
+                    for (const double* p : {above - 1, above, above + 1, here - 1, here + 1,
+                                            below - 1, below, below + 1})
+                        add(*p);
+                } else {
+                    for (long dj = -1; dj <= 1; ++dj)
+                        for (long di = -1; di <= 1; ++di) {
+                            if (!dj && !di) continue;
+                            add(image(std::clamp(j + dj, 0L, ny - 1),
+                                      std::clamp(i + di, 0L, nx - 1)));
+                        }
+                }
                 const double s = std::sqrt(m2 - m * m);
                 if (std::abs(v - m) > n_sigma * s) bad = true;
             }
@@ -274,15 +281,22 @@ Centre centroid(const Grid& zs, double total) {
 Grid find_sky_box(const Grid& z, const LabelArray& labels, const MaskArray* mask, int size,
                   Morphometry& out) {
     const long ny = z.rows(), nx = z.cols();
+    // dirty(j, i): the segment or user-mask pixels above and left of (j, i), so that a box's
+    // count is four look-ups.
+    Eigen::Array<long, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor> dirty(ny + 1, nx + 1);
+    dirty.row(0).setZero();
+    dirty.col(0).setZero();
+    for (long j = 0; j < ny; ++j)
+        for (long i = 0; i < nx; ++i)
+            dirty(j + 1, i + 1) = dirty(j, i + 1) + dirty(j + 1, i) - dirty(j, i) +
+                                  (labels(j, i) != 0 || (mask && (*mask)(j, i)) ? 1 : 0);
     Grid sky;
     for (; size > 2 && out.sky_box == 0; size /= 2)
         for (long j = 0; j + size < ny && out.sky_box == 0; ++j)
             for (long i = 0; i + size < nx; ++i) {
-                bool clean = true;
-                for (long b = 0; b < size && clean; ++b)
-                    for (long a = 0; a < size && clean; ++a)
-                        if (labels(j + b, i + a) != 0 || (mask && (*mask)(j + b, i + a))) clean = false;
-                if (clean) {
+                const long count = dirty(j + size, i + size) - dirty(j, i + size) -
+                                   dirty(j + size, i) + dirty(j, i);
+                if (count == 0) {
                     out.sky_box = size;
                     sky = z.block(j, i, size, size);
                     break;
@@ -330,7 +344,7 @@ double circular_petrosian(const Apertures& on_z, double x, double y, double r_ma
 
 // The asymmetry about a centre, in a circle of radius r (statmorph): Σ|I − I₁₈₀| less the sky's
 // share, over Σ|I|, with the mask made symmetric. Minimised over the centre (Nelder–Mead), so
-// it is a hot loop: only the box of pixels the aperture can touch is built.
+// it is a hot loop: one walk over the aperture's pixels, no images built.
 class Asymmetry {
 public:
     Asymmetry(const Grid& z, const Mask& masked, double r, double sky_asymmetry)
@@ -343,30 +357,93 @@ public:
             left_stamp_ = true;
             return 100.0;
         }
-        // Only the box of pixels the aperture can touch (its radius and 3 pixels, clipped to
-        // the stamp, as sep clips the circle's own box): each of its pixels takes the same
-        // values as in the whole stamp, and the sums run over the same pixels in the same
-        // order, so the asymmetry is the same number, at the cost of the aperture alone.
+        // The box of pixels the aperture can touch (its radius and 3 pixels, clipped to the
+        // stamp, as sep clips the circle's own box), with the aperture's centre in it: sep's
+        // sums over its images |I|, |I₁₈₀ − I| and the unmasked indicator are those over the
+        // whole stamp. One walk gives all three (exact_aperture.hpp: sep's own arithmetic),
+        // computing each pixel's overlap once and rotating only the pixels the circle reaches.
         const Window box = aperture_box(xc, yc, r_, nx, ny);
-        Grid img = z_.block(box.y0, box.x0, box.ny, box.nx), rot(box.ny, box.nx),
-             unmasked(box.ny, box.nx);
-        for (long b = 0; b < box.ny; ++b)
-            for (long a = 0; a < box.nx; ++a) {
-                const long j = box.y0 + b, i = box.x0 + a;
-                rot(b, a) = rotated180(z_, xc, yc, j, i);
-                // The mask rotated by nearest neighbour (half away from zero), then OR.
-                const double x = 2.0 * xc - double(i), y = 2.0 * yc - double(j);
-                const long ri = round_half_away(x), rj = round_half_away(y);
-                const bool mirror = ri >= 0 && rj >= 0 && ri < nx && rj < ny && masked_(rj, ri);
-                const bool sym = masked_(j, i) || mirror;
-                if (sym) img(b, a) = rot(b, a) = 0.0;
-                unmasked(b, a) = sym ? 0.0 : 1.0;
-            }
-        const Grid absolute = img.abs(), difference = (rot - img).abs();
         const double bx = xc - double(box.x0), by = yc - double(box.y0);  // exact
-        const double s_abs = Apertures(absolute).circle(bx, by, r_);
-        const double d = Apertures(difference).circle(bx, by, r_);
-        const double area = Apertures(unmasked).circle(bx, by, r_);
+        // The weights first, then the sums in the same order in a loop free of calls (whose
+        // accumulators stay in registers), row by row: what depends on the row only (I₁₈₀'s two
+        // source rows, the mirrored mask's row) is found once per row, by the same arithmetic.
+        runs_.clear();
+        if (weights_.size() < std::size_t(box.nx * box.ny))
+            weights_.resize(std::size_t(box.nx * box.ny));  // at most one per pixel of the box
+        if (r_ > 0.0) {
+            double* weights = weights_.data();
+            std::size_t count = 0;
+            Run run{-1, 0, 0, 0};
+            visit_circle(int(box.nx), int(box.ny), bx, by, r_, [&](int a, int b, double weight) {
+                const long j = box.y0 + b, i = box.x0 + a;
+                if (j != run.j || i != run.end) {
+                    if (run.end > run.begin) runs_.push_back(run);
+                    run = {j, i, i, count};
+                }
+                run.end = i + 1;
+                weights[count++] = weight;
+            });
+            if (run.end > run.begin) runs_.push_back(run);
+        }
+        double s_abs = 0.0, d = 0.0, area = 0.0;
+        for (const Run& run : runs_) {
+            const long j = run.j;
+            // I₁₈₀(j, i) = I(2 yc − j, 2 xc − i), bilinear, zero outside the stamp.
+            const double y = 2.0 * yc - double(j);
+            const double y0 = std::floor(y), fy = y - y0;
+            const long j0 = long(y0), rj = round_half_away(y);
+            const double* above = j0 >= 0 && j0 < ny ? &z_(j0, 0) : nullptr;
+            const double* below = j0 + 1 >= 0 && j0 + 1 < ny ? &z_(j0 + 1, 0) : nullptr;
+            const bool* mirror_row = rj >= 0 && rj < ny ? &masked_(rj, 0) : nullptr;
+            const double* here = &z_(j, 0);
+            const bool* masked_here = &masked_(j, 0);
+            const double* weights = weights_.data() + run.first_weight;
+            // Each pixel's four sources and mirrored mask pixel; `checked`: any may lie off the
+            // stamp (then 0, unmasked), else none does and the tests are left out.
+            auto sum_run = [&](auto checked) {
+                auto at = [&](const double* row, long a) {
+                    if constexpr (decltype(checked)::value)
+                        return (row == nullptr || a < 0 || a >= nx) ? 0.0 : row[a];
+                    else
+                        return row[a];
+                };
+                for (long i = run.begin; i < run.end; ++i) {
+                    const double x = 2.0 * xc - double(i);
+                    const double x0 = std::floor(x), fx = x - x0;
+                    const long i0 = long(x0);
+                    // The mask rotated by nearest neighbour (half away from zero), then OR. A
+                    // masked pixel (I and I₁₈₀ set to 0) adds ±0 to each sum, which changes none
+                    // of them (a sum that starts at +0 is never −0): left out.
+                    bool mirror;
+                    if constexpr (decltype(checked)::value) {
+                        const long ri = round_half_away(x);
+                        mirror = mirror_row != nullptr && ri >= 0 && ri < nx && mirror_row[ri];
+                    } else {
+                        // x ≥ 0 here, where trunc is floor: round_half_away(x) from x0 and fx.
+                        mirror = mirror_row[i0 + (fx >= 0.5 ? 1 : 0)];
+                    }
+                    if (masked_here[i] || mirror) continue;
+                    const double rot =
+                        (1 - fy) * ((1 - fx) * at(above, i0) + fx * at(above, i0 + 1)) +
+                        fy * ((1 - fx) * at(below, i0) + fx * at(below, i0 + 1));
+                    const double img = here[i], weight = weights[i - run.begin];
+                    s_abs += sep_term(std::abs(img), weight);
+                    d += sep_term(std::abs(rot - img), weight);
+                    area += weight;  // sep_term(1, weight)
+                }
+            };
+            // x = 2 xc − i falls with i, and so do ⌊x⌋ and x rounded: the run's ends bound them.
+            const double x_first = 2.0 * xc - double(run.begin),
+                         x_last = 2.0 * xc - double(run.end - 1);
+            const bool inside = above != nullptr && below != nullptr && mirror_row != nullptr &&
+                                long(std::floor(x_last)) >= 0 &&
+                                long(std::floor(x_first)) + 1 < nx &&
+                                round_half_away(x_last) >= 0 && round_half_away(x_first) < nx;
+            if (inside)
+                sum_run(std::false_type{});
+            else
+                sum_run(std::true_type{});
+        }
         if (!(s_abs > 0.0)) return nan;
         return (d - area * sky_asymmetry_) / s_abs;
     }
@@ -378,6 +455,14 @@ private:
     const Mask& masked_;
     double r_, sky_asymmetry_;
     mutable bool left_stamp_ = false;
+    // The aperture's pixels, as runs along rows (stamp row j, columns begin … end − 1, their
+    // weights from weights_[first_weight]), and the weights, kept from call to call.
+    struct Run {
+        long j, begin, end;
+        std::size_t first_weight;
+    };
+    mutable std::vector<Run> runs_;
+    mutable std::vector<double> weights_;
 };
 
 // Elongation and orientation from the second moments of `zs` about `centre`, regularised (as
@@ -416,16 +501,25 @@ void measure_concentration(const Apertures& on_z, const Centre& centre,
         return;
     }
     flux_total = std::abs(flux_total);
+    // The three searches walk the same radii: each radius' flux is measured once.
+    std::array<double, 100> walked;
+    int known = 0;  // walked[1 .. known] hold |flux| within r_total·k/99
     auto radius_of = [&](double fraction) {
-        auto g = [&](double r) {
-            return (r > 0.0 ? std::abs(on_z.circle(centre[0], centre[1], r)) : 0.0) / flux_total -
-                   fraction;
+        auto flux = [&](double r) {
+            return r > 0.0 ? std::abs(on_z.circle(centre[0], centre[1], r)) : 0.0;
         };
-        double prev = 0.0;
+        auto g = [&](double r) { return flux(r) / flux_total - fraction; };
+        double prev = 0.0, g_prev = g(prev);
         for (int k = 1; k < 100; ++k) {
             const double r = r_total * k / 99.0;
-            if (g(r) > 0.0) return brent(g, prev, r, 1e-6);
+            if (k > known) {
+                walked[std::size_t(k)] = flux(r);
+                known = k;
+            }
+            const double g_r = walked[std::size_t(k)] / flux_total - fraction;
+            if (g_r > 0.0) return brent(g, prev, r, g_prev, g_r, 1e-6);
             prev = r;
+            g_prev = g_r;
         }
         return r_total;
     };
@@ -546,13 +640,25 @@ double m20_of(const Grid& z, const Segment& in) {
         }
     const double cx = yx / yt, cy = yy / yt;
     double m_total = 0.0;
-    std::vector<double> all(y.data(), y.data() + y.size());
     for (long j = 0; j < ny; ++j)
         for (long i = 0; i < nx; ++i)
             m_total += y(j, i) *
                        ((double(i) - cx) * (double(i) - cx) + (double(j) - cy) * (double(j) - cy));
+    // The cut: the value at which the ascending cumulative sum reaches 80% of the total, else
+    // the largest value. Zeros (most of the stamp) are left out of the sort: adding one leaves
+    // the sum and its test as they were, so the cut is never one, unless it is the largest value
+    // (and the cut only serves in y ≥ cut, where 0 and −0 are alike).
+    std::vector<double> all;
+    bool zero = false;
+    for (long k = 0; k < y.size(); ++k) {
+        if (y.data()[k] != 0.0)
+            all.push_back(y.data()[k]);
+        else
+            zero = true;
+    }
     std::sort(all.begin(), all.end());
-    double cumulative = 0.0, cut = all.back();
+    double cumulative = 0.0;
+    double cut = all.empty() ? 0.0 : (zero ? std::max(all.back(), 0.0) : all.back());
     for (double v : all) {
         cumulative += v;
         if (cumulative / yt >= 0.8) {
