@@ -234,8 +234,8 @@ namespace {
 // same IEEE operations in the same order (no FMA in an "avx2" target), so the same bits as the
 // scalar code. The scalar code's branches (how far the inversion walks, whether PTRS's first
 // trial is taken) are what cost there. A lane the vector step cannot finish, the inversion past
-// k = 63 or a first trial the squeeze does not accept (~15%), goes to `rest`: the scalar code
-// redoes it from its first word.
+// k = 63 or a first trial rejected (by the squeeze and the exact test), goes to `rest`: the
+// scalar code redoes it from its first word.
 struct PhotonLanes {
     const long* index;  ///< pixels of one kind (all μ < 10, or all μ ≥ 10)
     long count;
@@ -290,7 +290,7 @@ __attribute__((target("avx2"))) long poisson_ptrs_avx2(const PhotonLanes& in, lo
     long left = 0, g = 0;
     const __m256d half = _mm256_set1_pd(0.5), sign = _mm256_set1_pd(-0.0);
     for (; g + 4 <= in.count; g += 4) {
-        alignas(32) double mu[4], u0[4], v0[4], k_out[4];
+        alignas(32) double mu[4], u0[4], v0[4], k_out[4], a_of[4], b_of[4], us_of[4], k_of[4];
         for (int j = 0; j < 4; ++j) {
             const long i = in.index[g + j];
             mu[j] = in.mean[i];
@@ -313,10 +313,21 @@ __attribute__((target("avx2"))) long poisson_ptrs_avx2(const PhotonLanes& in, lo
                                             _mm256_cmp_pd(v, v_r, _CMP_LE_OQ));
         _mm256_store_pd(k_out, _mm256_div_pd(k, _mm256_set1_pd(in.gain)));
         const int accepted = _mm256_movemask_pd(taken);
+        if (accepted != 0xF) {
+            _mm256_store_pd(a_of, a);
+            _mm256_store_pd(b_of, b);
+            _mm256_store_pd(us_of, us);
+            _mm256_store_pd(k_of, k);
+        }
         for (int j = 0; j < 4; ++j) {
             const long i = in.index[g + j];
-            if (accepted & (1 << j)) in.pixels[i] = k_out[j];
-            else rest[left++] = i;
+            // The squeeze's rejects take the exact test here, lane by lane; a trial rejected
+            // outright goes on in the scalar code, from the first word.
+            if ((accepted & (1 << j)) ||
+                detail::ptrs_exact_test(mu[j], a_of[j], b_of[j], us_of[j], v0[j], k_of[j]))
+                in.pixels[i] = (accepted & (1 << j)) ? k_out[j] : k_of[j] / in.gain;
+            else
+                rest[left++] = i;
         }
     }
     for (; g < in.count; ++g) rest[left++] = in.index[g];
