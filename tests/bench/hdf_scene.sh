@@ -4,8 +4,9 @@
 # TinyTim PSF (n_max 10), photon noise and a correlated background, written as FITS. Timed at
 # 1 and 2 threads, the median of 3 runs each, for the two backgrounds: the drizzle kernel of
 # F = 1.84 (the issue's) and the HDF sky's measured correlation (radius 8, make reproduce's).
-# Prints one markdown row per case: the stages from render's own log line, the wall time, and
-# ns per pixel of noise. Usage: tests/bench/hdf_scene.sh [BIN] [REPRODUCE_OUT] [RUNS]
+# Prints one markdown row per case: the stages from render's own log line (paint and noise are
+# CPU seconds summed over the threads: render draws in strips), the wall time, and the noise's
+# CPU ns per pixel. Usage: tests/bench/hdf_scene.sh [BIN] [REPRODUCE_OUT] [RUNS]
 set -euo pipefail
 bin=${1:-bin}
 out=${2:-out/reproduce}
@@ -17,7 +18,7 @@ work=$(mktemp -d)
 trap 'rm -rf "$work"' EXIT
 "$bin/shapesim-sample" "$out/morphology.json" --size 2.7169 --count 5238 --seed 7 -q >"$work/objects.jsonl"
 pixels=$((4096 * 4096))
-echo "| background | threads | read | prepare | paint | noise | write | wall | noise ns/pixel |"
+echo "| background | threads | read | prepare | paint | noise | write | wall | noise CPU ns/pixel |"
 echo "|---|---|---|---|---|---|---|---|---|"
 for background in drizzle measured; do
   if [[ $background == drizzle ]]; then noise=(--noise-rms 1.964e-05 --noise-correlation 1.84)
