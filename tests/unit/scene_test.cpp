@@ -460,6 +460,20 @@ TEST(Scene, IntrinsicModelsThroughThePsfNeverSharperThanSeen) {
 namespace {
 
 // The crowded field's records (crowded() prepares the same objects one by one).
+// The crowded field's geometry (200 × 150 at 0.04″) and the kernels that draw it.
+FieldGeometry crowded_field() {
+    FieldGeometry field;
+    field.nx = 200;
+    field.ny = 150;
+    field.pixel_scale = 0.04;
+    return field;
+}
+SceneKernels psf_kernels() {
+    SceneKernels k;
+    k.galaxy = k.star = to_cartesian(psf_model());
+    return k;
+}
+
 std::vector<ObjectRecord> crowded_records() {
     std::vector<ObjectRecord> records;
     for (int i = 0; i < 70; ++i) {
@@ -686,13 +700,9 @@ TEST(Scene, StripsGiveTheWholeWindow) {
     o.gain = 40.0;
     o.seed = 9;
     o.clip_negative = true;
-    SceneKernels k;
-    k.galaxy = k.star = to_cartesian(psf_model());
+    const SceneKernels k = psf_kernels();
     const std::vector<ObjectRecord> records = crowded_records();
-    FieldGeometry field;
-    field.nx = 200;
-    field.ny = 150;
-    field.pixel_scale = 0.04;
+    const FieldGeometry field = crowded_field();
     const Tile window{11, 6, 190, 150};
     const RenderedScene whole = render_field(records, field, k, o, window, "x.jsonl");
     long with_holes = 0;
@@ -738,13 +748,9 @@ TEST(Scene, TruthListsEachObjectOnceAcrossTiles) {
     o.noise_rms = 0.05;
     o.seed = 4;
     o.clip_negative = true;
-    SceneKernels k;
-    k.galaxy = k.star = to_cartesian(psf_model());
+    const SceneKernels k = psf_kernels();
     const std::vector<ObjectRecord> records = crowded_records();
-    FieldGeometry field;
-    field.nx = 200;
-    field.ny = 150;
-    field.pixel_scale = 0.04;
+    const FieldGeometry field = crowded_field();
     const RenderedScene whole = render_field(records, field, k, o, Tile{1, 1, 200, 150}, "x.jsonl");
     ImageArray expect = paint(whole.objects, whole.window, o);
     add_noise(expect, whole.window, 200, o);

@@ -61,13 +61,13 @@ void RenderSettings::draw_and_write(const ProgramOptions& options, RenderedScene
                                     const SceneKernels& kernels) const {
     using clock = std::chrono::steady_clock;
     const FitsImageSpec spec = scene_image_spec(rendered, records, scene, kernels, labels(options), bitpix);
-    auto open = [&](std::optional<FitsWriter>& fits) {
+    auto start = [&](std::optional<FitsWriter>& fits) {
         fits.reset();  // the temporary of a writer given up is removed before the next one
         fits.emplace(options.common().output, "shapesim-render",
                      provenance_keywords(options, {"output", "truth"}));
     };
     std::optional<FitsWriter> fits;
-    open(fits);
+    start(fits);
     const Tile& w = rendered.window;
     try {
         fits->begin_image(w.y1 - w.y0 + 1, w.x1 - w.x0 + 1, spec);
@@ -75,7 +75,7 @@ void RenderSettings::draw_and_write(const ProgramOptions& options, RenderedScene
                        [&](long, const ImageArray& strip) { fits->write_rows(strip); });
     } catch (const FloatRangeError&) {
         // A pixel a float cannot hold (BITPIX −32): the whole window, promoted to −64.
-        open(fits);
+        start(fits);
         rendered.clipped.assign(rendered.objects.size(), ClippedLight{});
         rendered.paint_seconds = rendered.noise_seconds = rendered.sink_seconds = 0.0;
         draw_whole(rendered, scene);
