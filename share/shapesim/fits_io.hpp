@@ -182,7 +182,8 @@ public:
 
 private:
     std::string start_hdu(long ny, long nx, int bitpix, const FitsImageSpec& spec);
-    void write_pixels(const ImageArray& pixels, long long first, const std::string& place, int bitpix);
+    void write_pixels(const ImageArray& pixels, long long first, const std::string& place,
+                      int bitpix);
     struct Impl;
     std::unique_ptr<Impl> impl_;
 };

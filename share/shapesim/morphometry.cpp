@@ -212,8 +212,10 @@ struct Window {
 Window aperture_box(double x, double y, double r, long nx, long ny) {
     if (!(r > 0.0) || !(r < double(nx + ny))) return {0, 0, nx, ny};
     const long half = long(std::ceil(r)) + 3;
-    const long x0 = std::clamp(long(std::floor(x)) - half, 0L, nx), x1 = std::clamp(long(std::floor(x)) + half + 1, 0L, nx);
-    const long y0 = std::clamp(long(std::floor(y)) - half, 0L, ny), y1 = std::clamp(long(std::floor(y)) + half + 1, 0L, ny);
+    const long x0 = std::clamp(long(std::floor(x)) - half, 0L, nx),
+               x1 = std::clamp(long(std::floor(x)) + half + 1, 0L, nx);
+    const long y0 = std::clamp(long(std::floor(y)) - half, 0L, ny),
+               y1 = std::clamp(long(std::floor(y)) + half + 1, 0L, ny);
     return {x0, y0, x1 - x0, y1 - y0};
 }
 

@@ -37,9 +37,10 @@ void parallel_for(std::size_t count, int threads, const Work& work) {
 /// memory is bounded by the items in flight. produce and consume may throw: no new item is
 /// started after the first exception, which is rethrown here once every thread has stopped.
 template <class Produce, class Consume>
-void parallel_in_order(std::size_t count, int threads, const Produce& produce, const Consume& consume) {
+void parallel_in_order(std::size_t count, int threads, const Produce& produce,
+                       const Consume& consume) {
     using Item = decltype(produce(std::size_t(0)));
-    const std::size_t n = std::max<std::size_t>(1, std::min<std::size_t>(std::size_t(std::max(threads, 1)), count));
+    const std::size_t n = std::max<std::size_t>(1, std::min(std::size_t(std::max(threads, 1)), count));
     const std::size_t in_flight = n + 1;
     std::mutex m;
     std::condition_variable cv;
@@ -55,7 +56,9 @@ void parallel_in_order(std::size_t count, int threads, const Produce& produce, c
     auto run = [&] {
         std::unique_lock<std::mutex> lock(m);
         for (;;) {
-            cv.wait(lock, [&] { return error || next_take >= count || next_take < next_consume + in_flight; });
+            cv.wait(lock, [&] {
+                return error || next_take >= count || next_take < next_consume + in_flight;
+            });
             if (error || next_take >= count) return;
             const std::size_t k = next_take++;
             lock.unlock();

@@ -60,7 +60,8 @@ void RenderSettings::draw_and_write(const ProgramOptions& options, RenderedScene
                                     const std::vector<ObjectRecord>& records,
                                     const SceneKernels& kernels) const {
     using clock = std::chrono::steady_clock;
-    const FitsImageSpec spec = scene_image_spec(rendered, records, scene, kernels, labels(options), bitpix);
+    const FitsImageSpec spec =
+        scene_image_spec(rendered, records, scene, kernels, labels(options), bitpix);
     auto start = [&](std::optional<FitsWriter>& fits) {
         fits.reset();  // the temporary of a writer given up is removed before the next one
         fits.emplace(options.common().output, "shapesim-render",

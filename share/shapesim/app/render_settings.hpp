@@ -36,7 +36,8 @@ struct RenderSettings {
     /// written. The image is drawn and written in strips (draw_in_strips), unless BITPIX −32
     /// cannot hold a pixel: then it is drawn whole and written as −64, so nothing is lost.
     void draw_and_write(const ProgramOptions& options, RenderedScene& rendered,
-                        const std::vector<ObjectRecord>& records, const SceneKernels& kernels) const;
+                        const std::vector<ObjectRecord>& records,
+                        const SceneKernels& kernels) const;
 };
 
 }  // namespace shapesim::app
