@@ -40,7 +40,7 @@ template <class Produce, class Consume>
 void parallel_in_order(std::size_t count, int threads, const Produce& produce,
                        const Consume& consume) {
     using Item = decltype(produce(std::size_t(0)));
-    const std::size_t n = std::max<std::size_t>(1, std::min(std::size_t(std::max(threads, 1)), count));
+    const std::size_t n = std::clamp<std::size_t>(count, 1, std::size_t(std::max(threads, 1)));
     const std::size_t in_flight = n + 1;
     std::mutex m;
     std::condition_variable cv;

@@ -227,132 +227,15 @@ private:
 
 }  // namespace
 
-#ifdef SHAPESIM_PHILOX_SIMD
-namespace {
-
-// Photon deviates four pixels at a time with poisson_deviate's own arithmetic, lane by lane: the
-// same IEEE operations in the same order (no FMA in an "avx2" target), so the same bits as the
-// scalar code. The scalar code's branches (how far the inversion walks, whether PTRS's first
-// trial is taken) are what cost there. A lane the vector step cannot finish, the inversion past
-// k = 63 or a first trial rejected (by the squeeze and the exact test), goes to `rest`: the
-// scalar code redoes it from its first word.
-struct PhotonLanes {
-    const long* index;  ///< pixels of one kind (all μ < 10, or all μ ≥ 10)
-    long count;
-    const std::uint32_t* words;  ///< the row's blocks, 4 words per pixel
-    const double* mean;          ///< μ = s · gain per pixel
-    double gain;
-    double* pixels;
-};
-
-// Word w (0 or 1) of pixel i's block as poisson_deviate's sources read it: the top 53 bits.
-inline double word_bits(const std::uint32_t* words, long i, int w) {
-    const std::uint32_t* b = words + 4 * i + 2 * w;
-    return double((std::uint64_t(b[0]) | (std::uint64_t(b[1]) << 32)) >> 11);
-}
-
-__attribute__((target("avx2"))) long poisson_inversion_avx2(const PhotonLanes& in, long* rest) {
-    long left = 0, g = 0;
-    const __m256d tiny = _mm256_set1_pd(1e-300);
-    for (; g + 4 <= in.count; g += 4) {
-        alignas(32) double mu[4], p0[4], u0[4], k_out[4];
-        for (int j = 0; j < 4; ++j) {
-            const long i = in.index[g + j];
-            mu[j] = in.mean[i];
-            p0[j] = std::exp(-mu[j]);
-            u0[j] = word_bits(in.words, i, 0) * 0x1.0p-53;  // uniform()
-        }
-        const __m256d mean = _mm256_load_pd(mu), u = _mm256_load_pd(u0);
-        __m256d p = _mm256_load_pd(p0), cdf = p, k = _mm256_setzero_pd();
-        __m256d active = _mm256_cmp_pd(u, cdf, _CMP_GT_OQ);
-        int step = 1;
-        for (; step < 64 && _mm256_movemask_pd(active); ++step) {
-            const __m256d factor = _mm256_mul_pd(mean, _mm256_set1_pd(detail::poisson_step(step)));
-            p = _mm256_blendv_pd(p, _mm256_mul_pd(p, factor), active);
-            k = _mm256_blendv_pd(k, _mm256_set1_pd(double(step)), active);
-            active = _mm256_andnot_pd(_mm256_cmp_pd(p, tiny, _CMP_LT_OQ), active);  // the break
-            cdf = _mm256_blendv_pd(cdf, _mm256_add_pd(cdf, p), active);
-            active = _mm256_and_pd(active, _mm256_cmp_pd(u, cdf, _CMP_GT_OQ));
-        }
-        _mm256_store_pd(k_out, _mm256_div_pd(k, _mm256_set1_pd(in.gain)));
-        const int unfinished = _mm256_movemask_pd(active);
-        for (int j = 0; j < 4; ++j) {
-            const long i = in.index[g + j];
-            if (unfinished & (1 << j)) rest[left++] = i;
-            else in.pixels[i] = k_out[j];
-        }
-    }
-    for (; g < in.count; ++g) rest[left++] = in.index[g];
-    return left;
-}
-
-__attribute__((target("avx2"))) long poisson_ptrs_avx2(const PhotonLanes& in, long* rest) {
-    long left = 0, g = 0;
-    const __m256d half = _mm256_set1_pd(0.5), sign = _mm256_set1_pd(-0.0);
-    for (; g + 4 <= in.count; g += 4) {
-        alignas(32) double mu[4], u0[4], v0[4], k_out[4], a_of[4], b_of[4], us_of[4], k_of[4];
-        for (int j = 0; j < 4; ++j) {
-            const long i = in.index[g + j];
-            mu[j] = in.mean[i];
-            u0[j] = (word_bits(in.words, i, 0) + 0.5) * 0x1.0p-53;  // uniform_open()
-            v0[j] = (word_bits(in.words, i, 1) + 0.5) * 0x1.0p-53;
-        }
-        const __m256d mean = _mm256_load_pd(mu), v = _mm256_load_pd(v0);
-        const __m256d root = _mm256_sqrt_pd(mean);
-        const __m256d b = _mm256_add_pd(_mm256_set1_pd(0.931), _mm256_mul_pd(_mm256_set1_pd(2.53), root));
-        const __m256d a = _mm256_add_pd(_mm256_set1_pd(-0.059), _mm256_mul_pd(_mm256_set1_pd(0.02483), b));
-        const __m256d v_r = _mm256_sub_pd(
-            _mm256_set1_pd(0.9277),
-            _mm256_div_pd(_mm256_set1_pd(3.6224), _mm256_sub_pd(b, _mm256_set1_pd(2.0))));
-        const __m256d u = _mm256_sub_pd(_mm256_load_pd(u0), half);
-        const __m256d us = _mm256_sub_pd(half, _mm256_andnot_pd(sign, u));
-        __m256d t = _mm256_div_pd(_mm256_mul_pd(_mm256_set1_pd(2.0), a), us);
-        t = _mm256_add_pd(_mm256_mul_pd(_mm256_add_pd(t, b), u), mean);
-        const __m256d k = _mm256_floor_pd(_mm256_add_pd(t, _mm256_set1_pd(0.43)));
-        const __m256d taken = _mm256_and_pd(_mm256_cmp_pd(us, _mm256_set1_pd(0.07), _CMP_GE_OQ),
-                                            _mm256_cmp_pd(v, v_r, _CMP_LE_OQ));
-        _mm256_store_pd(k_out, _mm256_div_pd(k, _mm256_set1_pd(in.gain)));
-        const int accepted = _mm256_movemask_pd(taken);
-        if (accepted != 0xF) {
-            _mm256_store_pd(a_of, a);
-            _mm256_store_pd(b_of, b);
-            _mm256_store_pd(us_of, us);
-            _mm256_store_pd(k_of, k);
-        }
-        for (int j = 0; j < 4; ++j) {
-            const long i = in.index[g + j];
-            // The squeeze's rejects take the exact test here, lane by lane; a trial rejected
-            // outright goes on in the scalar code, from the first word.
-            if ((accepted & (1 << j)) ||
-                detail::ptrs_exact_test(mu[j], a_of[j], b_of[j], us_of[j], v0[j], k_of[j]))
-                in.pixels[i] = (accepted & (1 << j)) ? k_out[j] : k_of[j] / in.gain;
-            else
-                rest[left++] = i;
-        }
-    }
-    for (; g < in.count; ++g) rest[left++] = in.index[g];
-    return left;
-}
-
-}  // namespace
-#endif
-
 void PhotonNoise::row(long row, long first, long count, double gain, double least,
                       double* pixels) const {
     require(row >= 0 && first >= 0 && row + WhiteNoise::margin < (1L << 32) &&
                 first + count + WhiteNoise::margin <= (1L << 32),
             "photon noise: pixel outside the keyed range");
-    if (count <= 0) return;
     auto bright = [&](long i) { return pixels[i] > 0.0 && pixels[i] >= least; };
     constexpr std::uint64_t purpose = fnv1a_64("photon noise");
-    const std::uint64_t q_first = std::uint64_t(first + WhiteNoise::margin);
-    words_.resize(4 * std::size_t(count));
-    mean_.resize(std::size_t(count));
-    small_.clear();
-    large_.clear();
-    rest_.clear();
-    // Runs of pixels bright enough, each run's blocks drawn together; then the pixels sorted
-    // by algorithm (inversion below μ = 10, PTRS above, poisson_deviate's split).
+    const std::uint64_t row_key = std::uint64_t(row + WhiteNoise::margin) << 32;
+    // Runs of pixels bright enough, each run's blocks drawn together.
     for (long i0 = 0; i0 < count;) {
         if (!bright(i0)) {
             ++i0;
@@ -360,37 +243,17 @@ void PhotonNoise::row(long row, long first, long count, double gain, double leas
         }
         long i1 = i0 + 1;
         while (i1 < count && bright(i1)) ++i1;
-        philox4x32_blocks(seed_, std::uint32_t(q_first + std::uint64_t(i0)),
-                          std::uint32_t(row + WhiteNoise::margin), std::uint32_t(purpose),
-                          std::uint32_t(purpose >> 32), std::size_t(i1 - i0), &words_[4 * std::size_t(i0)]);
+        const std::uint64_t q0 = std::uint64_t(first + i0 + WhiteNoise::margin);
+        words_.resize(4 * std::size_t(i1 - i0));
+        philox4x32_blocks(seed_, std::uint32_t(q0), std::uint32_t(row + WhiteNoise::margin),
+                          std::uint32_t(purpose), std::uint32_t(purpose >> 32), std::size_t(i1 - i0),
+                          words_.data());
         for (long i = i0; i < i1; ++i) {
-            const double mu = pixels[i] * gain;
-            mean_[std::size_t(i)] = mu;
-            // A mean poisson_deviate refuses stays with the scalar code, which says so.
-            (!(mu <= 0x1.0p62) ? rest_ : mu < 10.0 ? small_ : large_).push_back(i);
+            PhotonWords source(words_.data() + 4 * (i - i0), seed_, row_key + q0 + std::uint64_t(i - i0));
+            pixels[i] = double(poisson_deviate(pixels[i] * gain, source)) / gain;
         }
         i0 = i1;
     }
-#ifdef SHAPESIM_PHILOX_SIMD
-    if (have_avx2()) {
-        const std::size_t known = rest_.size();
-        rest_.resize(known + small_.size() + large_.size());
-        long left = long(known);
-        left += poisson_inversion_avx2({small_.data(), long(small_.size()), words_.data(), mean_.data(),
-                                        gain, pixels}, rest_.data() + left);
-        left += poisson_ptrs_avx2({large_.data(), long(large_.size()), words_.data(), mean_.data(),
-                                   gain, pixels}, rest_.data() + left);
-        rest_.resize(std::size_t(left));
-        small_.clear();
-        large_.clear();
-    }
-#endif
-    const std::uint64_t row_key = std::uint64_t(row + WhiteNoise::margin) << 32;
-    for (const std::vector<long>* list : {&rest_, &small_, &large_})
-        for (const long i : *list) {
-            PhotonWords source(&words_[4 * std::size_t(i)], seed_, row_key + q_first + std::uint64_t(i));
-            pixels[i] = double(poisson_deviate(mean_[std::size_t(i)], source)) / gain;
-        }
 }
 
 namespace {

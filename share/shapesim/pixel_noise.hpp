@@ -63,9 +63,7 @@ public:
 
 private:
     std::uint64_t seed_;
-    mutable std::vector<std::uint32_t> words_;  ///< the row's blocks (bright pixels only)
-    mutable std::vector<double> mean_;          ///< s · gain per bright pixel
-    mutable std::vector<long> small_, large_, rest_;  ///< μ < 10, μ ≥ 10, left to scalar code
+    mutable std::vector<std::uint32_t> words_;
 };
 
 /// Rows of correlated noise over columns first … first + nx − 1 of the field, in increasing

@@ -84,8 +84,6 @@ struct Reciprocals {
 constexpr Reciprocals reciprocals{};  // constant-initialised: no static-order hazard
 }  // namespace
 
-double poisson_step(int k) { return reciprocals.value[k]; }
-
 // Inversion: walk the CDF from 0 with one uniform (μ < 10, so e^{−μ} > 4.5e-5).
 std::uint64_t poisson_inversion(double mean, double u) {
     double p = std::exp(-mean), cdf = p;

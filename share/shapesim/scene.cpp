@@ -22,6 +22,11 @@ namespace shapesim {
 
 namespace {
 
+using Clock = std::chrono::steady_clock;
+double seconds_since(Clock::time_point start) {
+    return std::chrono::duration<double>(Clock::now() - start).count();
+}
+
 // Cramér's bound |φ_n(u)| ≤ 1.086435 π^{−1/4}, rounded up.
 const double hermite_bound = 1.0865 * std::pow(pi, -0.25);
 
@@ -393,7 +398,7 @@ void add_noise(ImageArray& image, const Tile& window, long field_nx, const Scene
 RenderedScene prepare_field(const std::vector<ObjectRecord>& records, const FieldGeometry& field,
                             const SceneKernels& kernels, const SceneOptions& options,
                             const Tile& window, const std::string& source) {
-    const auto start = std::chrono::steady_clock::now();
+    const auto start = Clock::now();
     RenderedScene scene;
     scene.field = field;
     scene.window = window;
@@ -403,7 +408,7 @@ RenderedScene prepare_field(const std::vector<ObjectRecord>& records, const Fiel
         throw e.at(source);
     }
     scene.clipped.assign(scene.objects.size(), ClippedLight{});
-    scene.prepare_seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+    scene.prepare_seconds = seconds_since(start);
     return scene;
 }
 
@@ -416,14 +421,12 @@ RenderedScene render_field(const std::vector<ObjectRecord>& records, const Field
 }
 
 void draw_whole(RenderedScene& scene, const SceneOptions& options) {
-    using clock = std::chrono::steady_clock;
-    auto seconds = [](auto a, auto b) { return std::chrono::duration<double>(b - a).count(); };
-    const auto t_paint = clock::now();
+    const auto t_paint = Clock::now();
     scene.image = paint(scene.objects, scene.window, options, &scene.clipped);
-    const auto t_noise = clock::now();
+    scene.paint_seconds = seconds_since(t_paint);
+    const auto t_noise = Clock::now();
     add_noise(scene.image, scene.window, scene.field.nx, options);
-    scene.paint_seconds = seconds(t_paint, t_noise);
-    scene.noise_seconds = seconds(t_noise, clock::now());
+    scene.noise_seconds = seconds_since(t_noise);
 }
 
 long default_strip_rows(long width) {
@@ -434,8 +437,6 @@ long default_strip_rows(long width) {
 
 void draw_in_strips(RenderedScene& scene, const SceneOptions& options, long strip_rows,
                     const StripSink& sink) {
-    using clock = std::chrono::steady_clock;
-    auto seconds = [](auto a, auto b) { return std::chrono::duration<double>(b - a).count(); };
     const Tile& window = scene.window;
     const long ny = window.y1 - window.y0 + 1;
     require(strip_rows > 0 && ny > 0, "draw_in_strips: no rows");
@@ -455,18 +456,18 @@ void draw_in_strips(RenderedScene& scene, const SceneOptions& options, long stri
             const long first = long(k) * strip_rows, last = std::min(ny, first + strip_rows);
             const Tile part{window.x0, window.y0 + first, window.x1, window.y0 + last - 1};
             Strip strip;
-            const auto t0 = clock::now();
+            const auto t_paint = Clock::now();
             strip.image = paint(scene.objects, part, one, &strip.clipped);
-            const auto t1 = clock::now();
+            strip.paint_seconds = seconds_since(t_paint);
+            const auto t_noise = Clock::now();
             add_noise(strip.image, part, scene.field.nx, one);
-            strip.paint_seconds = seconds(t0, t1);
-            strip.noise_seconds = seconds(t1, clock::now());
+            strip.noise_seconds = seconds_since(t_noise);
             return strip;
         },
         [&](std::size_t k, Strip&& strip) {
-            const auto t0 = clock::now();
+            const auto t_sink = Clock::now();
             sink(long(k) * strip_rows, strip.image);
-            sink_seconds += seconds(t0, clock::now());
+            sink_seconds += seconds_since(t_sink);
             // Each strip a stamp reaches reports its whole stamp's clipped light: the same.
             for (std::size_t i = 0; i < strip.clipped.size(); ++i)
                 if (strip.clipped[i].flux != 0.0 || strip.clipped[i].deepest != 0.0)

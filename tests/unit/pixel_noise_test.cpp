@@ -185,10 +185,10 @@ TEST(CorrelatedNoise, EqualsTheDirectSum) {
     }
 }
 
-// Photon noise (four pixels at a time with AVX2) equals the documented per-pixel draw: the
-// pixel's Philox4x32 block, then its own RandomStream, through poisson_deviate, bit for bit.
-// Means from 1e-3 to 1e7 photons, across the inversion/PTRS split at 10 and with runs broken
-// by dark pixels, so that every lane position, group tail and fallback is taken.
+// Photon noise equals the documented per-pixel draw: the pixel's Philox4x32 block, then its
+// own RandomStream, through poisson_deviate, bit for bit. Means from 1e-3 to 1e7 photons,
+// across the inversion/PTRS split at 10, with runs of bright pixels (whose blocks are drawn
+// together, eight at a time with AVX2) broken by dark and negative pixels.
 TEST(PhotonNoise, EqualsThePerPixelDraw) {
     static constexpr std::uint64_t seed = 0x5eed5eedULL;
     constexpr std::uint64_t purpose = fnv1a_64("photon noise");

@@ -77,9 +77,7 @@ void RenderSettings::draw_and_write(const ProgramOptions& options, RenderedScene
     } catch (const FloatRangeError&) {
         // A pixel a float cannot hold (BITPIX −32): the whole window, promoted to −64.
         start(fits);
-        rendered.clipped.assign(rendered.objects.size(), ClippedLight{});
-        rendered.paint_seconds = rendered.noise_seconds = rendered.sink_seconds = 0.0;
-        draw_whole(rendered, scene);
+        draw_whole(rendered, scene);  // paint() sets every object's clipped light afresh
         const auto t0 = clock::now();
         fits->write_image(rendered.image, spec);
         rendered.sink_seconds = std::chrono::duration<double>(clock::now() - t0).count();
