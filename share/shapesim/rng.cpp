@@ -59,34 +59,22 @@ double RandomStream::epanechnikov() {
 
 namespace detail {
 
-// ln k! for integral k ≥ 0, thread-safe and libm-light (std::lgamma writes the global signgam):
-// exact products up to 20!, then Stirling's series for ln Γ(k + 1) with terms to x⁻⁷ (the next
-// term is < 1/(1188 x⁹) < 1e-15 for x ≥ 21).
-double log_factorial(double k) {
-    if (k <= 20.0) {
+const double* small_log_factorials() {
+    static const auto table = [] {
+        std::array<double, 21> t{};
         double product = 1.0;
-        for (int j = 2; j <= int(k); ++j) product *= j;
-        return std::log(product);
-    }
-    const double x = k + 1.0, inv = 1.0 / x, inv2 = inv * inv;
-    const double series = inv * (1.0 / 12 - inv2 * (1.0 / 360 - inv2 * (1.0 / 1260 - inv2 / 1680)));
-    return (x - 0.5) * std::log(x) - x + 0.91893853320467274178 + series;  // ½ ln 2π
+        for (int k = 0; k <= 20; ++k) {
+            if (k > 1) product *= k;
+            t[std::size_t(k)] = lane::log(product);
+        }
+        return t;
+    }();
+    return table.data();
 }
-
-namespace {
-// 1/k for the inversion's steps: a multiply instead of a division on the loop's critical path.
-struct Reciprocals {
-    double value[64] = {};
-    constexpr Reciprocals() {
-        for (int k = 1; k < 64; ++k) value[k] = 1.0 / k;
-    }
-};
-constexpr Reciprocals reciprocals{};  // constant-initialised: no static-order hazard
-}  // namespace
 
 // Inversion: walk the CDF from 0 with one uniform (μ < 10, so e^{−μ} > 4.5e-5).
 std::uint64_t poisson_inversion(double mean, double u) {
-    double p = std::exp(-mean), cdf = p;
+    double p = lane::exp(-mean), cdf = p;
     std::uint64_t k = 0;
     while (u > cdf) {
         ++k;

@@ -1,0 +1,102 @@
+// ln x and eˣ written once for a double and for four doubles in vector lanes (GCC vector
+// extensions): the same operations in the same order, so a lane gives the bits the scalar
+// gives, whatever the lane width or CPU. Photon noise draws its Poisson deviates four pixels
+// at a time with these and must give exactly the per-pixel draw of rng.hpp (libm's log and
+// exp could differ in the last bit from any vector version, and are a call each).
+//
+// The algorithms are fdlibm's (Sun Microsystems 1993, as in FreeBSD's msun and musl):
+//   ln x  x = 2^k m, m ∈ [√½, √2), f = m − 1, s = f/(2 + f): ln m = 2s + s·R(s²) with fdlibm's
+//         degree-14 minimax R (|error| < 2⁻⁵⁸·⁴⁵), k ln 2 in two parts; < 1 ulp.
+//   eˣ    k = round(x/ln 2), r = x − k ln 2 (two parts), eʳ by fdlibm's degree-5 rational
+//         Remez form (|error| < 2⁻⁵⁹), scaled by 2^k; < 1 ulp.
+// Tests hold them to within 1 ulp of libm over their domains and scalar = lane bit for bit.
+// The build's -ffp-contract=off keeps a·b + c from becoming an FMA in one width only.
+#pragma once
+
+#include <cstdint>
+#include <cstring>
+
+// Four-double vectors passed by value in code built without AVX: GCC warns that the ABI then
+// differs from AVX code's; these are inline and never cross a library boundary.
+#pragma GCC diagnostic push
+#pragma GCC diagnostic ignored "-Wpsabi"
+
+namespace shapesim::lane {
+
+using Doubles4 = double __attribute__((vector_size(32)));
+using Words4 = std::uint64_t __attribute__((vector_size(32)));
+using Mask4 = std::int64_t __attribute__((vector_size(32)));  ///< a comparison's lanes: 0 or −1
+
+inline std::uint64_t bits(double x) {
+    std::uint64_t w;
+    std::memcpy(&w, &x, sizeof w);
+    return w;
+}
+inline Words4 bits(Doubles4 x) { return (Words4)x; }  // a vector cast keeps the bits
+inline double from_bits(std::uint64_t w) {
+    double x;
+    std::memcpy(&x, &w, sizeof x);
+    return x;
+}
+inline Doubles4 from_bits(Words4 w) { return (Doubles4)w; }
+
+/// |x|, ⌊x⌋ and √x lane by lane (all exact or correctly rounded: any width gives the same bits).
+inline double abs(double x) { return from_bits(bits(x) & 0x7fffffffffffffffULL); }
+inline Doubles4 abs(Doubles4 x) { return from_bits(bits(x) & 0x7fffffffffffffffULL); }
+inline double floor(double x) { return __builtin_floor(x); }
+inline Doubles4 floor(Doubles4 x) {
+    return Doubles4{__builtin_floor(x[0]), __builtin_floor(x[1]), __builtin_floor(x[2]), __builtin_floor(x[3])};
+}
+inline double sqrt(double x) { return __builtin_sqrt(x); }
+inline Doubles4 sqrt(Doubles4 x) {
+    return Doubles4{__builtin_sqrt(x[0]), __builtin_sqrt(x[1]), __builtin_sqrt(x[2]), __builtin_sqrt(x[3])};
+}
+
+/// ln x for a positive, normal, finite x (lanes outside that give garbage, not a trap).
+template <class D>
+inline D log(D x) {
+    constexpr double ln2_hi = 6.93147180369123816490e-01, ln2_lo = 1.90821492927058770002e-10;
+    constexpr double lg1 = 6.666666666666735130e-01, lg2 = 3.999999999940941908e-01,
+                     lg3 = 2.857142874366239149e-01, lg4 = 2.222219843214978396e-01,
+                     lg5 = 1.818357216161805012e-01, lg6 = 1.531383769920937332e-01,
+                     lg7 = 1.479819860511658591e-01;
+    constexpr std::uint64_t root_half = 0x3fe6a09e667f3bcdULL;  // √½'s bits
+    // Shift the exponent so that m lands in [√½, √2): k is the exponent of x·√2.
+    const auto shifted = bits(x) + (0x3ff0000000000000ULL - root_half);
+    const auto mantissa = (shifted & 0x000fffffffffffffULL) + root_half;
+    // k as a double, exactly: 2⁵² + (biased exponent) read as a double, less 2⁵² + 1023.
+    const D k = from_bits((shifted >> 52) + 0x4330000000000000ULL) - (0x1.0p52 + 1023.0);
+    const D f = from_bits(mantissa) - 1.0;
+    const D half_f2 = 0.5 * f * f;
+    const D s = f / (2.0 + f);
+    const D z = s * s, w = z * z;
+    const D t1 = w * (lg2 + w * (lg4 + w * lg6));
+    const D t2 = z * (lg1 + w * (lg3 + w * (lg5 + w * lg7)));
+    const D r = t2 + t1;
+    return s * (half_f2 + r) + k * ln2_lo - half_f2 + f + k * ln2_hi;
+}
+
+/// eˣ for x ∈ [−708, 709] (no overflow, underflow or NaN handling).
+template <class D>
+inline D exp(D x) {
+    constexpr double ln2_hi = 6.93147180369123816490e-01, ln2_lo = 1.90821492927058770002e-10;
+    constexpr double inv_ln2 = 1.44269504088896338700e+00;
+    constexpr double p1 = 1.66666666666666019037e-01, p2 = -2.77777777770155933842e-03,
+                     p3 = 6.61375632143793436117e-05, p4 = -1.65339022054652515390e-06,
+                     p5 = 4.13813679705723846039e-08;
+    constexpr double shifter = 0x1.8p52;  // adding it rounds to an integer, to nearest even
+    const D shifted = x * inv_ln2 + shifter;
+    const D k = shifted - shifter;
+    const D hi = x - k * ln2_hi, lo = k * ln2_lo;
+    const D r = hi - lo;
+    const D t = r * r;
+    const D c = r - t * (p1 + t * (p2 + t * (p3 + t * (p4 + t * p5))));
+    const D y = 1.0 - ((lo - (r * c) / (2.0 - c)) - hi);
+    // 2^k: k sits in the low bits of `shifted` (two's complement); its exponent field.
+    const auto scale = (bits(shifted) - bits(D{} + shifter) + 1023) << 52;
+    return y * from_bits(scale);
+}
+
+}  // namespace shapesim::lane
+
+#pragma GCC diagnostic pop
