@@ -16,10 +16,13 @@
 #include <cstdint>
 #include <cstring>
 
-// Four-double vectors passed by value in code built without AVX: GCC warns that the ABI then
-// differs from AVX code's; these are inline and never cross a library boundary.
+// Four-double vectors are passed in AVX registers by AVX code and in memory by other code: an
+// out-of-line copy of a function taking lanes, emitted by one and called by the other, would
+// read garbage. So everything taking or returning lanes is always inlined (GCC's -Wpsabi
+// warning about the two conventions is then moot and silenced).
 #pragma GCC diagnostic push
 #pragma GCC diagnostic ignored "-Wpsabi"
+#define SHAPESIM_LANES inline __attribute__((always_inline))
 
 namespace shapesim::lane {
 
@@ -27,34 +30,34 @@ using Doubles4 = double __attribute__((vector_size(32)));
 using Words4 = std::uint64_t __attribute__((vector_size(32)));
 using Mask4 = std::int64_t __attribute__((vector_size(32)));  ///< a comparison's lanes: 0 or −1
 
-inline std::uint64_t bits(double x) {
+SHAPESIM_LANES std::uint64_t bits(double x) {
     std::uint64_t w;
     std::memcpy(&w, &x, sizeof w);
     return w;
 }
-inline Words4 bits(Doubles4 x) { return (Words4)x; }  // a vector cast keeps the bits
-inline double from_bits(std::uint64_t w) {
+SHAPESIM_LANES Words4 bits(Doubles4 x) { return (Words4)x; }  // a vector cast keeps the bits
+SHAPESIM_LANES double from_bits(std::uint64_t w) {
     double x;
     std::memcpy(&x, &w, sizeof x);
     return x;
 }
-inline Doubles4 from_bits(Words4 w) { return (Doubles4)w; }
+SHAPESIM_LANES Doubles4 from_bits(Words4 w) { return (Doubles4)w; }
 
 /// |x|, ⌊x⌋ and √x lane by lane (all exact or correctly rounded: any width gives the same bits).
-inline double abs(double x) { return from_bits(bits(x) & 0x7fffffffffffffffULL); }
-inline Doubles4 abs(Doubles4 x) { return from_bits(bits(x) & 0x7fffffffffffffffULL); }
-inline double floor(double x) { return __builtin_floor(x); }
-inline Doubles4 floor(Doubles4 x) {
+SHAPESIM_LANES double abs(double x) { return from_bits(bits(x) & 0x7fffffffffffffffULL); }
+SHAPESIM_LANES Doubles4 abs(Doubles4 x) { return from_bits(bits(x) & 0x7fffffffffffffffULL); }
+SHAPESIM_LANES double floor(double x) { return __builtin_floor(x); }
+SHAPESIM_LANES Doubles4 floor(Doubles4 x) {
     return Doubles4{__builtin_floor(x[0]), __builtin_floor(x[1]), __builtin_floor(x[2]), __builtin_floor(x[3])};
 }
-inline double sqrt(double x) { return __builtin_sqrt(x); }
-inline Doubles4 sqrt(Doubles4 x) {
+SHAPESIM_LANES double sqrt(double x) { return __builtin_sqrt(x); }
+SHAPESIM_LANES Doubles4 sqrt(Doubles4 x) {
     return Doubles4{__builtin_sqrt(x[0]), __builtin_sqrt(x[1]), __builtin_sqrt(x[2]), __builtin_sqrt(x[3])};
 }
 
 /// ln x for a positive, normal, finite x (lanes outside that give garbage, not a trap).
 template <class D>
-inline D log(D x) {
+SHAPESIM_LANES D log(D x) {
     constexpr double ln2_hi = 6.93147180369123816490e-01, ln2_lo = 1.90821492927058770002e-10;
     constexpr double lg1 = 6.666666666666735130e-01, lg2 = 3.999999999940941908e-01,
                      lg3 = 2.857142874366239149e-01, lg4 = 2.222219843214978396e-01,
@@ -78,7 +81,7 @@ inline D log(D x) {
 
 /// eˣ for x ∈ [−708, 709] (no overflow, underflow or NaN handling).
 template <class D>
-inline D exp(D x) {
+SHAPESIM_LANES D exp(D x) {
     constexpr double ln2_hi = 6.93147180369123816490e-01, ln2_lo = 1.90821492927058770002e-10;
     constexpr double inv_ln2 = 1.44269504088896338700e+00;
     constexpr double p1 = 1.66666666666666019037e-01, p2 = -2.77777777770155933842e-03,

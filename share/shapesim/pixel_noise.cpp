@@ -1,6 +1,7 @@
 #include "shapesim/pixel_noise.hpp"
 
 #include "shapesim/error.hpp"
+#include "shapesim/lane_math.hpp"
 #include "shapesim/rng.hpp"
 
 #include <Random123/philox.h>
@@ -16,6 +17,10 @@
 #include <immintrin.h>
 #define SHAPESIM_PHILOX_SIMD 1
 #endif
+
+// Lanes (lane_math.hpp) pass by value between helpers GCC may keep out of line in the
+// default clone: it warns that AVX code would pass them differently; none crosses a library.
+#pragma GCC diagnostic ignored "-Wpsabi"
 
 namespace shapesim {
 
@@ -200,30 +205,109 @@ void WhiteNoise::row(long row, long first, long count, float* out) const {
 
 namespace {
 
-// The uniforms of one pixel's photon draw: its block's two words, then a stream of its own.
-class PhotonWords {
-public:
-    PhotonWords(const std::uint32_t* block, std::uint64_t seed, std::uint64_t pixel)
-        : block_(block), seed_(seed), pixel_(pixel) {}
-    double uniform() { return double(next() >> 11) * 0x1.0p-53; }
-    double uniform_open() { return (double(next() >> 11) + 0.5) * 0x1.0p-53; }
+using lane::Doubles4;
+using lane::Mask4;
+using lane::Words4;
 
-private:
-    std::uint64_t next() {
-        if (used_ < 2) {
-            const std::uint64_t word = block_[2 * used_] | (std::uint64_t(block_[2 * used_ + 1]) << 32);
-            ++used_;
-            return word;
+SHAPESIM_LANES bool any(Mask4 m) {
+    const Mask4 halves = m | __builtin_shufflevector(m, m, 2, 3, 0, 1);
+    return (halves[0] | halves[1]) != 0;
+}
+
+SHAPESIM_LANES Mask4 real_lanes(int lanes) { return Mask4{0, 1, 2, 3} < lanes; }
+
+// The top 53 bits of each word as a double, exactly (AVX2 has no 64-bit integer conversion):
+// the top 32 and the next 21 bits each become a double by the 2⁵² trick, and their sum is exact.
+SHAPESIM_LANES Doubles4 top53(Words4 w) {
+    constexpr std::uint64_t two52 = 0x4330000000000000ULL;
+    const Doubles4 high = lane::from_bits((w >> 32) | two52) - 0x1.0p52;
+    const Doubles4 low = lane::from_bits(((w >> 11) & 0x1fffffULL) | two52) - 0x1.0p52;
+    return high * 0x1.0p21 + low;
+}
+
+// A run of n pixels bright enough, whose Philox4x32 blocks are words[4i … 4i + 3]: each pixel
+// replaced by its photon-noise draw, four at a time in lanes. Every lane does what
+// poisson_deviate does for one pixel with the pixel's block (words 0–1, then 2–3) and then
+// its own stream (from word 0) — the same operations on the same numbers (lane_math.hpp), so
+// the same bits: inversion below 10, PTRS's first trial above, and the rare pixel whose first
+// trial is rejected finished one at a time. `pixel` is the key of pixel 0's stream.
+__attribute__((target_clones("avx2", "default"))) void photon_run(
+    const std::uint32_t* words, long n, double gain, double* pixels, std::uint64_t seed,
+    std::uint64_t pixel) {
+    static constexpr PurposeHash more_purpose("photon noise more");
+    const double* small = detail::small_log_factorials();
+    for (long i = 0; i < n; i += 4) {
+        // Four pixels and their blocks; past the run's end, padding lanes of mean 10.
+        const int lanes = int(std::min(4L, n - i));
+        Doubles4 mean = {10.0, 10.0, 10.0, 10.0};
+        std::uint32_t block[16] = {};
+        if (lanes == 4) {
+            std::memcpy(&mean, pixels + i, sizeof mean);
+            std::memcpy(block, words + 4 * i, sizeof block);
+        } else {
+            for (int j = 0; j < lanes; ++j) mean[j] = pixels[i + j];
+            std::memcpy(block, words + 4 * i, 4 * sizeof(std::uint32_t) * std::size_t(lanes));
         }
-        static constexpr PurposeHash more("photon noise more");
-        if (!more_) more_.emplace(seed_, pixel_, more);
-        return more_->next_u64();
+        mean = real_lanes(lanes) ? mean * gain : mean;
+        if (any(~((mean >= 0.0) & (mean <= 0x1.0p62))))
+            for (int j = 0; j < lanes; ++j) detail::check_poisson_mean(mean[j]);  // throws
+        Words4 low_half, high_half;  // pixels 0–1's words 0–3, pixels 2–3's
+        std::memcpy(&low_half, block, sizeof low_half);
+        std::memcpy(&high_half, block + 8, sizeof high_half);
+        const Doubles4 top1 = top53(__builtin_shufflevector(low_half, high_half, 0, 2, 4, 6));
+        const Doubles4 top2 = top53(__builtin_shufflevector(low_half, high_half, 1, 3, 5, 7));
+        const Mask4 real = real_lanes(lanes);
+        const Mask4 inversion = real & (mean > 0.0) & (mean < 10.0);
+        const Mask4 ptrs_lanes = real & (mean >= 10.0);
+        Doubles4 count = {0.0, 0.0, 0.0, 0.0};
+        if (any(inversion)) {
+            // detail::poisson_inversion lane by lane: walk the CDF until u ≤ it.
+            const Doubles4 mu = inversion ? mean : 1.0;
+            const Doubles4 u = top1 * 0x1.0p-53;  // uniform()
+            Doubles4 p = lane::exp(-mu), cdf = p;
+            Mask4 walking = inversion & (u > cdf);
+            for (long k = 1; any(walking); ++k) {
+                const Doubles4 next = p * (k < 64 ? mu * detail::reciprocals.value[k] : mu / double(k));
+                const Mask4 far = next < 1e-300;  // the far tail: stop there
+                count = walking ? double(k) : count;
+                p = walking ? next : p;
+                cdf = walking & ~far ? cdf + next : cdf;
+                walking = walking & ~far & (u > cdf);
+            }
+        }
+        if (any(ptrs_lanes)) {
+            const detail::Ptrs<Doubles4> ptrs(ptrs_lanes ? mean : 10.0);
+            const Doubles4 u = (top1 + 0.5) * 0x1.0p-53 - 0.5;  // uniform_open() − ½
+            const Doubles4 v = (top2 + 0.5) * 0x1.0p-53;        // uniform_open()
+            Doubles4 us;
+            const Doubles4 k = ptrs.proposal(u, us);
+            Mask4 open = ptrs_lanes & ~ptrs.squeezed(us, v);
+            if (any(open)) {
+                const Mask4 candidates = open & ~ptrs.rejected(k, us, v);
+                if (any(candidates)) open &= ~(candidates & ptrs.exact(k, us, v, small));
+            }
+            count = ptrs_lanes ? k : count;
+            // First trials rejected: the next trials from the pixel's own stream.
+            if (any(open))
+                for (int j = 0; j < lanes; ++j) {
+                    if (!open[j]) continue;
+                    RandomStream more(seed, pixel + std::uint64_t(i + j), more_purpose);
+                    const detail::Ptrs<double> one(mean[j]);
+                    double kj;
+                    for (;;) {
+                        const double uj = more.uniform_open() - 0.5, vj = more.uniform_open();
+                        if (one.trial(uj, vj, kj, small)) break;
+                    }
+                    count[j] = kj;
+                }
+        }
+        count /= gain;
+        if (lanes == 4)
+            std::memcpy(pixels + i, &count, sizeof count);
+        else
+            for (int j = 0; j < lanes; ++j) pixels[i + j] = count[j];
     }
-    const std::uint32_t* block_;
-    std::uint64_t seed_, pixel_;
-    int used_ = 0;
-    std::optional<RandomStream> more_;
-};
+}
 
 }  // namespace
 
@@ -248,10 +332,7 @@ void PhotonNoise::row(long row, long first, long count, double gain, double leas
         philox4x32_blocks(seed_, std::uint32_t(q0), std::uint32_t(row + WhiteNoise::margin),
                           std::uint32_t(purpose), std::uint32_t(purpose >> 32), std::size_t(i1 - i0),
                           words_.data());
-        for (long i = i0; i < i1; ++i) {
-            PhotonWords source(words_.data() + 4 * (i - i0), seed_, row_key + q0 + std::uint64_t(i - i0));
-            pixels[i] = double(poisson_deviate(pixels[i] * gain, source)) / gain;
-        }
+        photon_run(words_.data(), i1 - i0, gain, pixels + i0, seed_, row_key + q0);
         i0 = i1;
     }
 }

@@ -152,7 +152,7 @@ const double* small_log_factorials();
 /// Stirling's series for ln Γ(k + 1) with terms to x⁻⁷ (the next term is < 1/(1188 x⁹) <
 /// 1e-15 for x ≥ 21). Thread-safe and libm-free (std::lgamma writes the global signgam).
 template <class D>
-D log_factorial(D k, const double* small) {
+SHAPESIM_LANES D log_factorial(D k, const double* small) {
     if constexpr (std::is_same_v<D, double>)
         if (k <= 20.0) return small[int(k)];
     const D x = k + 1.0, inv = 1.0 / x, inv2 = inv * inv;
@@ -171,21 +171,21 @@ inline double log_factorial(double k) { return log_factorial(k, small_log_factor
 template <class D>
 struct Ptrs {
     D mean, b, a, v_r;
-    explicit Ptrs(D mu)
+    SHAPESIM_LANES explicit Ptrs(D mu)
         : mean(mu), b(0.931 + 2.53 * lane::sqrt(mu)), a(-0.059 + 0.02483 * b),
           v_r(0.9277 - 3.6224 / (b - 2.0)) {}
     /// The proposal of u ∈ (−½, ½); `us` = ½ − |u| > 0.
-    D proposal(D u, D& us) const {
+    SHAPESIM_LANES D proposal(D u, D& us) const {
         us = 0.5 - lane::abs(u);
         return lane::floor((2.0 * a / us + b) * u + mean + 0.43);
     }
     /// The squeeze: accepted without logs (0.86 (0.9277 − 3.6224/(b − 2)) of draws: 35% at
     /// μ = 10, 59% of the HDF scene's draws of μ ≥ 10, 86% as μ → ∞).
-    auto squeezed(D us, D v) const { return (us >= 0.07) & (v <= v_r); }
+    SHAPESIM_LANES auto squeezed(D us, D v) const { return (us >= 0.07) & (v <= v_r); }
     /// Rejected without logs.
-    auto rejected(D k, D us, D v) const { return (k < 0.0) | ((us < 0.013) & (v > us)); }
+    SHAPESIM_LANES auto rejected(D k, D us, D v) const { return (k < 0.0) | ((us < 0.013) & (v > us)); }
     /// The exact test (k ≥ 0).
-    auto exact(D k, D us, D v, const double* small) const {
+    SHAPESIM_LANES auto exact(D k, D us, D v, const double* small) const {
         const D inv_alpha = 1.1239 + 1.1328 / (b - 3.4);
         const D log_hat = lane::log(v * inv_alpha / (a / (us * us) + b));
         return log_hat <= -mean + k * lane::log(mean) - log_factorial(k, small);
