@@ -1,6 +1,7 @@
 #include "shapesim/jsonl.hpp"
 
 #include <cerrno>
+#include <charconv>
 #include <cmath>
 #include <cstring>
 #include <fstream>
@@ -59,11 +60,169 @@ std::string non_finite_path(const Json& value, const std::string& path) {
     return "";
 }
 
+// A fast strict parser for the common line: the DOM nlohmann would build, about three times
+// faster (numbers by std::from_chars, no per-character input adapter). It declines — and
+// nlohmann parses the line, with its own error messages — whenever the text strays from plain
+// JSON it can match exactly: non-ASCII bytes or \u escapes in strings, integers beyond 64 bits,
+// numbers out of double range, duplicate keys, nesting deeper than 64, any syntax error.
+// Integers stay integers as nlohmann keeps them (unsigned without a sign, signed with one).
+class FastJson {
+public:
+    explicit FastJson(std::string_view text) : p_(text.data()), end_(text.data() + text.size()) {}
+    std::optional<Json> document() {
+        Json out;
+        space();
+        if (!value(out, 0)) return std::nullopt;
+        space();
+        if (p_ != end_) return std::nullopt;
+        return out;
+    }
+
+private:
+    void space() {
+        while (p_ < end_ && (*p_ == ' ' || *p_ == '\t' || *p_ == '\n' || *p_ == '\r')) ++p_;
+    }
+    bool take(char c) {
+        if (p_ == end_ || *p_ != c) return false;
+        ++p_;
+        return true;
+    }
+    bool literal(std::string_view word) {
+        if (std::size_t(end_ - p_) < word.size() || std::memcmp(p_, word.data(), word.size()) != 0)
+            return false;
+        p_ += word.size();
+        return true;
+    }
+    bool value(Json& out, int depth) {
+        if (p_ == end_ || depth > 64) return false;
+        switch (*p_) {
+        case '{': return object(out, depth);
+        case '[': return array(out, depth);
+        case '"': {
+            std::string text;
+            if (!string(text)) return false;
+            out = std::move(text);
+            return true;
+        }
+        case 't': return literal("true") && (out = true, true);
+        case 'f': return literal("false") && (out = false, true);
+        case 'n': return literal("null") && (out = nullptr, true);
+        default: return number(out);
+        }
+    }
+    bool string(std::string& out) {
+        if (!take('"')) return false;
+        for (;;) {
+            const char* run = p_;
+            while (p_ < end_ && *p_ != '"' && *p_ != '\\' && (unsigned char)(*p_) >= 0x20 &&
+                   (unsigned char)(*p_) < 0x80)
+                ++p_;
+            out.append(run, p_);
+            if (p_ == end_) return false;
+            if (*p_ == '"') {
+                ++p_;
+                return true;
+            }
+            if (*p_ != '\\' || ++p_ == end_) return false;  // a control or non-ASCII byte
+            static constexpr std::string_view from = "\"\\/bfnrt", to = "\"\\/\b\f\n\r\t";
+            const auto k = from.find(*p_++);
+            if (k == std::string_view::npos) return false;  // \u…: nlohmann's
+            out += to[k];
+        }
+    }
+    static bool digit(char c) { return c >= '0' && c <= '9'; }
+    bool number(Json& out) {
+        const char* start = p_;
+        const bool negative = take('-');
+        if (p_ == end_ || !digit(*p_)) return false;
+        if (*p_ == '0')
+            ++p_;
+        else
+            while (p_ < end_ && digit(*p_)) ++p_;
+        bool integral = true;
+        if (p_ < end_ && *p_ == '.') {
+            ++p_;
+            if (p_ == end_ || !digit(*p_)) return false;
+            while (p_ < end_ && digit(*p_)) ++p_;
+            integral = false;
+        }
+        if (p_ < end_ && (*p_ == 'e' || *p_ == 'E')) {
+            ++p_;
+            if (p_ < end_ && (*p_ == '+' || *p_ == '-')) ++p_;
+            if (p_ == end_ || !digit(*p_)) return false;
+            while (p_ < end_ && digit(*p_)) ++p_;
+            integral = false;
+        }
+        if (integral && negative) {
+            std::int64_t v;
+            const auto r = std::from_chars(start, p_, v);
+            if (r.ec != std::errc() || r.ptr != p_) return false;
+            out = v;
+        } else if (integral) {
+            std::uint64_t v;
+            const auto r = std::from_chars(start, p_, v);
+            if (r.ec != std::errc() || r.ptr != p_) return false;
+            out = v;
+        } else {
+            double v;
+            const auto r = std::from_chars(start, p_, v);
+            if (r.ec != std::errc() || r.ptr != p_ || !std::isfinite(v)) return false;
+            out = v;
+        }
+        return true;
+    }
+    bool object(Json& out, int depth) {
+        ++p_;  // '{'
+        out = Json::object();
+        auto& members = out.get_ref<Json::object_t&>();
+        space();
+        if (take('}')) return true;
+        for (;;) {
+            std::string key;
+            if (!string(key)) return false;
+            space();
+            if (!take(':')) return false;
+            space();
+            Json item;
+            if (!value(item, depth + 1)) return false;
+            for (const auto& member : members)
+                if (member.first == key) return false;  // a duplicate: nlohmann's rule
+            members.emplace_back(std::move(key), std::move(item));
+            space();
+            if (take('}')) return true;
+            if (!take(',')) return false;
+            space();
+        }
+    }
+    bool array(Json& out, int depth) {
+        ++p_;  // '['
+        out = Json::array();
+        auto& items = out.get_ref<Json::array_t&>();
+        space();
+        if (take(']')) return true;
+        for (;;) {
+            Json item;
+            if (!value(item, depth + 1)) return false;
+            items.push_back(std::move(item));
+            space();
+            if (take(']')) return true;
+            if (!take(',')) return false;
+            space();
+        }
+    }
+
+    const char* p_;
+    const char* end_;
+};
+
 }  // namespace
+
+std::optional<Json> parse_json_fast(std::string_view text) { return FastJson(text).document(); }
 
 // ---------------------------------------------------------------------------------- reader
 
 Json parse_json_document(const std::string& text, const std::string& name) {
+    if (auto fast = parse_json_fast(text)) return std::move(*fast);
     try {
         return Json::parse(text);
     } catch (const nlohmann::json::exception& e) {
@@ -100,7 +259,10 @@ bool JsonlReader::next_line(std::string& text) {
 Json JsonlReader::parse_line(const std::string& text, long line) const {
     Json record;
     try {
-        record = Json::parse(text);
+        if (auto fast = parse_json_fast(text))
+            record = std::move(*fast);
+        else
+            record = Json::parse(text);
     } catch (const nlohmann::json::exception& e) {
         throw Error(parse_message(e), name_, line);
     }

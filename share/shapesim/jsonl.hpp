@@ -27,6 +27,7 @@
 #include <memory>
 #include <optional>
 #include <string>
+#include <string_view>
 #include <vector>
 
 namespace shapesim {
@@ -37,6 +38,12 @@ using Json = nlohmann::ordered_json;
 /// Parse `text` as one JSON document (a morphology model); Error naming `name` with the line
 /// and column of a syntax error, e.g. `model.json: invalid JSON at line 3, column 7: …`.
 Json parse_json_document(const std::string& text, const std::string& name);
+
+/// `text` parsed as one JSON value by a fast strict parser, or nothing where it declines (any
+/// syntax error, and the rarer corners it leaves to nlohmann: non-ASCII or \u escapes in
+/// strings, integers past 64 bits, numbers past double range, duplicate keys, deep nesting).
+/// What it returns is what Json::parse returns, integers as integers (tested).
+std::optional<Json> parse_json_fast(std::string_view text);
 
 /// Reads a JSON-lines stream, one object per line, checking each record's schema.
 class JsonlReader {

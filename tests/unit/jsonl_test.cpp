@@ -1,11 +1,14 @@
 // jsonl: line counting, schema checks, typed accessors with file:line: field: errors, and a
 // writer that refuses NaN and notices a failed stream.
 #include "shapesim/jsonl.hpp"
+#include "shapesim/rng.hpp"
 
 #include <ext/stdio_filebuf.h>
 #include <gtest/gtest.h>
 
+#include <array>
 #include <cmath>
+#include <cstdio>
 #include <csignal>
 #include <limits>
 #include <sstream>
@@ -306,4 +309,91 @@ TEST(Jsonl, UnknownFieldsRoundTripByteForByte) {
     std::ostringstream out;
     JsonlWriter(out, "-").write(record);
     EXPECT_EQ(out.str(), line + "\n");
+}
+
+namespace {
+
+// What nlohmann makes of `text`: its dump, or "error".
+std::string nlohmann_dump(const std::string& text) {
+    try {
+        return Json::parse(text).dump();
+    } catch (const nlohmann::json::exception&) {
+        return "error";
+    }
+}
+
+// A random JSON text: nested values, numbers in every JSON form (integers past 64 bits and
+// past double range among them), strings with escapes, and now and then a corruption.
+void random_json(RandomStream& r, int depth, std::string& out) {
+    const auto pick = r.uniform_index(depth > 3 ? 6 : 8);
+    static const char* numbers[] = {"0", "-0", "7", "-12", "3.25", "-0.0", "1e5", "2E-3", "-4.5e+2",
+                                    "18446744073709551615", "18446744073709551616",
+                                    "-9223372036854775808", "-9223372036854775809",
+                                    "123456789012345678901234567890", "1e400", "-1e-400", "4.9e-324",
+                                    "0.1", "1.7976931348623157e308", "01", "1.", ".5", "-", "1e", "+1"};
+    static const char* strings[] = {"\"\"", "\"g12\"", "\"a\\\"b\"", "\"tab\\there\"", "\"\\/\\\\\"",
+                                    "\"\\u00e9\"", "\"\xc3\xa9\"", "\"bad\\x\"", "\"\x01\"", "\"open"};
+    switch (pick) {
+    case 0: out += numbers[r.uniform_index(std::size(numbers))]; break;
+    case 1: out += std::to_string(r.uniform(-1e6, 1e6)); break;
+    case 2: {
+        char text[32];
+        std::snprintf(text, sizeof text, "%.17g", r.gaussian() * std::pow(10.0, r.uniform(-30, 30)));
+        out += text;
+        break;
+    }
+    case 3: out += strings[r.uniform_index(std::size(strings))]; break;
+    case 4: out += std::array<const char*, 4>{"true", "false", "null", "nul"}[r.uniform_index(4)]; break;
+    case 5: out += std::to_string(std::int64_t(r.next_u64() >> r.uniform_index(64))); break;
+    case 6:
+    case 7: {
+        const bool object = pick == 6;
+        out += object ? "{" : "[ ";
+        const auto n = r.uniform_index(5);
+        for (std::uint64_t k = 0; k < n; ++k) {
+            if (k) out += r.uniform_index(50) ? "," : "";
+            if (object) out += std::array<const char*, 4>{"\"a\"", "\"b\"", "\"schema\"", "\"c d\""}[r.uniform_index(4)] + std::string(r.coin() ? ":" : " : ");
+            random_json(r, depth + 1, out);
+        }
+        out += object ? "}" : " ]";
+    }
+    }
+    if (r.uniform_index(200) == 0) out += "x";  // trailing garbage
+}
+
+}  // namespace
+
+// The fast parser either declines or gives exactly nlohmann's value, integers as integers
+// (the dumps differ between 1 and 1.0); it declines wherever nlohmann errs.
+TEST(JsonFast, EqualsNlohmannOrDeclines) {
+    RandomStream r(5, 1, "json texts");
+    long taken = 0, declined = 0;
+    for (int i = 0; i < 20000; ++i) {
+        std::string text;
+        if (r.coin()) text += " ";
+        random_json(r, 0, text);
+        if (r.coin()) text += "\t\r";
+        const auto fast = parse_json_fast(text);
+        const std::string expect = nlohmann_dump(text);
+        if (fast) {
+            ASSERT_EQ(fast->dump(), expect) << text;
+            ++taken;
+        } else {
+            ++declined;
+        }
+    }
+    EXPECT_GT(taken, 12000);
+    EXPECT_GT(declined, 500);
+    // Typed as nlohmann types them: unsigned, signed, float.
+    const auto j = parse_json_fast(R"({"u":3,"s":-3,"z":-0,"f":3.0,"big":18446744073709551615})");
+    ASSERT_TRUE(j);
+    EXPECT_TRUE((*j)["u"].is_number_unsigned());
+    EXPECT_TRUE((*j)["s"].is_number_integer() && !(*j)["s"].is_number_unsigned());
+    EXPECT_TRUE((*j)["z"].is_number_integer() && !(*j)["z"].is_number_unsigned());
+    EXPECT_TRUE((*j)["f"].is_number_float());
+    EXPECT_EQ((*j)["big"].get<std::uint64_t>(), 18446744073709551615ULL);
+    EXPECT_EQ(j->dump(), Json::parse(R"({"u":3,"s":-3,"z":-0,"f":3.0,"big":18446744073709551615})").dump());
+    for (const char* declines : {"{\"a\":1,\"a\":2}", "\"\\u0041\"", "1e999", "[1,]", "{\"a\" 1}", "",
+                                 "\xef\xbb\xbf{}", "[[[[[[[[[[[[[[[[[[[[[[[[[[[[[[[[[[[[[[[[[[[[[[[[[[[[[[[[[[[[[[[[[[[[1]]]]]]]]]]]]]]]]]]]]]]]]]]]]]]]]]]]]]]]]]]]]]]]]]]]]]]]]]]]]]]]]]]]]"})
+        EXPECT_FALSE(parse_json_fast(declines)) << declines;
 }
