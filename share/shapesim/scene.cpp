@@ -309,13 +309,26 @@ ImageArray paint(const std::vector<PreparedObject>& objects, const Tile& window,
         // Band rows in field 0-based coordinates: [window.y0 − 1 + first, … + last).
         const long row_lo = window.y0 - 1 + first, row_hi = window.y0 - 1 + last;
         const long col_lo = window.x0 - 1, col_hi = window.x1;
+        // The stamps reaching this band, added in order of their first row, then column, then
+        // catalogue place: a sweep down the band keeps the rows being added to in cache (three
+        // times faster than catalogue order, which jumps about the image), and any tiling or
+        // banding adds a pixel's stamps in the same order, so gives the same bits.
+        std::vector<std::size_t> order;
         for (std::size_t i = 0; i < objects.size(); ++i) {
+            const PixelWindow& w = objects[i].window;
+            if (objects[i].drawn && w.row0 < row_hi && w.row0 + w.ny > row_lo &&
+                w.column0 < col_hi && w.column0 + w.nx > col_lo)
+                order.push_back(i);
+        }
+        std::sort(order.begin(), order.end(), [&](std::size_t a, std::size_t b) {
+            const PixelWindow &wa = objects[a].window, &wb = objects[b].window;
+            return std::tie(wa.row0, wa.column0, a) < std::tie(wb.row0, wb.column0, b);
+        });
+        for (const std::size_t i : order) {
             const PreparedObject& o = objects[i];
-            if (!o.drawn) continue;
             const PixelWindow& w = o.window;
             const long r0 = std::max<long>(w.row0, row_lo), r1 = std::min<long>(w.row0 + w.ny, row_hi);
             const long c0 = std::max<long>(w.column0, col_lo), c1 = std::min<long>(w.column0 + w.nx, col_hi);
-            if (r0 >= r1 || c0 >= c1) continue;
             // The whole stamp, whatever the window, then its overlap.
             render_window(o.model, w, buffer, ws);
             Eigen::Map<ImageArray> stamp(buffer.data(), w.ny, w.nx);
@@ -328,8 +341,11 @@ ImageArray paint(const std::vector<PreparedObject>& objects, const Tile& window,
                     stamp = stamp.cwiseMax(0.0);
                 }
             }
-            image.block(r0 - (window.y0 - 1), c0 - (window.x0 - 1), r1 - r0, c1 - c0) +=
-                stamp.block(r0 - w.row0, c0 - w.column0, r1 - r0, c1 - c0);
+            for (long r = r0; r < r1; ++r) {
+                double* to = &image(r - (window.y0 - 1), c0 - (window.x0 - 1));
+                const double* from = &stamp(r - w.row0, c0 - w.column0);
+                for (long c = 0; c < c1 - c0; ++c) to[c] += from[c];
+            }
         }
     });
     return image;
