@@ -423,6 +423,7 @@ struct FitsWriter::Impl {
     long open_nx = 0, open_rows_left = 0;
     int open_bitpix = 0;
     LONGLONG next_element = 1;
+    std::vector<std::uint32_t> floats;  ///< BITPIX −32 pixels as written (big-endian), reused
 
     explicit Impl(const std::string& path) : file(path) {}
     ~Impl() { close_quietly(); }
@@ -467,35 +468,60 @@ FitsWriter& FitsWriter::operator=(FitsWriter&&) noexcept = default;
 
 const std::string& FitsWriter::path() const { return impl_->file.target(); }
 
-// Four pixels a lane group, blocks without an early exit (a pass over every written pixel:
-// 16.7 M of them for a 4096² scene); NaN and ±inf are written as they are, 0 is a float.
-__attribute__((target_clones("avx2", "default"))) bool fits_in_float(const ImageArray& image) {
+// cfitsio's byte-level writer, exported but declared only in its internal fitsio2.h (which
+// lacks extern "C" and defines many macros): what fits_write_img calls once it has converted.
+extern "C" int ffpbyt(fitsfile* fptr, LONGLONG nbytes, void* buffer, int* status);
+constexpr int cfitsio_ignore_eof = 1;  // fitsio2.h's IGNORE_EOF: a position past the end is fine
+
+namespace {
+
+// Whether every one of n doubles fits a float (NaN and ±inf are written as they are, 0 is a
+// float; what is below the smallest normal float or above the largest does not) and, when
+// `out` is given, the floats as a BITPIX −32 data unit holds them: float(v), big-endian —
+// cfitsio's own conversion, without its copy and byte swap. Four pixels a lane group, blocks
+// of 4096 without an early exit (a pass over every written pixel: 16.7 M for a 4096² scene).
+__attribute__((target_clones("avx2", "default"))) bool float_bytes(const double* in, std::size_t n,
+                                                                  std::uint32_t* out) {
     using Doubles4 = double __attribute__((vector_size(32)));
     using Bits4 = std::int64_t __attribute__((vector_size(32)));
+    using Floats4 = float __attribute__((vector_size(16)));
+    using Bytes16 = unsigned char __attribute__((vector_size(16)));
     constexpr double lowest = std::numeric_limits<float>::min();  // smallest normal float
     constexpr double highest = std::numeric_limits<float>::max();
     constexpr double inf = std::numeric_limits<double>::infinity();
-    auto outside = [&](double v) {
-        v = std::abs(v);
-        return (v < lowest && v != 0.0) || (v > highest && v != inf);
-    };
-    const double* data = image.data();
-    const Eigen::Index n = image.size();
-    constexpr Eigen::Index block = 4096;
-    Eigen::Index k = 0;
+    constexpr std::size_t block = 4096;
+    std::size_t k = 0;
     for (; k + block <= n; k += block) {
         Bits4 any = {0, 0, 0, 0};
-        for (Eigen::Index i = k; i < k + block; i += 4) {
+        for (std::size_t i = k; i < k + block; i += 4) {
             Doubles4 v;
-            std::memcpy(&v, data + i, sizeof v);
+            std::memcpy(&v, in + i, sizeof v);
             const Doubles4 a = Doubles4(Bits4(v) & std::numeric_limits<std::int64_t>::max());
             any |= ((a < lowest) & (a != 0.0)) | ((a > highest) & (a != inf));
+            if (!out) continue;
+            const Bytes16 bytes = Bytes16(__builtin_convertvector(v, Floats4));
+            const Bytes16 swapped =
+                __builtin_shufflevector(bytes, bytes, 3, 2, 1, 0, 7, 6, 5, 4, 11, 10, 9, 8, 15, 14, 13, 12);
+            std::memcpy(out + i, &swapped, sizeof swapped);
         }
         if (any[0] | any[1] | any[2] | any[3]) return false;
     }
-    for (; k < n; ++k)
-        if (outside(data[k])) return false;
+    for (; k < n; ++k) {
+        const double a = std::abs(in[k]);
+        if ((a < lowest && a != 0.0) || (a > highest && a != inf)) return false;
+        if (!out) continue;
+        const float f = float(in[k]);
+        std::uint32_t word;
+        std::memcpy(&word, &f, sizeof word);
+        out[k] = __builtin_bswap32(word);
+    }
     return true;
+}
+
+}  // namespace
+
+bool fits_in_float(const ImageArray& image) {
+    return float_bytes(image.data(), std::size_t(image.size()), nullptr);
 }
 
 // The header of a new ny × nx image HDU of BITPIX `bitpix`; returns its place.
@@ -526,9 +552,24 @@ void FitsWriter::write_pixels(const ImageArray& pixels, LONGLONG first, const st
                               int bitpix) {
     if (bitpix > 0 && !pixels.isFinite().all())
         throw Error("integer BITPIX cannot hold NaN or infinite pixels", place, 0, "BITPIX");
+    int status = 0;
+    if (bitpix == -32) {
+        // Our conversion (checked), then the bytes at their place in the data unit, as
+        // cfitsio's own writer puts them (ffmbyt and ffpbyt, with the header closed first).
+        impl_->floats.resize(std::size_t(pixels.size()));
+        if (!float_bytes(pixels.data(), impl_->floats.size(), impl_->floats.data()))
+            throw FloatRangeError("a pixel is beyond the range of a float (BITPIX -32)", place, 0,
+                                  "BITPIX");
+        LONGLONG header = 0, data = 0, end = 0;
+        fits_set_hdustruc(impl_->f, &status);
+        fits_get_hduaddrll(impl_->f, &header, &data, &end, &status);
+        ffmbyt(impl_->f, data + (first - 1) * LONGLONG(sizeof(float)), cfitsio_ignore_eof, &status);
+        ffpbyt(impl_->f, LONGLONG(impl_->floats.size() * sizeof(float)), impl_->floats.data(), &status);
+        check(status, place);
+        return;
+    }
     // Row-major ImageArray = FITS order; cfitsio converts doubles to BITPIX and reports
     // NUM_OVERFLOW for integer pixels out of range.
-    int status = 0;
     fits_write_img(impl_->f, TDOUBLE, first, LONGLONG(pixels.size()),
                    const_cast<double*>(pixels.data()), &status);
     check(status, place);
@@ -555,12 +596,9 @@ void FitsWriter::write_rows(const ImageArray& rows) {
     require(impl_ && impl_->f && rows.cols() == impl_->open_nx &&
                 rows.rows() <= impl_->open_rows_left,
             "FitsWriter: rows beyond the image begun");
-    const int bitpix = impl_->open_bitpix;
-    // Without the whole image the HDU cannot be promoted to −64 any more: refuse instead.
-    if (bitpix == -32 && !fits_in_float(rows))
-        throw FloatRangeError("a pixel is beyond the range of a float (BITPIX -32)",
-                              impl_->open_place, 0, "BITPIX");
-    write_pixels(rows, impl_->next_element, impl_->open_place, bitpix);
+    // Without the whole image the HDU cannot be promoted to −64 any more: write_pixels
+    // refuses (FloatRangeError) before writing anything.
+    write_pixels(rows, impl_->next_element, impl_->open_place, impl_->open_bitpix);
     impl_->next_element += LONGLONG(rows.size());
     impl_->open_rows_left -= long(rows.rows());
 }
