@@ -31,6 +31,7 @@ struct PixelWindow {
 /// threads was slower than on one (issue 16).
 struct RenderWorkspace {
     std::vector<double> phi_x, phi_y, edges, partial, block;
+    std::vector<int> ends;  ///< per output row, how many terms of its sum are not zero
 };
 
 /// The model integrated over `window` of the image its centre refers to (0-based columns and
