@@ -88,16 +88,20 @@ namespace {
 // G_rs(i, j) = Σ_{m1 ≡ r, m2 ≡ s} g(m1, m2) D(m1, i) D(m2, j). The parity sets the sign
 // (−1)^{ε_n1 r + ε_n2 s} of the galaxy terms, i.e. a reflection of F in u_x (r = 1) and in
 // u_y (s = 1), exact on the symmetric Gauss–Hermite grid.
+// Only the terms of parity (r, s) enter G_rs, so each sum runs over every other order: a quarter
+// of the first products' terms and half of the second's (the same sums as with the other
+// orders' coefficients zeroed, less their zero terms).
 void psf_transforms(const CartesianModel& psf, ConvolveWorkspace& ws) {
-    for (int r = 0; r < 2; ++r)
-        for (int s = 0; s < 2; ++s) {
-            ws.g_part = psf.b;
-            for (int m1 = 0; m1 <= psf.n_max; ++m1)
-                for (int m2 = 0; m2 <= psf.n_max; ++m2)
-                    if (m1 % 2 != r || m2 % 2 != s) ws.g_part(m1, m2) = 0.0;
-            ws.psf_part.noalias() = ws.g_part * ws.d_psf;
-            ws.g_nodes[2 * r + s].noalias() = ws.d_psf.transpose() * ws.psf_part;
+    const int n = psf.n_max;
+    for (int r = 0; r < 2; ++r) ws.d_parity[r] = ws.d_psf(Eigen::seq(r, n, 2), Eigen::all);
+    for (int s = 0; s < 2; ++s) {
+        ws.g_part = psf.b(Eigen::all, Eigen::seq(s, n, 2));
+        ws.psf_part.noalias() = ws.g_part * ws.d_parity[s];
+        for (int r = 0; r < 2; ++r) {
+            ws.g_part = ws.psf_part(Eigen::seq(r, n, 2), Eigen::all);
+            ws.g_nodes[2 * r + s].noalias() = ws.d_parity[r].transpose() * ws.g_part;
         }
+    }
 }
 }  // namespace
 

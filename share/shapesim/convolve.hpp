@@ -82,7 +82,7 @@ private:
 struct ConvolveWorkspace {
     Eigen::MatrixXd d_galaxy, d_psf, project;   // basis at the Gauss–Hermite nodes
     Eigen::MatrixXd partial, f_nodes, h_nodes;  // transforms on the node grid
-    Eigen::MatrixXd g_nodes[4], g_part, psf_part;
+    Eigen::MatrixXd g_nodes[4], g_part, psf_part, d_parity[2];
 };
 
 /// Exact convolution of Cartesian series: scale γ, n_max galaxy.n_max + psf.n_max, centred at
