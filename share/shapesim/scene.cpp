@@ -12,6 +12,7 @@
 #include "shapesim/rng.hpp"
 
 #include <algorithm>
+#include <cstring>
 #include <chrono>
 #include <cmath>
 #include <optional>
@@ -371,6 +372,34 @@ ImageArray noise_scale_from_weight(const ImageArray& weight) {
     return scale;
 }
 
+namespace {
+
+// pixels[i] += σ · local[i] · n[i] (without `local`: σ · n[i]), four pixels a lane group; each
+// pixel the same operations in the same order as one at a time, so the same bits.
+__attribute__((target_clones("avx2", "default"))) void add_background(
+    double* __restrict pixels, const float* __restrict n, double sigma,
+    const double* __restrict local, long nx) {
+    using Doubles4 = double __attribute__((vector_size(32)));
+    using Floats4 = float __attribute__((vector_size(16)));
+    long i = 0;
+    for (; i + 4 <= nx; i += 4) {
+        Doubles4 p, scale = {sigma, sigma, sigma, sigma};
+        Floats4 deviate;
+        std::memcpy(&p, pixels + i, sizeof p);
+        std::memcpy(&deviate, n + i, sizeof deviate);
+        if (local) {
+            Doubles4 l;
+            std::memcpy(&l, local + i, sizeof l);
+            scale = scale * l;
+        }
+        p = p + scale * __builtin_convertvector(deviate, Doubles4);
+        std::memcpy(pixels + i, &p, sizeof p);
+    }
+    for (; i < nx; ++i) pixels[i] += (local ? sigma * local[i] : sigma) * double(n[i]);
+}
+
+}  // namespace
+
 void add_noise(ImageArray& image, const Tile& window, long field_nx, const SceneOptions& options) {
     if (options.noise_free) return;
     const long nx = window.x1 - window.x0 + 1, ny = window.y1 - window.y0 + 1;
@@ -401,12 +430,7 @@ void add_noise(ImageArray& image, const Tile& window, long field_nx, const Scene
             if (!(sigma > 0.0)) continue;
             // The background's local σ: the scale map's, keyed by the field pixel.
             const float* n = background.row(row);
-            if (scale) {
-                const double* local = &(*scale)(row, window.x0 - 1);
-                for (long i = 0; i < nx; ++i) pixels[i] += sigma * local[i] * double(n[i]);
-            } else {
-                for (long i = 0; i < nx; ++i) pixels[i] += sigma * double(n[i]);
-            }
+            add_background(pixels, n, sigma, scale ? &(*scale)(row, window.x0 - 1) : nullptr, nx);
         }
     });
 }
