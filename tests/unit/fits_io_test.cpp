@@ -4,12 +4,14 @@
 #include "shapesim/fits_io.hpp"
 
 #include "shapesim/error.hpp"
+#include "shapesim/rng.hpp"
 #include "test_support.hpp"
 
 #include <fitsio.h>
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <cstring>
 #include <cstdlib>
 #include <filesystem>
 #include <fstream>
@@ -296,6 +298,54 @@ TEST_F(FitsTest, RowsWrittenInOrderEqualTheWholeImage) {
     bad.write_rows(ImageArray::Constant(1, 5, 2.0));
     bad.commit();
     EXPECT_EQ(read_fits_image(path("bad.fits")).sum(), 15.0);
+}
+
+// BITPIX −32 pixels are written by our own conversion (float(v), big-endian, sixteen at a
+// time and a tail one by one): cfitsio reads back exactly float(v) for every value a float
+// holds — signed zeros, NaN, ±inf, the smallest normal and the largest float among them.
+TEST_F(FitsTest, FloatPixelsAreTheirFloats) {
+    const int ny = 70, nx = 61;  // 4270 pixels: a whole block of 4096 and a tail
+    ImageArray image(ny, nx);
+    RandomStream r(11, 3, "float pixels");
+    for (Eigen::Index k = 0; k < image.size(); ++k)
+        image.data()[k] = r.sign() * std::pow(10.0, r.uniform(-37.0, 38.0)) * r.uniform();
+    const double specials[] = {0.0, -0.0, std::numeric_limits<double>::quiet_NaN(),
+                               std::numeric_limits<double>::infinity(),
+                               -std::numeric_limits<double>::infinity(),
+                               double(std::numeric_limits<float>::min()),
+                               double(std::numeric_limits<float>::max()), 1.0 + 0x1.0p-30, 1.0 / 3.0};
+    for (std::size_t k = 0; k < std::size(specials); ++k) {
+        image.data()[7 * k] = specials[k];            // in the vector block
+        image.data()[4096 + 7 * k] = specials[k];     // in the tail
+    }
+    // Values below the smallest normal float would promote the HDU: none here.
+    for (Eigen::Index k = 0; k < image.size(); ++k)
+        if (std::abs(image.data()[k]) < std::numeric_limits<float>::min()) image.data()[k] = 0.0;
+    {
+        FitsWriter out(path("floats.fits"), "test");
+        out.write_image(image, {"SCI", -32, "", {}, {}, {}});
+        out.commit();
+    }
+    fitsfile* f = nullptr;
+    int status = 0, any_null = 0, bitpix = 0;
+    fits_open_file(&f, (path("floats.fits") + "[SCI]").c_str(), READONLY, &status);
+    fits_get_img_type(f, &bitpix, &status);
+    std::vector<float> back(std::size_t(image.size()));
+    fits_read_img(f, TFLOAT, 1, LONGLONG(back.size()), nullptr, back.data(), &any_null, &status);
+    fits_close_file(f, &status);
+    ASSERT_EQ(status, 0);
+    EXPECT_EQ(bitpix, FLOAT_IMG);
+    for (Eigen::Index k = 0; k < image.size(); ++k) {
+        const float expect = float(image.data()[k]);
+        if (std::isnan(expect)) {
+            EXPECT_TRUE(std::isnan(back[std::size_t(k)])) << k;
+            continue;
+        }
+        std::uint32_t a, b;
+        std::memcpy(&a, &expect, 4);
+        std::memcpy(&b, &back[std::size_t(k)], 4);
+        ASSERT_EQ(a, b) << "pixel " << k << " = " << image.data()[k];
+    }
 }
 
 TEST_F(FitsTest, ValuesBeyondAFloatPromoteTheHduToDouble) {
