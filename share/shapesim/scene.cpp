@@ -12,6 +12,7 @@
 #include "shapesim/rng.hpp"
 
 #include <algorithm>
+#include <mutex>
 #include <cstring>
 #include <chrono>
 #include <cmath>
@@ -298,10 +299,19 @@ ImageArray paint(const std::vector<PreparedObject>& objects, const Tile& window,
                  const SceneOptions& options, std::vector<ClippedLight>* clipped) {
     const long nx = window.x1 - window.x0 + 1, ny = window.y1 - window.y0 + 1;
     require(nx > 0 && ny > 0, "empty window");
+    ImageArray image = large_image(ny, nx);
+    paint_into(image, objects, window, options, clipped);
+    return image;
+}
+
+void paint_into(ImageArray& image, const std::vector<PreparedObject>& objects, const Tile& window,
+                const SceneOptions& options, std::vector<ClippedLight>* clipped) {
+    const long nx = window.x1 - window.x0 + 1, ny = window.y1 - window.y0 + 1;
+    require(nx > 0 && ny > 0, "empty window");
     // Each band zeroes its own rows: pages first touched by a write are mapped writable at
     // once, where calloc's zero pages fault again, copy on write, and flush the TLB of every
     // other thread (painting on two threads was slower than on one).
-    ImageArray image = large_image(ny, nx);
+    if (image.rows() != ny || image.cols() != nx) image = large_image(ny, nx);
     if (clipped) clipped->assign(objects.size(), ClippedLight{});
     in_bands(ny, options.threads, [&](long first, long last) {
         std::fill(&image(first, 0), &image(first, 0) + (last - first) * nx, 0.0);
@@ -349,7 +359,6 @@ ImageArray paint(const std::vector<PreparedObject>& objects, const Tile& window,
             }
         }
     });
-    return image;
 }
 
 ImageArray noise_scale_from_weight(const ImageArray& weight) {
@@ -490,14 +499,25 @@ void draw_in_strips(RenderedScene& scene, const SceneOptions& options, long stri
         double paint_seconds, noise_seconds;
     };
     double sink_seconds = 0.0;
+    // Strip images written out are painted over again: fresh ones would cost the kernel's
+    // page faults and zeroing of 16 MB a strip.
+    std::vector<ImageArray> spare;
+    std::mutex spare_lock;
     parallel_in_order(
         std::size_t(strips), options.threads,
         [&](std::size_t k) {
             const long first = long(k) * strip_rows, last = std::min(ny, first + strip_rows);
             const Tile part{window.x0, window.y0 + first, window.x1, window.y0 + last - 1};
             Strip strip;
+            {
+                const std::lock_guard<std::mutex> hold(spare_lock);
+                if (!spare.empty()) {
+                    strip.image = std::move(spare.back());
+                    spare.pop_back();
+                }
+            }
             const auto t_paint = Clock::now();
-            strip.image = paint(scene.objects, part, one, &strip.clipped);
+            paint_into(strip.image, scene.objects, part, one, &strip.clipped);
             strip.paint_seconds = seconds_since(t_paint);
             const auto t_noise = Clock::now();
             add_noise(strip.image, part, scene.field.nx, one);
@@ -514,6 +534,8 @@ void draw_in_strips(RenderedScene& scene, const SceneOptions& options, long stri
                     scene.clipped[i] = strip.clipped[i];
             scene.paint_seconds += strip.paint_seconds;
             scene.noise_seconds += strip.noise_seconds;
+            const std::lock_guard<std::mutex> hold(spare_lock);
+            spare.push_back(std::move(strip.image));
         });
     scene.sink_seconds = sink_seconds;
 }

@@ -184,6 +184,9 @@ struct ClippedLight {
 /// clip_negative and `clipped`, (*clipped)[i] says what object i lost (its whole stamp).
 ImageArray paint(const std::vector<PreparedObject>& objects, const Tile& window,
                  const SceneOptions& options, std::vector<ClippedLight>* clipped = nullptr);
+/// paint() into `image`, reused when it has the window's size (reallocated otherwise).
+void paint_into(ImageArray& image, const std::vector<PreparedObject>& objects, const Tile& window,
+                const SceneOptions& options, std::vector<ClippedLight>* clipped = nullptr);
 
 /// Add the noise of `options` to `image` — on entry the noise-free image, whose signal the
 /// photon noise follows — the window `window` of a field `field_nx` pixels wide (pixel keys).
