@@ -6,7 +6,10 @@
 # F = 1.84 (the issue's) and the HDF sky's measured correlation (radius 8, make reproduce's).
 # Prints one markdown row per case: the stages from render's own log line (paint and noise are
 # CPU seconds summed over the threads: render draws in strips), the wall time, and the noise's
-# CPU ns per pixel. Usage: tests/bench/hdf_scene.sh [BIN] [REPRODUCE_OUT] [RUNS]
+# CPU ns per pixel. The scene is written under $SCENE_DIR (default $TMPDIR or /tmp): on disk,
+# the kernel's page cache and writeback of the runs before make the write stage wander
+# (0.05-0.16 s); SCENE_DIR=/dev/shm times the program alone.
+# Usage: [SCENE_DIR=dir] tests/bench/hdf_scene.sh [BIN] [REPRODUCE_OUT] [RUNS]
 set -euo pipefail
 bin=${1:-bin}
 out=${2:-out/reproduce}
@@ -14,7 +17,7 @@ runs=${3:-3}
 for f in morphology.json psf.jsonl hdf.noise.jsonl; do
   [[ -f $out/$f ]] || { echo "hdf_scene.sh: $out/$f missing: run make reproduce first" >&2; exit 1; }
 done
-work=$(mktemp -d)
+work=$(mktemp -d -p "${SCENE_DIR:-${TMPDIR:-/tmp}}")
 trap 'rm -rf "$work"' EXIT
 "$bin/shapesim-sample" "$out/morphology.json" --size 2.7169 --count 5238 --seed 7 -q >"$work/objects.jsonl"
 pixels=$((4096 * 4096))
