@@ -334,9 +334,9 @@ SHAPESIM_LANES Doubles4 top53(Words4 w) {
 // its own stream (from word 0) — the same operations on the same numbers (lane_math.hpp), so
 // the same bits: inversion below 10, PTRS's first trial above, and the rare pixel whose first
 // trial is rejected finished one at a time. `pixel` is the key of pixel 0's stream.
-__attribute__((target_clones("avx2", "default"))) void photon_run(
-    const std::uint32_t* words, long n, double gain, double* pixels, std::uint64_t seed,
-    std::uint64_t pixel) {
+__attribute__((always_inline)) inline void photon_run(const std::uint32_t* words, long n, double gain,
+                                                     double* pixels, std::uint64_t seed,
+                                                     std::uint64_t pixel) {
     static constexpr PurposeHash more_purpose("photon noise more");
     const double* small = detail::small_log_factorials();
     for (long i = 0; i < n; i += 4) {
@@ -412,6 +412,20 @@ __attribute__((target_clones("avx2", "default"))) void photon_run(
     }
 }
 
+// photon_run compiled for AVX2 and for the baseline, chosen as the generators are
+// (SHAPESIM_SIMD=none takes the baseline: the program tests compare the bytes).
+#ifdef SHAPESIM_PHILOX_SIMD
+__attribute__((target("avx2"))) void photon_run_avx2(const std::uint32_t* words, long n, double gain,
+                                                     double* pixels, std::uint64_t seed,
+                                                     std::uint64_t pixel) {
+    photon_run(words, n, gain, pixels, seed, pixel);
+}
+#endif
+void photon_run_baseline(const std::uint32_t* words, long n, double gain, double* pixels,
+                         std::uint64_t seed, std::uint64_t pixel) {
+    photon_run(words, n, gain, pixels, seed, pixel);
+}
+
 // The first i in [from, count) whose pixel is bright enough for photon noise (s > 0 and
 // s ≥ least) when `bright`, or is not when !bright; count if there is none. Four pixels a
 // lane group: most of an image is dark sky, scanned here.
@@ -448,7 +462,12 @@ void PhotonNoise::row(long row, long first, long count, double gain, double leas
         philox4x32_blocks(seed_, std::uint32_t(q0), std::uint32_t(row + WhiteNoise::margin),
                           std::uint32_t(purpose), std::uint32_t(purpose >> 32), std::size_t(i1 - i0),
                           words_.data());
-        photon_run(words_.data(), i1 - i0, gain, pixels + i0, seed_, row_key + q0);
+#ifdef SHAPESIM_PHILOX_SIMD
+        if (have_avx2())
+            photon_run_avx2(words_.data(), i1 - i0, gain, pixels + i0, seed_, row_key + q0);
+        else
+#endif
+            photon_run_baseline(words_.data(), i1 - i0, gain, pixels + i0, seed_, row_key + q0);
         i0 = next_bright(pixels, i1, count, least, true);
     }
 }
