@@ -10,16 +10,19 @@
 //   word    = (C + 64) mod 4 of the block
 // The word's low 7 bits pick the layer, bit 7 the sign, the top 24 bits the abscissa, times the
 // layer's width in single precision (the noise is written as 32-bit floats). 97.3% of words
-// decide alone; the rest (the wedge and tail tests, Ziggurat::finish) draw from RandomStream(seed, (R + 64)·2³² + C + 64, "white noise retry"). With AVX2 (when
-// the CPU has it) blocks are computed eight at a time and words turned into deviates eight at
-// a time; otherwise one at a time (Random123's own code). Integer arithmetic and one rounded
+// decide alone; the rest (the wedge and tail tests, Ziggurat::finish) draw from RandomStream(seed, (R + 64)·2³² + C + 64, "white noise retry"). With AVX-512 or
+// AVX2 (the widest the CPU has; SHAPESIM_SIMD=avx2 or none asks for narrower) blocks are computed
+// sixteen or eight at a time and words turned into deviates as many at a time (AVX-512 looks the
+// layer tables up in registers, AVX2 gathers them); otherwise one at a time (Random123's own
+// code). Integer arithmetic and one rounded
 // single-precision multiply per deviate, so every machine gives the same bits.
 //
 // Correlated noise (CorrelatedNoise): white noise through a kernel k (noise.hpp; Σk² = 1):
 // n(p) = Σ_d k(d) w(p + d) (the same law as the convolution: ξ is symmetric), summed directly in single precision over the taps in a
 // fixed order, pairing k(d) with k(−d) when they are equal (every kernel noise.hpp builds is
 // point-symmetric), so the cost is about (2K + 1)²/2 multiplies and (2K + 1)² adds per pixel,
-// eight pixels at a time. Each pixel's sum runs over the same white values in the same order
+// sixteen pixels at a time with AVX-512 (four sums at once where there are 16 taps or more),
+// eight with AVX2. Each pixel's sum runs over the same white values in the same order
 // whatever the window, so tiles and threads are bit-identical.
 #pragma once
 
@@ -53,7 +56,8 @@ private:
 /// N/gain, N ~ Poisson(s · gain) (poisson_deviate), from the two 64-bit words of its
 /// Philox4x32-10 block (key as WhiteNoise; counter (C + 64, R + 64, P mod 2³², ⌊P / 2³²⌋),
 /// P = FNV-1a 64 of "photon noise"; words 0–1 then 2–3, low first), then, for the rare deviate
-/// that needs more, RandomStream(seed, (R + 64)·2³² + C + 64, "photon noise more").
+/// that needs more, RandomStream(seed, (R + 64)·2³² + C + 64, "photon noise more"). Drawn four
+/// pixels at a time in lanes whose ln and exp (lane_math.hpp) give the scalar draw's bits.
 class PhotonNoise {
 public:
     explicit PhotonNoise(std::uint64_t seed) : seed_(seed) {}
