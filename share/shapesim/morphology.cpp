@@ -821,8 +821,10 @@ Morphology Morphology::from_json(const Json& doc) {
         throw Error(std::string("not a morphology model (expected schema \"") + schema + "\")", "",
                     0, "schema");
     Morphology m;
-    m.n_max = int(number(doc, "n_max", ""));
-    if (m.n_max < 0 || m.n_max > 100) throw Error("must be in [0, 100]", "", 0, "n_max");
+    // Checked as a number before it becomes an int (1e13 or NaN would not fit one).
+    const double n_max = number(doc, "n_max", "");
+    if (!(n_max > -1.0 && n_max < 101.0)) throw Error("must be in [0, 100]", "", 0, "n_max");
+    m.n_max = int(n_max);
     if (doc.contains("zero_point") && !doc.at("zero_point").is_null())
         m.zero_point = number(doc, "zero_point", "");
     if (doc.contains("frame")) {

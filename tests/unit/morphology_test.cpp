@@ -1072,3 +1072,13 @@ TEST(RecordSelection, MarkPointFields) {
     EXPECT_EQ(p.at("program"), "shapesim-smooth");
     EXPECT_EQ(p.at("input_fnv1a64").get<std::string>().size(), 16u);
 }
+
+// A morphology model whose n_max does not fit an int is refused, not cast (found by the
+// records fuzzer: n_max 13333333333332).
+TEST(Morphology, HugeNmaxIsRefused) {
+    for (const char* n_max : {"13333333333332", "-5", "101", "1e300"}) {
+        const Json doc = Json::parse(std::string(R"({"schema":"shapesim.morphology/1","n_max":)") +
+                                     n_max + R"(,"zero_point":2})");
+        EXPECT_THROW(Morphology::from_json(doc), Error) << n_max;
+    }
+}
