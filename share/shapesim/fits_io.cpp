@@ -550,28 +550,37 @@ std::string FitsWriter::start_hdu(long ny, long nx, int bitpix, const FitsImageS
 
 void FitsWriter::write_pixels(const ImageArray& pixels, LONGLONG first, const std::string& place,
                               int bitpix) {
-    if (bitpix > 0 && !pixels.isFinite().all())
-        throw Error("integer BITPIX cannot hold NaN or infinite pixels", place, 0, "BITPIX");
-    int status = 0;
     if (bitpix == -32) {
-        // Our conversion (checked), then the bytes at their place in the data unit, as
-        // cfitsio's own writer puts them (ffmbyt and ffpbyt, with the header closed first).
-        impl_->floats.resize(std::size_t(pixels.size()));
-        if (!float_bytes(pixels.data(), impl_->floats.size(), impl_->floats.data()))
+        if (!to_floats(pixels))
             throw FloatRangeError("a pixel is beyond the range of a float (BITPIX -32)", place, 0,
                                   "BITPIX");
-        LONGLONG header = 0, data = 0, end = 0;
-        fits_set_hdustruc(impl_->f, &status);
-        fits_get_hduaddrll(impl_->f, &header, &data, &end, &status);
-        ffmbyt(impl_->f, data + (first - 1) * LONGLONG(sizeof(float)), cfitsio_ignore_eof, &status);
-        ffpbyt(impl_->f, LONGLONG(impl_->floats.size() * sizeof(float)), impl_->floats.data(), &status);
-        check(status, place);
+        write_floats(first, place);
         return;
     }
+    if (bitpix > 0 && !pixels.isFinite().all())
+        throw Error("integer BITPIX cannot hold NaN or infinite pixels", place, 0, "BITPIX");
     // Row-major ImageArray = FITS order; cfitsio converts doubles to BITPIX and reports
     // NUM_OVERFLOW for integer pixels out of range.
+    int status = 0;
     fits_write_img(impl_->f, TDOUBLE, first, LONGLONG(pixels.size()),
                    const_cast<double*>(pixels.data()), &status);
+    check(status, place);
+}
+
+bool FitsWriter::to_floats(const ImageArray& pixels) {
+    impl_->floats.resize(std::size_t(pixels.size()));
+    return float_bytes(pixels.data(), impl_->floats.size(), impl_->floats.data());
+}
+
+// The converted pixels (impl_->floats) at their place in the data unit, as cfitsio's own
+// writer puts them (ffmbyt and ffpbyt, with the header closed first).
+void FitsWriter::write_floats(LONGLONG first, const std::string& place) {
+    int status = 0;
+    LONGLONG header = 0, data = 0, end = 0;
+    fits_set_hdustruc(impl_->f, &status);
+    fits_get_hduaddrll(impl_->f, &header, &data, &end, &status);
+    ffmbyt(impl_->f, data + (first - 1) * LONGLONG(sizeof(float)), cfitsio_ignore_eof, &status);
+    ffpbyt(impl_->f, LONGLONG(impl_->floats.size() * sizeof(float)), impl_->floats.data(), &status);
     check(status, place);
 }
 
@@ -579,7 +588,12 @@ void FitsWriter::write_image(const ImageArray& image, const FitsImageSpec& spec)
     // BITPIX −32 keeps files small, but a float cannot hold every double: the inverse variance
     // of an image in physical units (σ ~ 1e−21 erg/s/cm²/Å: weights ~ 1e42) overflows it,
     // and a tiny σ underflows. Such an HDU is written as −64 instead, so no pixel is lost.
-    const int bitpix = spec.bitpix == -32 && !fits_in_float(image) ? -64 : spec.bitpix;
+    // The conversion is also the check: one pass.
+    if (spec.bitpix == -32 && to_floats(image)) {
+        write_floats(1, start_hdu(long(image.rows()), long(image.cols()), -32, spec));
+        return;
+    }
+    const int bitpix = spec.bitpix == -32 ? -64 : spec.bitpix;
     const std::string place = start_hdu(long(image.rows()), long(image.cols()), bitpix, spec);
     write_pixels(image, 1, place, bitpix);
 }

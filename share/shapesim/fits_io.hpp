@@ -184,6 +184,10 @@ private:
     std::string start_hdu(long ny, long nx, int bitpix, const FitsImageSpec& spec);
     void write_pixels(const ImageArray& pixels, long long first, const std::string& place,
                       int bitpix);
+    /// `pixels` as a BITPIX −32 data unit holds them, into the writer's buffer; false (buffer
+    /// unusable) when one does not fit a float.
+    bool to_floats(const ImageArray& pixels);
+    void write_floats(long long first, const std::string& place);  ///< that buffer, at `first`
     struct Impl;
     std::unique_ptr<Impl> impl_;
 };

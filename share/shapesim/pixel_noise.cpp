@@ -10,7 +10,6 @@
 #include <cmath>
 #include <cstdlib>
 #include <cstring>
-#include <optional>
 #include <string>
 
 #if defined(__x86_64__)
@@ -18,8 +17,8 @@
 #define SHAPESIM_PHILOX_SIMD 1
 #endif
 
-// Lanes (lane_math.hpp) pass by value between helpers GCC may keep out of line in the
-// default clone: it warns that AVX code would pass them differently; none crosses a library.
+// Lanes (lane_math.hpp) pass by value to always-inlined helpers; GCC still warns, at each call
+// built without AVX, that AVX code would pass them differently (none is ever out of line).
 #pragma GCC diagnostic ignored "-Wpsabi"
 
 namespace shapesim {
