@@ -276,6 +276,10 @@ __attribute__((target("avx512f"))) long ziggurat_avx512(const std::uint32_t* wor
 #pragma GCC diagnostic pop
 #endif
 
+// Defined below, after the lanes' helpers.
+long settle_slow(const std::uint32_t* words, long* slow, std::array<std::uint64_t, 4>* blocks,
+                 long n, float* out);
+
 }  // namespace
 
 void WhiteNoise::row(long row, long first, long count, float* out) const {
@@ -297,12 +301,21 @@ void WhiteNoise::row(long row, long first, long count, float* out) const {
     if (have_avx2()) slow += ziggurat_avx2(w, done, count, out, slow_.data() + slow, &done);
 #endif
     slow += ziggurat_scalar(w, done, count, out, slow_.data() + slow);
-    // The words that did not decide alone: the wedge or tail test, from the pixel's own stream.
+    // The words that did not decide alone: the wedge or tail test, from the pixel's own stream
+    // (the streams' first blocks computed together first).
+    // Most are settled by the first block's first two words (settle_slow); the rest, one at
+    // a time, by Ziggurat::finish itself.
+    static constexpr PurposeHash retry("white noise retry");
+    const std::uint64_t row_key = (std::uint64_t(row + margin) << 32) + q0;
+    ids_.resize(std::size_t(slow));
+    blocks_.resize(std::size_t(slow));
+    for (long k = 0; k < slow; ++k) ids_[std::size_t(k)] = row_key + std::uint64_t(slow_[std::size_t(k)]);
+    RandomStream::first_blocks(seed_, ids_.data(), ids_.size(), retry, blocks_.data());
+    const long unsettled = settle_slow(w, slow_.data(), blocks_.data(), slow, out);
     const Ziggurat& zig = Ziggurat::instance();
-    for (long k = 0; k < slow; ++k) {
+    for (long k = 0; k < unsettled; ++k) {
         const long i = slow_[std::size_t(k)];
-        static constexpr PurposeHash retry("white noise retry");
-        RandomStream more(seed_, (std::uint64_t(row + margin) << 32) + q0 + std::uint64_t(i), retry);
+        RandomStream more(seed_, row_key + std::uint64_t(i), retry, blocks_[std::size_t(k)]);
         const float x = std::abs(out[i]);
         const double z = zig.finish(int(w[i] & 127), double(x), more);
         out[i] = float((w[i] & 128) ? -z : z);
@@ -448,6 +461,79 @@ __attribute__((target_clones("avx2", "default"))) long next_bright(const double*
     for (; i < count; ++i)
         if (is_bright(pixels[i]) == bright) return i;
     return count;
+}
+
+// Ziggurat::slow's first steps for the words that did not decide alone (slow[0 … n): pixel
+// indices into words and out; blocks: each one's first "white noise retry" block), four at a
+// time in lanes: the wedge test with word 0 and, when it fails, the fresh word 1 (settled if
+// that lands in its rectangle); in the base layer, the tail's first trial with words 0 and 1.
+// The same operations on the same numbers as Ziggurat::slow, whose ln and e^x are lane_math's:
+// the same bits. Settled pixels get their deviate; the others are moved to the front of slow
+// and blocks, in order, and counted.
+__attribute__((always_inline)) inline long settle_slow_lanes(const std::uint32_t* words, long* slow,
+                                                             std::array<std::uint64_t, 4>* blocks,
+                                                             long n, float* out) {
+    const Ziggurat& zig = Ziggurat::instance();
+    constexpr double r = Ziggurat::tail_start;
+    long unsettled = 0;
+    for (long k = 0; k < n; k += 4) {
+        const int lanes = int(std::min(4L, n - k));
+        Doubles4 x, f_layer, f_next, width, inner;
+        Words4 b0, b1;
+        Mask4 base;
+        for (int j = 0; j < 4; ++j) {  // past the end: copies of the last
+            const long s = k + std::min(j, lanes - 1);
+            const std::uint32_t word = words[slow[s]];
+            const int layer = int(word & 127), fresh = int(blocks[s][1] & 127);
+            x[j] = double(std::abs(out[slow[s]]));
+            f_layer[j] = zig.density(layer);
+            f_next[j] = zig.density(layer + 1);
+            width[j] = zig.edge(fresh);
+            inner[j] = zig.edge(fresh + 1);
+            b0[j] = blocks[s][0];
+            b1[j] = blocks[s][1];
+            base[j] = layer == 0 ? -1 : 0;
+        }
+        const Doubles4 top0 = top53(b0), top1 = top53(b1);
+        // The wedge: accepted under the curve, else the fresh word's abscissa.
+        const Doubles4 u = top0 * 0x1.0p-53;  // uniform()
+        const Mask4 under = f_layer + u * (f_next - f_layer) < lane::exp(-0.5 * x * x);
+        const Doubles4 fresh_x = top1 * 0x1.0p-53 * width;
+        const Mask4 fresh_inside = fresh_x < inner;
+        // The tail: t = −ln(u₁)/R, accepted when −2 ln u₂ > t².
+        const Doubles4 t = -lane::log((top0 + 0.5) * 0x1.0p-53) / r;  // uniform_open()
+        const Doubles4 y = -lane::log((top1 + 0.5) * 0x1.0p-53);
+        const Mask4 tail_ok = 2.0 * y > t * t;
+        const Mask4 settled = base ? tail_ok : (under | fresh_inside);
+        const Doubles4 z = base ? r + t : (under ? x : fresh_x);
+        for (int j = 0; j < lanes; ++j) {
+            const long s = k + j, i = slow[s];
+            if (settled[j]) {
+                out[i] = float((words[i] & 128) ? -z[j] : z[j]);
+            } else {
+                slow[unsettled] = i;
+                blocks[unsettled] = blocks[s];
+                ++unsettled;
+            }
+        }
+    }
+    return unsettled;
+}
+
+#ifdef SHAPESIM_PHILOX_SIMD
+__attribute__((target("avx2"))) long settle_slow_avx2(const std::uint32_t* words, long* slow,
+                                                      std::array<std::uint64_t, 4>* blocks, long n,
+                                                      float* out) {
+    return settle_slow_lanes(words, slow, blocks, n, out);
+}
+#endif
+
+long settle_slow(const std::uint32_t* words, long* slow, std::array<std::uint64_t, 4>* blocks,
+                 long n, float* out) {
+#ifdef SHAPESIM_PHILOX_SIMD
+    if (have_avx2()) return settle_slow_avx2(words, slow, blocks, n, out);
+#endif
+    return settle_slow_lanes(words, slow, blocks, n, out);
 }
 
 }  // namespace

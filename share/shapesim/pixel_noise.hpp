@@ -10,7 +10,10 @@
 //   word    = (C + 64) mod 4 of the block
 // The word's low 7 bits pick the layer, bit 7 the sign, the top 24 bits the abscissa, times the
 // layer's width in single precision (the noise is written as 32-bit floats). 97.3% of words
-// decide alone; the rest (the wedge and tail tests, Ziggurat::finish) draw from RandomStream(seed, (R + 64)·2³² + C + 64, "white noise retry"). With AVX-512 or
+// decide alone; the rest (the wedge and tail tests, Ziggurat::finish) draw from
+// RandomStream(seed, (R + 64)·2³² + C + 64, "white noise retry"): those streams' first blocks
+// computed together, their first two words' tests in lanes (~99% settle there), the others one
+// at a time. With AVX-512 or
 // AVX2 (the widest the CPU has; SHAPESIM_SIMD=avx2 or none asks for narrower) blocks are computed
 // sixteen or eight at a time and words turned into deviates as many at a time (AVX-512 looks the
 // layer tables up in registers, AVX2 gathers them); otherwise one at a time (Random123's own
@@ -28,6 +31,7 @@
 
 #include "shapesim/noise.hpp"
 
+#include <array>
 #include <cstdint>
 #include <vector>
 
@@ -50,6 +54,8 @@ private:
     std::uint64_t seed_;
     mutable std::vector<std::uint32_t> words_;
     mutable std::vector<long> slow_;
+    mutable std::vector<std::uint64_t> ids_;                  ///< the slow pixels' stream ids
+    mutable std::vector<std::array<std::uint64_t, 4>> blocks_;  ///< and their first blocks
 };
 
 /// Photon noise keyed by the field pixel: pixel (R, C) ≥ 0 of signal s (image units) becomes

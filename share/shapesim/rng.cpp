@@ -24,6 +24,17 @@ RandomStream::RandomStream(std::uint64_t seed, std::string_view object_id,
                            std::string_view purpose)
     : RandomStream(seed, fnv1a_64(object_id), purpose) {}
 
+void RandomStream::first_blocks(std::uint64_t seed, const std::uint64_t* ids, std::size_t n,
+                                PurposeHash purpose, std::array<std::uint64_t, 4>* out) {
+    const r123::Philox4x64 philox;
+    for (std::size_t i = 0; i < n; ++i) {
+        const r123::Philox4x64::ctr_type c = {{0, purpose.value, 0, 0}};
+        const r123::Philox4x64::key_type k = {{seed, ids[i]}};
+        const r123::Philox4x64::ctr_type r = philox(c, k);
+        out[i] = {r[0], r[1], r[2], r[3]};
+    }
+}
+
 void RandomStream::refill() {
     buffered_block_ = position_ >> 2;
     buffer_ = philox_block({buffered_block_, purpose_, 0, 0}, key_);
@@ -96,7 +107,7 @@ void check_poisson_mean(double mean) {
 std::uint64_t RandomStream::poisson(double mean) { return poisson_deviate(mean, *this); }
 
 Ziggurat::Ziggurat() {
-    constexpr double r = 3.442619855899, v = 9.91256303526217e-3;
+    constexpr double r = tail_start, v = 9.91256303526217e-3;
     auto f = [](double x) { return std::exp(-0.5 * x * x); };
     x_[0] = v / f(r);
     x_[1] = r;
@@ -111,18 +122,18 @@ const Ziggurat& Ziggurat::instance() {
 }
 
 double Ziggurat::slow(int layer, double x, RandomStream& more) const {
-    constexpr double r = 3.442619855899;
+    constexpr double r = tail_start;
     for (;;) {
         if (layer == 0) {
             // The tail beyond R (Marsaglia 1964): x = −ln(u₁)/R, accept when −2 ln u₂ > x².
             for (;;) {
-                const double t = -std::log(more.uniform_open()) / r;
-                const double y = -std::log(more.uniform_open());
+                const double t = -lane::log(more.uniform_open()) / r;
+                const double y = -lane::log(more.uniform_open());
                 if (2.0 * y > t * t) return r + t;
             }
         }
         // The wedge of layer i between f(x_i) and f(x_{i+1}): accept under the curve.
-        if (f_[layer] + more.uniform() * (f_[layer + 1] - f_[layer]) < std::exp(-0.5 * x * x))
+        if (f_[layer] + more.uniform() * (f_[layer + 1] - f_[layer]) < lane::exp(-0.5 * x * x))
             return x;
         // Rejected: a fresh layer and abscissa from `more`.
         const std::uint64_t word = more.next_u64();

@@ -79,6 +79,16 @@ public:
         : key_{seed, object_id}, purpose_(purpose.value) {}
     /// String object id, hashed by FNV-1a (= the integer form with fnv1a_64(object_id)).
     RandomStream(std::uint64_t seed, std::string_view object_id, std::string_view purpose);
+    /// The stream of (seed, object_id, purpose) with its first block already computed, as
+    /// first_blocks gives it: the same numbers as the stream made alone.
+    RandomStream(std::uint64_t seed, std::uint64_t object_id, PurposeHash purpose,
+                 const std::array<std::uint64_t, 4>& first_block)
+        : key_{seed, object_id}, purpose_(purpose.value), buffered_block_(0),
+          buffer_(first_block) {}
+    /// The first blocks of the streams (seed, ids[i], purpose), i < n, into out[i]: computed
+    /// together, their latencies overlap (one stream per pixel waits on one block each).
+    static void first_blocks(std::uint64_t seed, const std::uint64_t* ids, std::size_t n,
+                             PurposeHash purpose, std::array<std::uint64_t, 4>* out);
 
     /// The next raw 64-bit word.
     std::uint64_t next_u64() {
@@ -239,8 +249,12 @@ public:
     /// x_i, the layers' edges: x_0 the base layer's width V/f(R), x_1 = R, x_128 = 0 (for
     /// other word layouts, as pixel_noise.hpp's single-precision one).
     double edge(int i) const { return x_[i]; }
+    /// e^{−x_i²/2} (f_0 unused).
+    double density(int i) const { return f_[i]; }
+    static constexpr double tail_start = 3.442619855899;  ///< R = x_1
     /// |deviate| for an abscissa x ∈ [x_{layer+1}, x_layer) outside its layer's rectangle: the
-    /// wedge or tail test, drawing what it needs from `more`.
+    /// wedge or tail test, drawing what it needs from `more` (ln and e^x from lane_math.hpp,
+    /// so that lanes can do the same: pixel_noise.cpp).
     double finish(int layer, double x, RandomStream& more) const { return slow(layer, x, more); }
     static const Ziggurat& instance();
 

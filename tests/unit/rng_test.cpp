@@ -139,6 +139,18 @@ TEST(Rng, PinnedFirstValues) {
     EXPECT_EQ(e.epanechnikov(), 0x1.79ae1cf686cap-4);
 }
 
+// Streams made from first_blocks' blocks give the streams' own numbers, into later blocks.
+TEST(Rng, FirstBlocksStartTheStreams) {
+    constexpr PurposeHash purpose("first blocks");
+    const std::vector<std::uint64_t> ids = {0, 1, 42, 0xffffffffffffffffULL, 1ULL << 40};
+    std::vector<std::array<std::uint64_t, 4>> blocks(ids.size());
+    RandomStream::first_blocks(kSeed, ids.data(), ids.size(), purpose, blocks.data());
+    for (std::size_t k = 0; k < ids.size(); ++k) {
+        RandomStream alone(kSeed, ids[k], purpose), primed(kSeed, ids[k], purpose, blocks[k]);
+        for (int w = 0; w < 9; ++w) ASSERT_EQ(primed.next_u64(), alone.next_u64()) << k << " " << w;
+    }
+}
+
 // Same key ⇒ same sequence, whatever else is drawn in between or in which order streams are
 // made; seek jumps to any word.
 TEST(Rng, SameKeySameSequenceInAnyOrder) {
