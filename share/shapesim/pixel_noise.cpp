@@ -383,14 +383,15 @@ __attribute__((always_inline)) inline void photon_run(const std::uint32_t* words
             // detail::poisson_inversion lane by lane: walk the CDF until u ≤ it.
             const Doubles4 mu = inversion ? mean : 1.0;
             const Doubles4 u = top1 * 0x1.0p-53;  // uniform()
+            // A lane that has stopped keeps stepping p and cdf (values no one reads), so the
+            // steps do not wait on the comparisons.
             Doubles4 p = lane::exp(-mu), cdf = p;
             Mask4 walking = inversion & (u > cdf);
             for (long k = 1; any(walking); ++k) {
-                const Doubles4 next = p * (k < 64 ? mu * detail::reciprocals.value[k] : mu / double(k));
-                const Mask4 far = next < 1e-300;  // the far tail: stop there
+                p = p * (k < 64 ? mu * detail::reciprocals.value[k] : mu / double(k));
+                const Mask4 far = p < 1e-300;  // the far tail: stop there
                 count = walking ? double(k) : count;
-                p = walking ? next : p;
-                cdf = walking & ~far ? cdf + next : cdf;
+                cdf = cdf + p;
                 walking = walking & ~far & (u > cdf);
             }
         }
