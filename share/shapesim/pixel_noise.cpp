@@ -344,16 +344,30 @@ SHAPESIM_LANES Doubles4 top53(Words4 w) {
     return high * 0x1.0p21 + low;
 }
 
+// PTRS's trial (detail::Ptrs::trial) in each lane of `active`: the lanes accepted, and the
+// proposals in k.
+SHAPESIM_LANES Mask4 ptrs_trial(const detail::Ptrs<Doubles4>& ptrs, Doubles4 u, Doubles4 v,
+                                Mask4 active, const double* small, Doubles4& k) {
+    Doubles4 us;
+    k = ptrs.proposal(u, us);
+    Mask4 open = active & ~ptrs.squeezed(us, v);
+    if (any(open)) {
+        const Mask4 candidates = open & ~ptrs.rejected(k, us, v);
+        if (any(candidates)) open &= ~(candidates & ptrs.exact(k, us, v, small));
+    }
+    return active & ~open;
+}
+
 // A run of n pixels bright enough, whose Philox4x32 blocks are words[4i … 4i + 3]: each pixel
 // replaced by its photon-noise draw, four at a time in lanes. Every lane does what
-// poisson_deviate does for one pixel with the pixel's block (words 0–1, then 2–3) and then
-// its own stream (from word 0) — the same operations on the same numbers (lane_math.hpp), so
-// the same bits: inversion below 10, PTRS's first trial above, and the rare pixel whose first
-// trial is rejected finished one at a time. `pixel` is the key of pixel 0's stream.
+// poisson_deviate does for one pixel with the pixel's block (words 0–1, then 2–3) — the same
+// operations on the same numbers (lane_math.hpp), so the same bits: inversion below 10, PTRS's
+// first trial above. A pixel whose first trial is rejected is listed (its index from `offset`
+// and its mean) for settle_open, which finishes it from its own stream.
 __attribute__((always_inline)) inline void photon_run(const std::uint32_t* words, long n, double gain,
-                                                     double* pixels, std::uint64_t seed,
-                                                     std::uint64_t pixel) {
-    static constexpr PurposeHash more_purpose("photon noise more");
+                                                     double* pixels, long offset,
+                                                     std::vector<long>& open_pixels,
+                                                     std::vector<double>& open_means) {
     const double* small = detail::small_log_factorials();
     for (long i = 0; i < n; i += 4) {
         // Four pixels and their blocks; past the run's end, padding lanes of mean 10.
@@ -399,27 +413,15 @@ __attribute__((always_inline)) inline void photon_run(const std::uint32_t* words
             const detail::Ptrs<Doubles4> ptrs(ptrs_lanes ? mean : 10.0);
             const Doubles4 u = (top1 + 0.5) * 0x1.0p-53 - 0.5;  // uniform_open() − ½
             const Doubles4 v = (top2 + 0.5) * 0x1.0p-53;        // uniform_open()
-            Doubles4 us;
-            const Doubles4 k = ptrs.proposal(u, us);
-            Mask4 open = ptrs_lanes & ~ptrs.squeezed(us, v);
-            if (any(open)) {
-                const Mask4 candidates = open & ~ptrs.rejected(k, us, v);
-                if (any(candidates)) open &= ~(candidates & ptrs.exact(k, us, v, small));
-            }
+            Doubles4 k;
+            const Mask4 open = ptrs_lanes & ~ptrs_trial(ptrs, u, v, ptrs_lanes, small, k);
             count = ptrs_lanes ? k : count;
-            // First trials rejected: the next trials from the pixel's own stream.
-            if (any(open))
-                for (int j = 0; j < lanes; ++j) {
-                    if (!open[j]) continue;
-                    RandomStream more(seed, pixel + std::uint64_t(i + j), more_purpose);
-                    const detail::Ptrs<double> one(mean[j]);
-                    double kj;
-                    for (;;) {
-                        const double uj = more.uniform_open() - 0.5, vj = more.uniform_open();
-                        if (one.trial(uj, vj, kj, small)) break;
+            if (any(open))  // first trials rejected: the next ones from the pixel's own stream
+                for (int j = 0; j < lanes; ++j)
+                    if (open[j]) {
+                        open_pixels.push_back(offset + i + j);
+                        open_means.push_back(mean[j]);
                     }
-                    count[j] = kj;
-                }
         }
         count /= gain;
         if (lanes == 4)
@@ -429,18 +431,80 @@ __attribute__((always_inline)) inline void photon_run(const std::uint32_t* words
     }
 }
 
-// photon_run compiled for AVX2 and for the baseline, chosen as the generators are
-// (SHAPESIM_SIMD=none takes the baseline: the program tests compare the bytes).
+// The pixels photon_run listed (pixels[index[k]] of mean[k], k < n; blocks[k] the first
+// block of the pixel's stream RandomStream(seed, key, "photon noise more")): PTRS's second and
+// third trials from the block's words 0–1 and 2–3 in lanes, as poisson_deviate takes them; the
+// rare pixel still open, one at a time from word 4 of its stream.
+__attribute__((always_inline)) inline void settle_open(const long* index, const double* mean_of,
+                                                      const std::array<std::uint64_t, 4>* blocks,
+                                                      const std::uint64_t* keys, long n,
+                                                      double gain, double* pixels,
+                                                      std::uint64_t seed) {
+    static constexpr PurposeHash more_purpose("photon noise more");
+    const double* small = detail::small_log_factorials();
+    for (long i = 0; i < n; i += 4) {
+        const int lanes = int(std::min(4L, n - i));
+        Doubles4 mean = {10.0, 10.0, 10.0, 10.0};
+        Words4 w[4] = {};
+        for (int j = 0; j < lanes; ++j) {
+            mean[j] = mean_of[i + j];
+            for (int q = 0; q < 4; ++q) w[q][j] = blocks[i + j][std::size_t(q)];
+        }
+        const Mask4 real = real_lanes(lanes);
+        const detail::Ptrs<Doubles4> ptrs(mean);
+        Doubles4 count = {0.0, 0.0, 0.0, 0.0}, k;
+        Mask4 open = real;
+        for (int trial = 0; trial < 2 && any(open); ++trial) {
+            const Doubles4 u = (top53(w[2 * trial]) + 0.5) * 0x1.0p-53 - 0.5;
+            const Doubles4 v = (top53(w[2 * trial + 1]) + 0.5) * 0x1.0p-53;
+            const Mask4 accepted = ptrs_trial(ptrs, u, v, open, small, k);
+            count = accepted ? k : count;
+            open &= ~accepted;
+        }
+        if (any(open))
+            for (int j = 0; j < lanes; ++j) {
+                if (!open[j]) continue;
+                RandomStream more(seed, keys[i + j], more_purpose);
+                more.seek(4);
+                const detail::Ptrs<double> one(mean[j]);
+                double kj;
+                for (;;) {
+                    const double uj = more.uniform_open() - 0.5, vj = more.uniform_open();
+                    if (one.trial(uj, vj, kj, small)) break;
+                }
+                count[j] = kj;
+            }
+        count /= gain;
+        for (int j = 0; j < lanes; ++j) pixels[index[i + j]] = count[j];
+    }
+}
+
+// photon_run and settle_open compiled for AVX2 and for the baseline, chosen as the generators
+// are (SHAPESIM_SIMD=none takes the baseline: the program tests compare the bytes).
 #ifdef SHAPESIM_PHILOX_SIMD
 __attribute__((target("avx2"))) void photon_run_avx2(const std::uint32_t* words, long n, double gain,
-                                                     double* pixels, std::uint64_t seed,
-                                                     std::uint64_t pixel) {
-    photon_run(words, n, gain, pixels, seed, pixel);
+                                                     double* pixels, long offset,
+                                                     std::vector<long>& open_pixels,
+                                                     std::vector<double>& open_means) {
+    photon_run(words, n, gain, pixels, offset, open_pixels, open_means);
+}
+__attribute__((target("avx2"))) void settle_open_avx2(const long* index, const double* mean,
+                                                      const std::array<std::uint64_t, 4>* blocks,
+                                                      const std::uint64_t* keys, long n,
+                                                      double gain, double* pixels,
+                                                      std::uint64_t seed) {
+    settle_open(index, mean, blocks, keys, n, gain, pixels, seed);
 }
 #endif
 void photon_run_baseline(const std::uint32_t* words, long n, double gain, double* pixels,
-                         std::uint64_t seed, std::uint64_t pixel) {
-    photon_run(words, n, gain, pixels, seed, pixel);
+                         long offset, std::vector<long>& open_pixels,
+                         std::vector<double>& open_means) {
+    photon_run(words, n, gain, pixels, offset, open_pixels, open_means);
+}
+void settle_open_baseline(const long* index, const double* mean,
+                          const std::array<std::uint64_t, 4>* blocks, const std::uint64_t* keys,
+                          long n, double gain, double* pixels, std::uint64_t seed) {
+    settle_open(index, mean, blocks, keys, n, gain, pixels, seed);
 }
 
 // The first i in [from, count) whose pixel is bright enough for photon noise (s > 0 and
@@ -546,7 +610,10 @@ void PhotonNoise::row(long row, long first, long count, double gain, double leas
             "photon noise: pixel outside the keyed range");
     constexpr std::uint64_t purpose = fnv1a_64("photon noise");
     const std::uint64_t row_key = std::uint64_t(row + WhiteNoise::margin) << 32;
-    // Runs of pixels bright enough, each run's blocks drawn together.
+    // Runs of pixels bright enough, each run's blocks drawn together; then the row's pixels
+    // whose first trial was rejected, their streams' first blocks computed together.
+    open_pixels_.clear();
+    open_means_.clear();
     for (long i0 = next_bright(pixels, 0, count, least, true); i0 < count;) {
         const long i1 = next_bright(pixels, i0 + 1, count, least, false);
         const std::uint64_t q0 = std::uint64_t(first + i0 + WhiteNoise::margin);
@@ -556,12 +623,29 @@ void PhotonNoise::row(long row, long first, long count, double gain, double leas
                           words_.data());
 #ifdef SHAPESIM_PHILOX_SIMD
         if (have_avx2())
-            photon_run_avx2(words_.data(), i1 - i0, gain, pixels + i0, seed_, row_key + q0);
+            photon_run_avx2(words_.data(), i1 - i0, gain, pixels + i0, i0, open_pixels_, open_means_);
         else
 #endif
-            photon_run_baseline(words_.data(), i1 - i0, gain, pixels + i0, seed_, row_key + q0);
+            photon_run_baseline(words_.data(), i1 - i0, gain, pixels + i0, i0, open_pixels_,
+                                open_means_);
         i0 = next_bright(pixels, i1, count, least, true);
     }
+    const std::size_t open = open_pixels_.size();
+    if (open == 0) return;
+    static constexpr PurposeHash more_purpose("photon noise more");
+    keys_.resize(open);
+    blocks_.resize(open);
+    const std::uint64_t key0 = row_key + std::uint64_t(first + WhiteNoise::margin);
+    for (std::size_t k = 0; k < open; ++k) keys_[k] = key0 + std::uint64_t(open_pixels_[k]);
+    RandomStream::first_blocks(seed_, keys_.data(), open, more_purpose, blocks_.data());
+#ifdef SHAPESIM_PHILOX_SIMD
+    if (have_avx2())
+        settle_open_avx2(open_pixels_.data(), open_means_.data(), blocks_.data(), keys_.data(),
+                         long(open), gain, pixels, seed_);
+    else
+#endif
+        settle_open_baseline(open_pixels_.data(), open_means_.data(), blocks_.data(),
+                             keys_.data(), long(open), gain, pixels, seed_);
 }
 
 namespace {

@@ -63,7 +63,9 @@ private:
 /// Philox4x32-10 block (key as WhiteNoise; counter (C + 64, R + 64, P mod 2³², ⌊P / 2³²⌋),
 /// P = FNV-1a 64 of "photon noise"; words 0–1 then 2–3, low first), then, for the rare deviate
 /// that needs more, RandomStream(seed, (R + 64)·2³² + C + 64, "photon noise more"). Drawn four
-/// pixels at a time in lanes whose ln and exp (lane_math.hpp) give the scalar draw's bits.
+/// pixels at a time in lanes whose ln and exp (lane_math.hpp) give the scalar draw's bits; a
+/// row's deviates that need their stream are settled together (the streams' first blocks at
+/// once, their next two trials in lanes, the rare rest one at a time).
 class PhotonNoise {
 public:
     explicit PhotonNoise(std::uint64_t seed) : seed_(seed) {}
@@ -74,6 +76,11 @@ public:
 private:
     std::uint64_t seed_;
     mutable std::vector<std::uint32_t> words_;
+    // A row's pixels whose first PTRS trial was rejected: index, mean, stream key, first block.
+    mutable std::vector<long> open_pixels_;
+    mutable std::vector<double> open_means_;
+    mutable std::vector<std::uint64_t> keys_;
+    mutable std::vector<std::array<std::uint64_t, 4>> blocks_;
 };
 
 /// Rows of correlated noise over columns first … first + nx − 1 of the field, in increasing

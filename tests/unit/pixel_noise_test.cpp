@@ -229,7 +229,8 @@ TEST(CorrelatedNoise, EqualsTheDirectSum) {
 // Photon noise equals the documented per-pixel draw: the pixel's Philox4x32 block, then its
 // own RandomStream, through poisson_deviate, bit for bit. Means from 1e-3 to 1e7 photons,
 // across the inversion/PTRS split at 10, with runs of bright pixels (whose blocks are drawn
-// together, eight at a time with AVX2) broken by dark and negative pixels.
+// together, eight at a time with AVX2) broken by dark and negative pixels, and draws that go
+// on into their own stream (its first block's trials in lanes) and beyond its first block.
 TEST(PhotonNoise, EqualsThePerPixelDraw) {
     static constexpr std::uint64_t seed = 0x5eed5eedULL;
     constexpr std::uint64_t purpose = fnv1a_64("photon noise");
@@ -254,8 +255,8 @@ TEST(PhotonNoise, EqualsThePerPixelDraw) {
     const double gain = 4.0, least = 1e-3;
     const long width = 3001, first = 17;
     std::vector<double> pixels(static_cast<std::size_t>(width)), expect(pixels.size());
-    long drawn = 0, fallback = 0;
-    for (const long row : {0L, 5L, 123456L}) {
+    long drawn = 0, fallback = 0, deep = 0;
+    for (const long row : {0L, 5L, 123456L, 7L, 8L, 9L, 10L}) {
         RandomStream pick(seed, std::uint64_t(row), "test signal");
         for (long i = 0; i < width; ++i) {
             const double s = i % 11 == 3 ? 0.0 : std::pow(10.0, pick.uniform(-3.0, 7.0)) / gain;
@@ -273,6 +274,7 @@ TEST(PhotonNoise, EqualsThePerPixelDraw) {
             expect[std::size_t(i)] = double(poisson_deviate(s * gain, source)) / gain;
             ++drawn;
             fallback += source.used > 2 || (s * gain >= 10.0 && source.more.has_value());
+            deep += source.more.has_value() && source.more->position() > 4;
         }
         photon.row(row, first, width, gain, least, pixels.data());
         for (long i = 0; i < width; ++i)
@@ -280,5 +282,7 @@ TEST(PhotonNoise, EqualsThePerPixelDraw) {
     }
     EXPECT_GT(drawn, 6000);
     EXPECT_GT(fallback, 10);  // draws that needed more than their block's two words
+    EXPECT_GT(deep, 0);       // and more than their stream's first block
+    std::cout << "[ metric ] pixel_noise.photon_deep_draws = " << deep << "\n";
     EXPECT_THROW(photon.row(0, 0, 1, gain, least, std::vector<double>{1e300}.data()), Error);
 }
