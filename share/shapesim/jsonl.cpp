@@ -68,7 +68,13 @@ std::string non_finite_path(const Json& value, const std::string& path) {
 // Integers stay integers as nlohmann keeps them (unsigned without a sign, signed with one).
 class FastJson {
 public:
-    explicit FastJson(std::string_view text) : p_(text.data()), end_(text.data() + text.size()) {}
+    FastJson(std::string_view text, NumberPairs* pairs)
+        : p_(text.data()), end_(text.data() + text.size()), pairs_(pairs) {
+        if (pairs_) {
+            pairs_->found = false;
+            pairs_->values.clear();
+        }
+    }
     std::optional<Json> document() {
         Json out;
         space();
@@ -131,7 +137,9 @@ private:
         }
     }
     static bool digit(char c) { return c >= '0' && c <= '9'; }
-    bool number(Json& out) {
+    // A number as the DOM holds it (Json), or as as_double reads that (double).
+    template <class Out>
+    bool number(Out& out) {
         const char* start = p_;
         const bool negative = take('-');
         if (p_ == end_ || !digit(*p_)) return false;
@@ -157,12 +165,12 @@ private:
             std::int64_t v;
             const auto r = std::from_chars(start, p_, v);
             if (r.ec != std::errc() || r.ptr != p_) return false;
-            out = v;
+            out = Out(v);
         } else if (integral) {
             std::uint64_t v;
             const auto r = std::from_chars(start, p_, v);
             if (r.ec != std::errc() || r.ptr != p_) return false;
-            out = v;
+            out = Out(v);
         } else {
             double v;
             const auto r = std::from_chars(start, p_, v);
@@ -183,11 +191,16 @@ private:
             space();
             if (!take(':')) return false;
             space();
-            Json item;
-            if (!value(item, depth + 1)) return false;
             for (const auto& member : members)
                 if (member.first == key) return false;  // a duplicate: nlohmann's rule
-            members.emplace_back(std::move(key), std::move(item));
+            if (depth == 0 && pairs_ && key == pairs_->key) {
+                if (pairs_->found || !number_pairs()) return false;
+                pairs_->found = true;
+            } else {
+                Json item;
+                if (!value(item, depth + 1)) return false;
+                members.emplace_back(std::move(key), std::move(item));
+            }
             space();
             if (take('}')) return true;
             if (!take(',')) return false;
@@ -211,13 +224,40 @@ private:
         }
     }
 
+    // [[a, b], …] straight into pairs_->values; anything else declines.
+    bool number_pairs() {
+        if (!take('[')) return false;
+        space();
+        if (take(']')) return true;
+        for (;;) {
+            double a, b;
+            if (!take('[')) return false;
+            space();
+            if (!number(a)) return false;
+            space();
+            if (!take(',')) return false;
+            space();
+            if (!number(b)) return false;
+            space();
+            if (!take(']')) return false;
+            pairs_->values.emplace_back(a, b);
+            space();
+            if (take(']')) return true;
+            if (!take(',')) return false;
+            space();
+        }
+    }
+
     const char* p_;
     const char* end_;
+    NumberPairs* pairs_;
 };
 
 }  // namespace
 
-std::optional<Json> parse_json_fast(std::string_view text) { return FastJson(text).document(); }
+std::optional<Json> parse_json_fast(std::string_view text, NumberPairs* pairs) {
+    return FastJson(text, pairs).document();
+}
 
 // ---------------------------------------------------------------------------------- reader
 
@@ -256,13 +296,15 @@ bool JsonlReader::next_line(std::string& text) {
     return true;
 }
 
-Json JsonlReader::parse_line(const std::string& text, long line) const {
+Json JsonlReader::parse_line(const std::string& text, long line, NumberPairs* pairs) const {
     Json record;
     try {
-        if (auto fast = parse_json_fast(text))
+        if (auto fast = parse_json_fast(text, pairs)) {
             record = std::move(*fast);
-        else
+        } else {
+            if (pairs) pairs->found = false;  // the DOM holds them
             record = Json::parse(text);
+        }
     } catch (const nlohmann::json::exception& e) {
         throw Error(parse_message(e), name_, line);
     }

@@ -23,11 +23,13 @@
 
 #include <nlohmann/json.hpp>
 
+#include <complex>
 #include <iosfwd>
 #include <memory>
 #include <optional>
 #include <string>
 #include <string_view>
+#include <type_traits>
 #include <vector>
 
 namespace shapesim {
@@ -39,11 +41,28 @@ using Json = nlohmann::ordered_json;
 /// and column of a syntax error, e.g. `model.json: invalid JSON at line 3, column 7: …`.
 Json parse_json_document(const std::string& text, const std::string& name);
 
+/// A top-level member read straight into numbers rather than into the DOM (a record's shapelet
+/// coefficients: most of a line, and a DOM node each): `key`'s [[a, b], …] as (a, b) pairs, each
+/// number as as_double reads it from the DOM.
+struct NumberPairs {
+    std::string key;
+    std::vector<std::complex<double>> values;
+    bool found = false;  ///< the member was there, and read into `values` (not into the DOM)
+};
+
 /// `text` parsed as one JSON value by a fast strict parser, or nothing where it declines (any
 /// syntax error, and the rarer corners it leaves to nlohmann: non-ASCII or \u escapes in
 /// strings, integers past 64 bits, numbers past double range, duplicate keys, deep nesting).
-/// What it returns is what Json::parse returns, integers as integers (tested).
-std::optional<Json> parse_json_fast(std::string_view text);
+/// What it returns is what Json::parse returns, integers as integers (tested). With `pairs`,
+/// a top-level member named pairs->key is read into it instead (and declined unless it is an
+/// array of two-number arrays).
+std::optional<Json> parse_json_fast(std::string_view text, NumberPairs* pairs = nullptr);
+
+/// Whether Record reads a member as NumberPairs: a `pairs_key` and from_json(Json, NumberPairs).
+template <class Record, class = void>
+struct has_pairs_key : std::false_type {};
+template <class Record>
+struct has_pairs_key<Record, std::void_t<decltype(Record::pairs_key)>> : std::true_type {};
 
 /// Reads a JSON-lines stream, one object per line, checking each record's schema.
 class JsonlReader {
@@ -89,7 +108,14 @@ public:
         std::vector<std::optional<Error>> errors(texts.size());
         parallel_for(texts.size(), threads, [&](std::size_t k, int) {
             try {
-                records[k] = Record::from_json(parse_line(texts[k], at[k]));
+                if constexpr (has_pairs_key<Record>::value) {
+                    // The record's number pairs read straight (Record::from_json(json, pairs)).
+                    NumberPairs pairs{Record::pairs_key, {}, false};
+                    const Json record = parse_line(texts[k], at[k], &pairs);
+                    records[k] = Record::from_json(record, pairs);
+                } else {
+                    records[k] = Record::from_json(parse_line(texts[k], at[k]));
+                }
             } catch (const Error& e) {
                 errors[k] = e.at(name_, at[k]);
             } catch (const std::exception& e) {
@@ -111,7 +137,8 @@ public:
 
 private:
     bool next_line(std::string& text);  ///< the next non-blank line; false at the end
-    Json parse_line(const std::string& text, long line) const;  ///< parsed, schema checked
+    /// Parsed, schema checked; with `pairs`, its member read as NumberPairs when it can be.
+    Json parse_line(const std::string& text, long line, NumberPairs* pairs = nullptr) const;
 
     std::unique_ptr<std::istream> owned_;
     std::istream* in_;

@@ -70,22 +70,32 @@ int read_n_max(const Json& j) {
     return n_max;
 }
 
+void check_pair_count(std::size_t count, int n_max) {
+    if (count != std::size_t(polar_count(n_max)))
+        throw Error("expected " + std::to_string(polar_count(n_max)) +
+                        " [re, im] pairs for n_max " + std::to_string(n_max) + ", got " +
+                        std::to_string(count),
+                    {}, 0, "coeffs");
+}
+
+std::string coeff_field(std::size_t k) { return "coeffs[" + std::to_string(k) + "]"; }
+
 // [[re, im], …] with exactly polar_count(n_max) pairs.
 std::vector<Complex> read_coeffs(const Json& j, int n_max) {
     const Json& list = required_array(j, "coeffs");
-    if (list.size() != std::size_t(polar_count(n_max)))
-        throw Error("expected " + std::to_string(polar_count(n_max)) +
-                        " [re, im] pairs for n_max " + std::to_string(n_max) + ", got " +
-                        std::to_string(list.size()),
-                    {}, 0, "coeffs");
+    check_pair_count(list.size(), n_max);
     std::vector<Complex> coeffs;
     coeffs.reserve(list.size());
     for (std::size_t k = 0; k < list.size(); ++k) {
-        const std::string field = "coeffs[" + std::to_string(k) + "]";
         const Json& pair = list[k];
         if (!pair.is_array() || pair.size() != 2)
-            throw Error("expected a [re, im] pair, got " + pair.dump(), {}, 0, field);
-        coeffs.emplace_back(as_double(pair[0], field), as_double(pair[1], field));
+            throw Error("expected a [re, im] pair, got " + pair.dump(), {}, 0, coeff_field(k));
+        // The field's name is made only for an error (it is most of the time spent here).
+        const auto number = [&](const Json& v) {
+            return v.is_number_float() && std::isfinite(v.get<double>()) ? v.get<double>()
+                                                                          : as_double(v, coeff_field(k));
+        };
+        coeffs.emplace_back(number(pair[0]), number(pair[1]));
     }
     return coeffs;
 }
@@ -110,15 +120,14 @@ void check_shape(double beta, double pixel_scale, int n_max, const std::vector<C
                     {}, 0, "coeffs");
     std::size_t k = 0;
     for (const auto& [n, m] : polar_indices(n_max)) {
-        const std::string field = "coeffs[" + std::to_string(k) + "]";
         const Complex c = coeffs[k++];
         if (!std::isfinite(c.real()) || !std::isfinite(c.imag()))
-            throw Error("must be finite", {}, 0, field);
+            throw Error("must be finite", {}, 0, coeff_field(k - 1));
         // Real images: a_{n,0} = conj a_{n,0}, so its imaginary part is exactly zero.
         if (m == 0 && c.imag() != 0.0)
             throw Error(
                 "a_{" + std::to_string(n) + ",0} must be real, got im = " + number(c.imag()), {}, 0,
-                field);
+                coeff_field(k - 1));
     }
 }
 
@@ -349,6 +358,11 @@ void check_id_and_kind(const std::string& id, const std::string& kind) {
 }  // namespace
 
 ObjectRecord ObjectRecord::from_json(const Json& j) {
+    NumberPairs none;
+    return from_json(j, none);
+}
+
+ObjectRecord ObjectRecord::from_json(const Json& j, NumberPairs& coeffs) {
     check_schema(j, schema);
     ObjectRecord r;
     r.id = read_id(j);
@@ -360,11 +374,16 @@ ObjectRecord ObjectRecord::from_json(const Json& j) {
     r.mag = optional_double(j, "mag");
     r.flux = required_double(j, "flux");
     // A galaxy must carry its shape; a star may (it is otherwise drawn as the PSF).
-    if (r.kind == "galaxy" || j.contains("coeffs")) {
+    if (r.kind == "galaxy" || j.contains("coeffs") || coeffs.found) {
         r.beta = required_double(j, "beta");
         r.pixel_scale = required_double(j, "pixel_scale");
         r.n_max = read_n_max(j);
-        r.coeffs = read_coeffs(j, r.n_max);
+        if (coeffs.found) {
+            check_pair_count(coeffs.values.size(), r.n_max);
+            r.coeffs = std::move(coeffs.values);
+        } else {
+            r.coeffs = read_coeffs(j, r.n_max);
+        }
     }
     r.parent = optional_string(j, "parent");
     r.flags = optional_strings(j, "flags");

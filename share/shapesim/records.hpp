@@ -146,6 +146,10 @@ struct ObjectRecord {
     std::vector<BandCoefficients> bands;  ///< multi-band: every band (fluxes in its units)
 
     static ObjectRecord from_json(const Json& record);
+    /// The same, with "coeffs" already read as number pairs when coeffs.found (JsonlReader's
+    /// fast path: the coefficients are most of a line); its values are moved out.
+    static ObjectRecord from_json(const Json& record, NumberPairs& coeffs);
+    static constexpr const char* pairs_key = "coeffs";
     Json to_json() const;
     void validate() const;
     /// True when the record carries a shapelet shape.

@@ -1,6 +1,7 @@
 // libFuzzer harness: the record readers (issue 15). The input is read as a JSON-lines stream
 // of any schema, each record converted by every record type (and to a model where there is
-// one), then as one JSON document (a morphology model). A shapesim::Error is a clean refusal;
+// one), then as objects read whole (render's path), then as one JSON document (a morphology
+// model). A shapesim::Error is a clean refusal;
 // anything else (another exception, a crash, a sanitizer report, a leak) is a bug.
 #include "refused_or_read.hpp"
 #include "shapesim/error.hpp"
@@ -30,6 +31,11 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
             refused_or_read([&] { MorphRecord::from_json(record); });
             refused_or_read([&] { NoiseRecord::from_json(record); });
         }
+    });
+    // Objects as render reads them: "coeffs" straight into numbers (NumberPairs).
+    refused_or_read([&] {
+        std::istringstream in(text);
+        JsonlReader(in, "fuzz.jsonl", {ObjectRecord::schema}).read_all<ObjectRecord>(1);
     });
     refused_or_read([&] { Morphology::from_json(parse_json_document(text, "fuzz.json")); });
     return 0;

@@ -1,6 +1,7 @@
 // records: the four schemas of DESIGN §2 against the real reference fixtures, round trips,
 // carried-through unknown fields and every validation error with its field.
 #include "shapesim/records.hpp"
+#include "shapesim/jsonl.hpp"
 
 #include "test_support.hpp"
 
@@ -233,6 +234,58 @@ TEST(SourceRecord, RoundTripWithExtraAndIntegerId) {
     bad = j;
     bad["schema"] = "shapesim.object/1";
     EXPECT_THROW(SourceRecord::from_json(bad), Error);
+}
+
+// JsonlReader::read_all reads an object's "coeffs" straight into numbers (NumberPairs): every
+// line gives what the DOM path (next_record) gives, the record or the same located error —
+// integer, signed-zero and exponent coefficients, spacing, counts, shapes and values the DOM
+// path refuses, duplicates, stars with and without a shape, unknown fields.
+TEST(ObjectRecord, CoefficientsReadStraightEqualTheDom) {
+    const std::string head = R"({"schema":"shapesim.object/1","id":"g1","kind":"galaxy","ra":1.5,)"
+                             R"("dec":-2.25,"flux":3.0,"beta":0.2,"pixel_scale":0.04,"n_max":2,)";
+    const std::vector<std::string> lines = {  // polar order (0,0), (1,1), (2,0), (2,2)
+        head + R"("coeffs":[[0.5,0.0],[0.1,-0.2],[0.3,-0.0],[1e-3,-2.5E+2]]})",
+        head + R"("coeffs":[[1,0],[0,-2],[-0,-0],[5,6]],"rotation":12.5,"extra":[1,"a"]})",
+        head + R"("coeffs": [ [ 1 , 0 ] , [2,3],[4, 0] ,[ 5,6 ] ] ,"parent":"p"})",
+        R"({"coeffs":[[1,0],[2,3],[4,0],[5,6]],)" + head.substr(1) + R"("flags":["a"]})",
+        head + R"("coeffs":[[1,0],[2,3],[4,0]]})",                 // one pair short
+        head + R"("coeffs":[[1,0],[2,3,4],[4,0],[5,6]]})",         // a triple
+        head + R"("coeffs":[[1,0],[2,3],[4,0],[5,1e999]]})",       // past double
+        head + R"("coeffs":[[1,0],[2,"x"],[4,0],[5,6]]})",         // a string
+        head + R"("coeffs":[[1,0.5],[2,3],[4,0],[5,6]]})",         // a_{0,0} not real
+        head + R"("coeffs":3})",
+        head + R"("coeffs":[]})",
+        head + R"("coeffs":[[1,0]],"coeffs":[[1,0]]})",           // duplicate key
+        head + R"("coeffs":[[1,0],[2,3],[4,0],[5,6]],"bands":{}})",
+        R"({"schema":"shapesim.object/1","id":"s1","kind":"star","ra":1,"dec":2,"flux":3})",
+        R"({"schema":"shapesim.object/1","id":"s2","kind":"star","ra":1,"dec":2,"flux":3,)"
+        R"("beta":0.1,"pixel_scale":0.04,"n_max":0,"coeffs":[[2,0]]})",
+        R"({"schema":"shapesim.object/1","id":"g2","kind":"galaxy","ra":1,"dec":2,"flux":3})",
+    };
+    auto outcome = [](const std::string& line, bool straight) -> std::string {
+        std::istringstream in(line + "\n");
+        JsonlReader reader(in, "objects.jsonl", {ObjectRecord::schema});
+        try {
+            ObjectRecord r;
+            if (straight) {
+                const std::vector<ObjectRecord> all = reader.read_all<ObjectRecord>(1);
+                if (all.size() != 1) return "count " + std::to_string(all.size());
+                r = all[0];
+            } else if (!reader.next_record(r)) {
+                return "none";
+            }
+            return r.to_json().dump();
+        } catch (const Error& e) {
+            return std::string("error: ") + e.what();
+        }
+    };
+    int records = 0;
+    for (const std::string& line : lines) {
+        const std::string dom = outcome(line, false);
+        EXPECT_EQ(outcome(line, true), dom) << line;
+        records += dom.rfind("error", 0) != 0;
+    }
+    EXPECT_EQ(records, 6);
 }
 
 TEST(ObjectRecord, GalaxiesNeedAShapeStarsDoNot) {
