@@ -3,6 +3,7 @@
 #include "shapesim/error.hpp"
 
 #include <cmath>
+#include <limits>
 #include <map>
 #include <memory>
 #include <mutex>
@@ -109,11 +110,28 @@ void pixel_basis_1d(int n_max, double beta_pix, double first_offset, int npix,
     for (int e = 0; e <= npix; ++e)
         hermite_functions((first_offset + e - 0.5) / beta_pix, n_max, edges.col(e).data());
     const double norm = std::sqrt(beta_pix);  // ∫ B_n dx = β^{1/2} I_n
+    // ∫φ_0 as integral_phi0 gives it, with each edge's erfc computed once: a pixel wholly on
+    // one side of the centre takes erfc(|u| / √2) at its two edges, the next pixel the same
+    // value at its left edge when its u_a is the same double (almost always; the erfc were
+    // most of a low-order stamp's basis).
+    constexpr double c = 0.75112554446494248286 * 1.2533141373155002512;  // as integral_phi0
+    const double s = 0.70710678118654752440;
+    double shared_u = std::numeric_limits<double>::quiet_NaN(), shared_tail = 0.0;
     for (int i = 0; i < npix; ++i) {
         const double u_a = (first_offset + i - 0.5) / beta_pix;
         const double u_b = (first_offset + i + 0.5) / beta_pix;
-        integrals_from_edges(integral_phi0(u_a, u_b), edges.col(i).data(),
-                             edges.col(i + 1).data(), n_max, out.col(i).data());
+        double i0;
+        if (u_a >= 0 || u_b <= 0) {
+            const double tail_a = u_a == shared_u ? shared_tail : std::erfc(std::abs(u_a) * s);
+            const double tail_b = std::erfc(std::abs(u_b) * s);
+            i0 = u_a >= 0 ? c * (tail_a - tail_b) : c * (tail_b - tail_a);
+            shared_u = u_b;
+            shared_tail = tail_b;
+        } else {
+            i0 = integral_phi0(u_a, u_b);
+        }
+        integrals_from_edges(i0, edges.col(i).data(), edges.col(i + 1).data(), n_max,
+                             out.col(i).data());
         out.col(i) *= norm;
     }
 }

@@ -122,6 +122,24 @@ TEST(Basis1d, PixelIntegralsMatchBruteForce) {
         }
 }
 
+// A pixel's order-0 integral is integral_phi0 of its own edges bit for bit, though each edge's
+// erfc is computed once and shared with the next pixel: spans wholly on either side of the
+// centre and across it, offsets whose edges land on the centre, and odd β (where a pixel's
+// right edge and the next one's left edge are not always the same double).
+TEST(Basis1d, SharedEdgesGiveEachPixelsOwnIntegral) {
+    for (double beta : {0.3, 1.0, 2.3, 7.77})
+        for (double offset : {-40.0, -17.37, -3.5, -0.5, 0.0, 0.5, 2.25, 11.1})
+            for (int npix : {1, 2, 7, 33}) {
+                const Eigen::MatrixXd pix = pixel_basis_1d(3, beta, offset, npix);
+                for (int i = 0; i < npix; ++i) {
+                    const double u_a = (offset + i - 0.5) / beta, u_b = (offset + i + 0.5) / beta;
+                    double own[4];
+                    hermite_integrals(u_a, u_b, 3, own);
+                    ASSERT_EQ(pix(0, i), own[0] * std::sqrt(beta)) << beta << " " << offset << " " << i;
+                }
+            }
+}
+
 // Pixel integrals over a span tile it: the columns sum to the integral over the whole span,
 // and far enough out to the full integral ∫ B_n = β^{1/2} M_0(n).
 TEST(Basis1d, PixelIntegralsSumToTotal) {
