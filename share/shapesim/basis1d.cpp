@@ -1,12 +1,18 @@
 #include "shapesim/basis1d.hpp"
 
 #include "shapesim/error.hpp"
+#include "shapesim/lane_math.hpp"
 
 #include <cmath>
+#include <cstring>
 #include <limits>
 #include <map>
 #include <memory>
 #include <mutex>
+
+// Lanes (lane_math.hpp) stay in always-inlined code and AVX2 functions: GCC's warning about
+// the AVX calling convention is moot.
+#pragma GCC diagnostic ignored "-Wpsabi"
 
 namespace shapesim {
 
@@ -99,6 +105,125 @@ Eigen::MatrixXd sampled_basis_1d(int n_max, double beta_pix, double first_offset
     return out;
 }
 
+namespace {
+
+// ∫φ_0 over pixel i of pixel_basis_1d (edges first_offset + i ∓ ½, over β) as integral_phi0
+// gives it, with each edge's erfc computed once: a pixel wholly on one side of the centre
+// takes erfc(|u| / √2) at its two edges, and the next pixel the same value at its left edge
+// when its u_a is the same double (almost always; the erfc were most of a low-order stamp's
+// basis). Call for i = 0, 1, 2, … in turn.
+class PixelPhi0 {
+public:
+    PixelPhi0(double beta_pix, double first_offset) : beta_(beta_pix), first_(first_offset) {}
+    double operator()(int i) {
+        constexpr double c = 0.75112554446494248286 * 1.2533141373155002512;  // integral_phi0's
+        constexpr double s = 0.70710678118654752440;
+        const double u_a = (first_ + i - 0.5) / beta_, u_b = (first_ + i + 0.5) / beta_;
+        if (!(u_a >= 0 || u_b <= 0)) return integral_phi0(u_a, u_b);
+        const double tail_a = u_a == shared_u_ ? shared_tail_ : std::erfc(std::abs(u_a) * s);
+        const double tail_b = std::erfc(std::abs(u_b) * s);
+        shared_u_ = u_b;
+        shared_tail_ = tail_b;
+        return u_a >= 0 ? c * (tail_a - tail_b) : c * (tail_b - tail_a);
+    }
+
+private:
+    double beta_, first_;
+    double shared_u_ = std::numeric_limits<double>::quiet_NaN(), shared_tail_ = 0.0;
+};
+
+#if defined(__x86_64__)
+using lane::Doubles4;
+
+// hermite_functions at four points in lanes (points[j] and their e^{−u²/2}), at[k · stride + j]
+// = φ_k(u_j): the same operations in the same order, so the same bits. False when a lane would
+// need hermite_functions' rescaling (|ψ| past 1e100: orders in the hundreds); `at` is then junk.
+// (Lanes are not passed by value: clang refuses that from AVX2 code to code without it.)
+SHAPESIM_LANES bool hermite_functions4(const double* points, const double* factors, int n_max,
+                                       double* at, long stride) {
+    Doubles4 u, factor;
+    std::memcpy(&u, points, sizeof u);
+    std::memcpy(&factor, factors, sizeof factor);
+    Doubles4 psi_prev = Doubles4{}, psi = Doubles4{} + kPiQuarterInv;
+    Doubles4 value = psi * factor;
+    std::memcpy(at, &value, sizeof value);
+    const Recurrence& c = recurrence();
+    lane::Mask4 big = lane::Mask4{};
+    for (int n = 0; n < n_max; ++n) {
+        const Doubles4 psi_next = c.raise(n) * u * psi - c.lower(n) * psi_prev;
+        psi_prev = psi;
+        psi = psi_next;
+        big |= lane::abs(psi) > kRescale;
+        value = psi * factor;
+        std::memcpy(at + (n + 1) * stride, &value, sizeof value);
+    }
+    return (big[0] | big[1] | big[2] | big[3]) == 0;
+}
+
+// pixel_basis_1d four edges, then four pixels, at a time: the edge values into `at`, a
+// row-major (n_max+1) × (npix+1) scratch (at(k, e): the lanes' values side by side), then
+// integrals_from_edges in lanes; the rare edges that need rescaling and the last pixels one
+// at a time. Every value is the scalar code's, bit for bit.
+__attribute__((target("avx2"))) void pixel_basis_avx2(int n_max, double beta_pix,
+                                                     double first_offset, int npix,
+                                                     Eigen::Ref<Eigen::MatrixXd>& out, double* at) {
+    const long stride = npix + 1;
+    std::vector<double> a(std::size_t(n_max) + 1), b(std::size_t(n_max) + 1);
+    for (int e = 0; e <= npix; e += 4) {
+        if (e + 4 <= npix + 1) {
+            double u[4], factor[4];
+            for (int j = 0; j < 4; ++j) {
+                u[j] = (first_offset + (e + j) - 0.5) / beta_pix;
+                factor[j] = std::exp(-0.5 * u[j] * u[j]);  // hermite_functions' own
+            }
+            if (hermite_functions4(u, factor, n_max, at + e, stride)) continue;
+        }
+        for (int f = e; f < std::min(e + 4, npix + 1); ++f) {
+            hermite_functions((first_offset + f - 0.5) / beta_pix, n_max, a.data());
+            for (int k = 0; k <= n_max; ++k) at[k * stride + f] = a[std::size_t(k)];
+        }
+    }
+    const double norm = std::sqrt(beta_pix);
+    const Recurrence& c = recurrence();
+    PixelPhi0 phi0(beta_pix, first_offset);
+    int i = 0;
+    for (; i + 4 <= npix; i += 4) {
+        Doubles4 before, last, left, right, scaled;  // I_{k−1}, I_k; edge values
+        for (int j = 0; j < 4; ++j) last[j] = phi0(i + j);
+        // (No lambda takes a lane: it would not be an AVX2 function.)
+#define SHAPESIM_STORE(k)                                              \
+    scaled = last * norm;                                              \
+    for (int j = 0; j < 4; ++j) out((k), i + j) = scaled[j];
+        SHAPESIM_STORE(0)
+        if (n_max < 1) continue;
+        std::memcpy(&left, at + i, sizeof left);
+        std::memcpy(&right, at + i + 1, sizeof right);
+        before = last;
+        last = -std::sqrt(2.0) * (right - left);
+        SHAPESIM_STORE(1)
+        for (int k = 1; k < n_max; ++k) {
+            std::memcpy(&left, at + k * stride + i, sizeof left);
+            std::memcpy(&right, at + k * stride + i + 1, sizeof right);
+            const Doubles4 next = c.lower(k) * before - c.raise(k) * (right - left);
+            before = last;
+            last = next;
+            SHAPESIM_STORE(k + 1)
+        }
+#undef SHAPESIM_STORE
+    }
+    for (; i < npix; ++i) {
+        for (int k = 0; k <= n_max; ++k) {
+            a[std::size_t(k)] = at[k * stride + i];
+            b[std::size_t(k)] = at[k * stride + i + 1];
+        }
+        integrals_from_edges(phi0(i), a.data(), b.data(), n_max, out.col(i).data());
+        out.col(i) *= norm;
+    }
+}
+#endif
+
+}  // namespace
+
 void pixel_basis_1d(int n_max, double beta_pix, double first_offset, int npix,
                     Eigen::Ref<Eigen::MatrixXd> out, Eigen::Ref<Eigen::MatrixXd> edges) {
     require(n_max >= 0 && beta_pix > 0 && npix >= 0, "pixel_basis_1d: bad arguments");
@@ -106,31 +231,16 @@ void pixel_basis_1d(int n_max, double beta_pix, double first_offset, int npix,
                 edges.cols() == npix + 1,
             "pixel_basis_1d: wrong buffer sizes");
     if (npix == 0) return;
+#if defined(__x86_64__)
+    if (lane::have_avx2()) return pixel_basis_avx2(n_max, beta_pix, first_offset, npix, out, edges.data());
+#endif
     // φ at the npix+1 pixel edges, each computed once and shared by its two pixels.
     for (int e = 0; e <= npix; ++e)
         hermite_functions((first_offset + e - 0.5) / beta_pix, n_max, edges.col(e).data());
     const double norm = std::sqrt(beta_pix);  // ∫ B_n dx = β^{1/2} I_n
-    // ∫φ_0 as integral_phi0 gives it, with each edge's erfc computed once: a pixel wholly on
-    // one side of the centre takes erfc(|u| / √2) at its two edges, the next pixel the same
-    // value at its left edge when its u_a is the same double (almost always; the erfc were
-    // most of a low-order stamp's basis).
-    constexpr double c = 0.75112554446494248286 * 1.2533141373155002512;  // as integral_phi0
-    const double s = 0.70710678118654752440;
-    double shared_u = std::numeric_limits<double>::quiet_NaN(), shared_tail = 0.0;
+    PixelPhi0 phi0(beta_pix, first_offset);
     for (int i = 0; i < npix; ++i) {
-        const double u_a = (first_offset + i - 0.5) / beta_pix;
-        const double u_b = (first_offset + i + 0.5) / beta_pix;
-        double i0;
-        if (u_a >= 0 || u_b <= 0) {
-            const double tail_a = u_a == shared_u ? shared_tail : std::erfc(std::abs(u_a) * s);
-            const double tail_b = std::erfc(std::abs(u_b) * s);
-            i0 = u_a >= 0 ? c * (tail_a - tail_b) : c * (tail_b - tail_a);
-            shared_u = u_b;
-            shared_tail = tail_b;
-        } else {
-            i0 = integral_phi0(u_a, u_b);
-        }
-        integrals_from_edges(i0, edges.col(i).data(), edges.col(i + 1).data(), n_max,
+        integrals_from_edges(phi0(i), edges.col(i).data(), edges.col(i + 1).data(), n_max,
                              out.col(i).data());
         out.col(i) *= norm;
     }

@@ -26,6 +26,12 @@
 
 namespace shapesim::lane {
 
+/// The widest lanes the CPU has — AVX-512 (F), AVX2 or none — unless the environment's
+/// SHAPESIM_SIMD asks for narrower ("avx2", or "none": the scalar code). Code that has lanes
+/// dispatches on these; every width gives the same bits (the program tests compare them).
+bool have_avx2();
+bool have_avx512();
+
 using Doubles4 = double __attribute__((vector_size(32)));
 using Words4 = std::uint64_t __attribute__((vector_size(32)));
 using Mask4 = std::int64_t __attribute__((vector_size(32)));  ///< a comparison's lanes: 0 or −1

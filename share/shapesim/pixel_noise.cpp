@@ -138,22 +138,8 @@ __attribute__((target("avx512f"))) std::size_t philox_avx512(std::uint64_t key, 
 }
 #pragma GCC diagnostic pop
 
-// The widest lanes the CPU has — AVX-512 (F), AVX2 or none — unless SHAPESIM_SIMD asks for
-// narrower ("avx2", or "none" for the scalar code): program tests compare them, the same bits.
-enum class Simd { none, avx2, avx512 };
-Simd simd() {
-    static const Simd level = [] {
-        const char* asked = std::getenv("SHAPESIM_SIMD");
-        const std::string want = asked ? asked : "";
-        if (want == "none") return Simd::none;
-        __builtin_cpu_init();
-        if (want != "avx2" && __builtin_cpu_supports("avx512f")) return Simd::avx512;
-        return __builtin_cpu_supports("avx2") ? Simd::avx2 : Simd::none;
-    }();
-    return level;
-}
-bool have_avx2() { return simd() != Simd::none; }
-bool have_avx512() { return simd() == Simd::avx512; }
+using lane::have_avx2;
+using lane::have_avx512;
 #endif
 
 }  // namespace

@@ -140,6 +140,34 @@ TEST(Basis1d, SharedEdgesGiveEachPixelsOwnIntegral) {
             }
 }
 
+// pixel_basis_1d (four edges and four pixels at a time in lanes where the CPU has AVX2) gives
+// the documented per-pixel computation bit for bit: φ at each edge by hermite_functions, ∫φ_0
+// from the pixel's own edges, the recurrence I_{n+1} = √(n/(n+1)) I_{n−1} − √(2/(n+1))
+// (φ_n(u_b) − φ_n(u_a)), times √β. Orders 0 … 40 and 300 (whose far edges need
+// hermite_functions' rescaling), spans of every length mod 4.
+TEST(Basis1d, PixelBasisIsThePerPixelRecurrence) {
+    for (int n_max : {0, 1, 2, 7, 40, 300})
+        for (double beta : {0.45, 2.3})
+            for (double offset : {-30.2, -1.5, 0.3})
+                for (int npix : {1, 3, 4, 5, 9, 62}) {
+                    const Eigen::MatrixXd pix = pixel_basis_1d(n_max, beta, offset, npix);
+                    std::vector<double> a(std::size_t(n_max) + 1), b(a.size()), I(a.size());
+                    for (int i = 0; i < npix; ++i) {
+                        hermite_functions((offset + i - 0.5) / beta, n_max, a.data());
+                        hermite_functions((offset + (i + 1) - 0.5) / beta, n_max, b.data());
+                        hermite_integrals((offset + i - 0.5) / beta, (offset + i + 0.5) / beta, 0,
+                                          I.data());
+                        if (n_max >= 1) I[1] = -std::sqrt(2.0) * (b[0] - a[0]);
+                        for (int n = 1; n < n_max; ++n)
+                            I[std::size_t(n) + 1] = std::sqrt(double(n) / (n + 1)) * I[std::size_t(n) - 1] -
+                                                    std::sqrt(2.0 / (n + 1)) * (b[std::size_t(n)] - a[std::size_t(n)]);
+                        for (int n = 0; n <= n_max; ++n)
+                            ASSERT_EQ(pix(n, i), I[std::size_t(n)] * std::sqrt(beta))
+                                << n_max << " " << beta << " " << offset << " " << npix << " " << i << " " << n;
+                    }
+                }
+}
+
 // Pixel integrals over a span tile it: the columns sum to the integral over the whole span,
 // and far enough out to the full integral ∫ B_n = β^{1/2} M_0(n).
 TEST(Basis1d, PixelIntegralsSumToTotal) {
