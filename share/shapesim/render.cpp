@@ -128,14 +128,12 @@ void add_to_image(const CartesianModel& model, ImageArray& image, const PixelWin
     image.block(w.row0, w.column0, w.ny, w.nx) += Eigen::Map<const ImageArray>(block, w.ny, w.nx);
 }
 
-void render_window(const CartesianModel& model, const PixelWindow& window,
-                   std::vector<double>& out, RenderWorkspace& ws) {
+double* render_window(const CartesianModel& model, const PixelWindow& window,
+                      RenderWorkspace& ws) {
     require(window.nx >= 0 && window.ny >= 0, "render_window: negative size");
-    out.resize(std::size_t(window.nx) * std::size_t(window.ny));
-    if (window.empty()) return;
-    const double* block = pixel_block(model, fits_x_of_column(window.column0) - model.x,
-                                      fits_y_of_row(window.row0) - model.y, window.nx, window.ny, ws);
-    std::copy(block, block + out.size(), out.begin());
+    if (window.empty()) return ws.block.data();
+    return pixel_block(model, fits_x_of_column(window.column0) - model.x,
+                       fits_y_of_row(window.row0) - model.y, window.nx, window.ny, ws);
 }
 
 void add_to_image(const CartesianModel& model, ImageArray& image, const PixelWindow& window) {

@@ -35,10 +35,11 @@ struct RenderWorkspace {
 };
 
 /// The model integrated over `window` of the image its centre refers to (0-based columns and
-/// rows, not clipped: a window may overhang the image), row-major in `out` (resized to
-/// ny · nx; its capacity only grows). The same numbers add_to_image adds there.
-void render_window(const CartesianModel& model, const PixelWindow& window,
-                   std::vector<double>& out, RenderWorkspace& workspace);
+/// rows, not clipped: a window may overhang the image), row-major ny × nx in the workspace
+/// (valid, and the caller's to change, until its next use). The same numbers add_to_image adds
+/// there.
+double* render_window(const CartesianModel& model, const PixelWindow& window,
+                      RenderWorkspace& workspace);
 
 /// Add the pixel-integrated model into `window` of `image` (clipped to the image). The model's
 /// centre is in the image's own FITS pixel coordinates.

@@ -316,7 +316,6 @@ void paint_into(ImageArray& image, const std::vector<PreparedObject>& objects, c
     in_bands(ny, options.threads, [&](long first, long last) {
         std::fill(&image(first, 0), &image(first, 0) + (last - first) * nx, 0.0);
         RenderWorkspace ws;
-        std::vector<double> buffer;
         // Band rows in field 0-based coordinates: [window.y0 − 1 + first, … + last).
         const long row_lo = window.y0 - 1 + first, row_hi = window.y0 - 1 + last;
         const long col_lo = window.x0 - 1, col_hi = window.x1;
@@ -340,22 +339,24 @@ void paint_into(ImageArray& image, const std::vector<PreparedObject>& objects, c
             const PixelWindow& w = o.window;
             const long r0 = std::max<long>(w.row0, row_lo), r1 = std::min<long>(w.row0 + w.ny, row_hi);
             const long c0 = std::max<long>(w.column0, col_lo), c1 = std::min<long>(w.column0 + w.nx, col_hi);
-            // The whole stamp, whatever the window, then its overlap.
-            render_window(o.model, w, buffer, ws);
-            Eigen::Map<ImageArray> stamp(buffer.data(), w.ny, w.nx);
+            // The whole stamp, whatever the window, then its overlap (negative light clipped
+            // there, as it is added, where the stamp dips below zero).
+            Eigen::Map<ImageArray> stamp(render_window(o.model, w, ws), w.ny, w.nx);
+            bool clip = false;
             if (options.clip_negative && o.kind == "galaxy") {
                 const double deepest = stamp.minCoeff();
-                if (deepest < 0.0) {
-                    // The band holding the stamp's first overlapping row reports it (once).
-                    if (clipped && r0 == std::max<long>(w.row0, window.y0 - 1))
-                        (*clipped)[i] = ClippedLight{-(stamp.cwiseMin(0.0).sum()), deepest};
-                    stamp = stamp.cwiseMax(0.0);
-                }
+                clip = deepest < 0.0;
+                // The band holding the stamp's first overlapping row reports it (once).
+                if (clip && clipped && r0 == std::max<long>(w.row0, window.y0 - 1))
+                    (*clipped)[i] = ClippedLight{-(stamp.cwiseMin(0.0).sum()), deepest};
             }
             for (long r = r0; r < r1; ++r) {
                 double* to = &image(r - (window.y0 - 1), c0 - (window.x0 - 1));
                 const double* from = &stamp(r - w.row0, c0 - w.column0);
-                for (long c = 0; c < c1 - c0; ++c) to[c] += from[c];
+                if (clip)
+                    for (long c = 0; c < c1 - c0; ++c) to[c] += std::max(from[c], 0.0);
+                else
+                    for (long c = 0; c < c1 - c0; ++c) to[c] += from[c];
             }
         }
     });
