@@ -217,7 +217,7 @@ void draw_whole(RenderedScene& scene, const SceneOptions& options);
 /// Rows first … first + strip.rows() − 1 (0-based, of the window) of the finished image.
 using StripSink = std::function<void(long first, const ImageArray& strip)>;
 
-/// The rows of a strip of about 2 M pixels of a window `width` pixels wide.
+/// The rows of a strip of about 1 M pixels of a window `width` pixels wide (at least 64).
 long default_strip_rows(long width);
 
 /// paint() and add_noise() for a prepared scene, `strip_rows` rows at a time, top to bottom,
