@@ -6,7 +6,8 @@
 # kernel of F = 1.84 (the issue's) and the HDF sky's measured correlation (radius 8, make
 # reproduce's). Prints one markdown row per case: the stages from render's own log line (paint
 # and noise are CPU seconds summed over the threads: render draws in strips), the wall time, the
-# noise's CPU ns per pixel, and the wall time over one thread's (issue 16 asks ≤ 0.6 of two). The scene is written under $SCENE_DIR (default $TMPDIR or /tmp): on disk,
+# noise's CPU ns per pixel, and the wall time over one thread's (issue 16 asks two threads for
+# ≤ 0.6 of one). The scene is written under $SCENE_DIR (default $TMPDIR or /tmp): on disk,
 # the kernel's page cache and writeback of the runs before make the write stage wander
 # (0.05-0.16 s); SCENE_DIR=/dev/shm times the program alone.
 # Usage: [SCENE_DIR=dir] tests/bench/hdf_scene.sh [BIN] [REPRODUCE_OUT] [RUNS]
