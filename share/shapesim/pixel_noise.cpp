@@ -7,10 +7,10 @@
 #include <Random123/philox.h>
 
 #include <algorithm>
+#include <array>
 #include <cmath>
-#include <cstdlib>
 #include <cstring>
-#include <string>
+#include <vector>
 
 #if defined(__x86_64__)
 #include <immintrin.h>
@@ -287,10 +287,9 @@ void WhiteNoise::row(long row, long first, long count, float* out) const {
     if (have_avx2()) slow += ziggurat_avx2(w, done, count, out, slow_.data() + slow, &done);
 #endif
     slow += ziggurat_scalar(w, done, count, out, slow_.data() + slow);
-    // The words that did not decide alone: the wedge or tail test, from the pixel's own stream
-    // (the streams' first blocks computed together first).
-    // Most are settled by the first block's first two words (settle_slow); the rest, one at
-    // a time, by Ziggurat::finish itself.
+    // The words that did not decide alone: the wedge or tail test, from the pixel's own stream.
+    // The streams' first blocks are computed together; most words are settled by a block's
+    // first two words (settle_slow, in lanes), the rest one at a time by Ziggurat::finish.
     static constexpr PurposeHash retry("white noise retry");
     const std::uint64_t row_key = (std::uint64_t(row + margin) << 32) + q0;
     ids_.resize(std::size_t(slow));

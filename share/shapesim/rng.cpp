@@ -26,13 +26,7 @@ RandomStream::RandomStream(std::uint64_t seed, std::string_view object_id,
 
 void RandomStream::first_blocks(std::uint64_t seed, const std::uint64_t* ids, std::size_t n,
                                 PurposeHash purpose, std::array<std::uint64_t, 4>* out) {
-    const r123::Philox4x64 philox;
-    for (std::size_t i = 0; i < n; ++i) {
-        const r123::Philox4x64::ctr_type c = {{0, purpose.value, 0, 0}};
-        const r123::Philox4x64::key_type k = {{seed, ids[i]}};
-        const r123::Philox4x64::ctr_type r = philox(c, k);
-        out[i] = {r[0], r[1], r[2], r[3]};
-    }
+    for (std::size_t i = 0; i < n; ++i) out[i] = philox_block({0, purpose.value, 0, 0}, {seed, ids[i]});
 }
 
 void RandomStream::refill() {
