@@ -66,13 +66,22 @@ void hermite_functions(double u, int n_max, double* out) {
 }
 
 namespace {
-// ∫_{u_a}^{u_b} φ_0 du, using erfc in the tails so that a far-out pixel keeps relative accuracy.
+constexpr double kPhi0Scale = 0.75112554446494248286 * 1.2533141373155002512;  // π^{-1/4} √(π/2)
+constexpr double kInvSqrt2 = 0.70710678118654752440;
+
+// The tail of φ_0 beyond |u|, up to kPhi0Scale: erfc(|u|/√2).
+double phi0_tail(double u) { return std::erfc(std::abs(u) * kInvSqrt2); }
+
+// ∫_{u_a}^{u_b} φ_0 du for a span wholly on one side of 0 (u_a ≥ 0 or u_b ≤ 0), from its
+// edges' tails: a difference of erfc, so that a far-out pixel keeps relative accuracy.
+double integral_phi0_one_side(double u_a, double tail_a, double tail_b) {
+    return u_a >= 0 ? kPhi0Scale * (tail_a - tail_b) : kPhi0Scale * (tail_b - tail_a);
+}
+
+// ∫_{u_a}^{u_b} φ_0 du.
 double integral_phi0(double u_a, double u_b) {
-    constexpr double c = 0.75112554446494248286 * 1.2533141373155002512;  // π^{-1/4} √(π/2)
-    const double s = 0.70710678118654752440;                            // 1/√2
-    if (u_a >= 0) return c * (std::erfc(u_a * s) - std::erfc(u_b * s));
-    if (u_b <= 0) return c * (std::erfc(-u_b * s) - std::erfc(-u_a * s));
-    return c * (std::erf(u_b * s) - std::erf(u_a * s));
+    if (u_a >= 0 || u_b <= 0) return integral_phi0_one_side(u_a, phi0_tail(u_a), phi0_tail(u_b));
+    return kPhi0Scale * (std::erf(u_b * kInvSqrt2) - std::erf(u_a * kInvSqrt2));
 }
 
 // I_n from the edge values: phi_a, phi_b hold φ_0..φ_{n_max} at u_a and u_b.
@@ -108,23 +117,19 @@ Eigen::MatrixXd sampled_basis_1d(int n_max, double beta_pix, double first_offset
 namespace {
 
 // ∫φ_0 over pixel i of pixel_basis_1d (edges first_offset + i ∓ ½, over β) as integral_phi0
-// gives it, with each edge's erfc computed once: a pixel wholly on one side of the centre
-// takes erfc(|u| / √2) at its two edges, and the next pixel the same value at its left edge
-// when its u_a is the same double (almost always; the erfc were most of a low-order stamp's
-// basis). Call for i = 0, 1, 2, … in turn.
+// gives it, with each edge's tail computed once: the next pixel takes a pixel's right-edge
+// tail as its left one when its u_a is the same double (almost always; the erfc were most of a
+// low-order stamp's basis). Call for i = 0, 1, 2, … in turn.
 class PixelPhi0 {
 public:
     PixelPhi0(double beta_pix, double first_offset) : beta_(beta_pix), first_(first_offset) {}
     double operator()(int i) {
-        constexpr double c = 0.75112554446494248286 * 1.2533141373155002512;  // integral_phi0's
-        constexpr double s = 0.70710678118654752440;
         const double u_a = (first_ + i - 0.5) / beta_, u_b = (first_ + i + 0.5) / beta_;
         if (!(u_a >= 0 || u_b <= 0)) return integral_phi0(u_a, u_b);
-        const double tail_a = u_a == shared_u_ ? shared_tail_ : std::erfc(std::abs(u_a) * s);
-        const double tail_b = std::erfc(std::abs(u_b) * s);
+        const double tail_a = u_a == shared_u_ ? shared_tail_ : phi0_tail(u_a);
         shared_u_ = u_b;
-        shared_tail_ = tail_b;
-        return u_a >= 0 ? c * (tail_a - tail_b) : c * (tail_b - tail_a);
+        shared_tail_ = phi0_tail(u_b);
+        return integral_phi0_one_side(u_a, tail_a, shared_tail_);
     }
 
 private:
