@@ -16,8 +16,9 @@ CircleLines& circle_lines_workspace() {
 double sum_circle(const double* data, int w, int h, double x, double y, double r) {
     if (!(r > 0.0)) return 0.0;
     double sum = 0.0;
-    visit_circle(w, h, x, y, r, [&](int i, int j, double weight) {
-        sum += sep_term(data[long(j) * w + i], weight);
+    visit_circle_rows(w, h, x, y, r, [&](int j, int begin, int end, const double* weights) {
+        const double* row = data + long(j) * w;
+        for (int i = begin; i < end; ++i) sum += sep_term(row[i], weights[i - begin]);
     });
     return sum;
 }

@@ -54,57 +54,87 @@ inline double pixel_overlap(const CircleLine& x0, const CircleLine& x1, const Ci
 /// the origin (0 for r ≤ 0).
 double circle_overlap(double xmin, double ymin, double xmax, double ymax, double r);
 
-/// The lines of one circle's box; reused from call to call by each thread.
+/// The lines of one circle's box and one row's weights; reused from call to call by each thread.
 struct CircleLines {
     std::vector<CircleLine> columns, rows;
+    std::vector<double> weights;
 };
 CircleLines& circle_lines_workspace();
 
-/// Calls visit(i, j, weight) on every pixel (column i, row j, 0-based) of a w × h image that
-/// sep_sum_circle(x, y, r) adds, in sep's order, with the area of it inside the circle. r > 0.
-template <class Visit>
-void visit_circle(int w, int h, double x, double y, double r, Visit&& visit) {
+/// Calls row(j, begin, end, weights) for every row j (0-based, in order) of a w × h image that
+/// sep_sum_circle(x, y, r) reaches: the pixels it adds there are the columns begin … end − 1,
+/// weights[i − begin] the area of pixel i inside the circle. r > 0.
+template <class Row>
+void visit_circle_rows(int w, int h, double x, double y, double r, Row&& row) {
     // sep's box, and its band of pixels within half a diagonal of the edge (r ± 0.7072): those
-    // nearer the centre lie inside (weight 1), those beyond it outside.
+    // nearer the centre lie inside (weight 1), those beyond it outside. (sep also gives weight 1
+    // to a pixel centred on the centre of a circle under 0.7072; here it gets its area.)
     const double r_in = r - 0.7072, r_out = r + 0.7072;
-    const double r_in2 = r_in > 0.0 ? r_in * r_in : 0.0, r_out2 = r_out * r_out;
+    const double r_in2 = r_in > 0.0 ? r_in * r_in : -1.0, r_out2 = r_out * r_out;
     const int i0 = std::max(int(x - r + 0.5), 0), i1 = std::min(int(x + r + 1.4999999), w);
     const int j0 = std::max(int(y - r + 0.5), 0), j1 = std::min(int(y + r + 1.4999999), h);
     if (i0 >= i1 || j0 >= j1) return;
     CircleLines& lines = circle_lines_workspace();
     lines.columns.resize(std::size_t(i1 - i0 + 1));
     lines.rows.resize(std::size_t(j1 - j0 + 1));
+    lines.weights.resize(std::size_t(i1 - i0));
     for (int i = i0; i <= i1; ++i)
         lines.columns[std::size_t(i - i0)] = circle_line((double(i) - 0.5) - x, r);
     for (int j = j0; j <= j1; ++j)
         lines.rows[std::size_t(j - j0)] = circle_line((double(j) - 0.5) - y, r);
     const CircleLine* columns = lines.columns.data() - i0;
+    double* weights = lines.weights.data();
+    // The box's column nearest the centre: along a row, sep's tests (dx² + dy² against r_out²
+    // and r_in²) hold on a run of columns about it, whose ends are found from an estimate.
+    const int nearest = std::clamp(int(std::floor(x + 0.5)), i0, i1 - 1);
     for (int j = j0; j < j1; ++j) {
         const double dy = double(j) - y, dy2 = dy * dy;
         const CircleLine &below = lines.rows[std::size_t(j - j0)],
                          &above = lines.rows[std::size_t(j - j0 + 1)];
-        // sep's tests, pixel by pixel; along a row each holds on one run of columns.
-        auto within = [&](int i, double limit2) {
+        auto reached = [&](int i) {
             const double dx = double(i) - x;
-            return dx * dx + dy2 < limit2;
+            return dx * dx + dy2 < r_out2;
         };
-        int begin = std::clamp(int(std::floor(x)), i0, i1 - 1);
-        if (!within(begin, r_out2)) {
-            // The row's nearest pixel to the centre, if the row is reached at all.
-            const int other = std::clamp(begin + 1, i0, i1 - 1);
-            if (!within(other, r_out2)) continue;
-            begin = other;
-        }
-        int end = begin + 1;
-        while (begin > i0 && within(begin - 1, r_out2)) --begin;
-        while (end < i1 && within(end, r_out2)) ++end;
-        for (int i = begin; i < end; ++i) {
+        auto inside = [&](int i) {
             const double dx = double(i) - x;
-            visit(i, j,
-                  dx * dx + dy2 > r_in2
-                      ? pixel_overlap(columns[i], columns[i + 1], below, above, r)
-                      : 1.0);
+            return dx * dx + dy2 <= r_in2;
+        };
+        // The run [first, last] about `nearest` where `test` holds (first > last: none).
+        auto run = [&](auto test, double limit2, int& first, int& last) {
+            const double half = std::sqrt(std::max(limit2 - dy2, 0.0));
+            first = std::clamp(int(std::ceil(x - half)), i0, nearest);
+            while (first > i0 && test(first - 1)) --first;
+            while (first <= nearest && !test(first)) ++first;
+            last = std::clamp(int(std::floor(x + half)), nearest, i1 - 1);
+            while (last < i1 - 1 && test(last + 1)) ++last;
+            while (last >= nearest && !test(last)) --last;
+        };
+        int first, last;
+        run(reached, r_out2, first, last);
+        if (first > last) continue;
+        const int begin = first, end = last + 1;
+        // The band's pixels at either end, weight 1 between them.
+        int inner_begin = end, inner_end = end;
+        if (r_in2 > 0.0) {
+            run(inside, r_in2, first, last);
+            if (first <= last) inner_begin = first, inner_end = last + 1;
         }
+        // A corner's area is shared by the pixels either side of it.
+        auto band = [&](int from, int to) {
+            double left_above = corner_area(columns[from], above, r),
+                   left_below = corner_area(columns[from], below, r);
+            for (int i = from; i < to; ++i) {
+                const double right_above = corner_area(columns[i + 1], above, r),
+                             right_below = corner_area(columns[i + 1], below, r);
+                weights[i - begin] = (right_above - left_above) - (right_below - left_below);
+                left_above = right_above;
+                left_below = right_below;
+            }
+        };
+        band(begin, inner_begin);
+        std::fill(weights + (inner_begin - begin), weights + (inner_end - begin), 1.0);
+        band(inner_end, end);
+        row(j, begin, end, static_cast<const double*>(weights));
     }
 }
 

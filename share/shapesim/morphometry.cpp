@@ -3,6 +3,7 @@
 #include "shapesim/constants.hpp"
 #include "shapesim/error.hpp"
 #include "shapesim/exact_aperture.hpp"
+#include "shapesim/lane_math.hpp"
 #include "shapesim/optimize.hpp"
 
 extern "C" {
@@ -12,10 +13,16 @@ extern "C" {
 #include <algorithm>
 #include <array>
 #include <cmath>
+#include <cstdint>
+#include <cstring>
+#include <immintrin.h>
 #include <functional>
 #include <limits>
 #include <numeric>
 #include <type_traits>
+
+// Lanes are passed only within always-inlined code and AVX2 functions (lane_math.hpp).
+#pragma GCC diagnostic ignored "-Wpsabi"
 
 namespace shapesim {
 
@@ -344,13 +351,113 @@ double circular_petrosian(const Apertures& on_z, double x, double y, double r_ma
     return r;
 }
 
+// The asymmetry's three sums over a row's run of aperture pixels, in four interleaved partial
+// sums each (pixel k of a run into lane k mod 4): lanes of AVX2 and the scalar code add the
+// same terms in the same order, so both give the same bits.
+struct AsymmetrySums {
+    double s_abs[4] = {}, d[4] = {}, area[4] = {};
+
+    // One pixel: value `img`, I₁₈₀ `rot`, aperture weight `weight`, into lane k.
+    void add(int k, double img, double rot, double weight) {
+        s_abs[k] += sep_term(std::abs(img), weight);
+        d[k] += sep_term(std::abs(rot - img), weight);
+        area[k] += weight;  // sep_term(1, weight)
+    }
+    static double total(const double (&lanes)[4]) {
+        return (lanes[0] + lanes[1]) + (lanes[2] + lanes[3]);
+    }
+};
+
+// A run of aperture pixels whose rotation sources and mirrored mask pixels all lie on the
+// stamp: x = 2 x_c − i is then ≥ 0 and exact, so its fraction fx is the run's and ⌊x⌋ falls by
+// one per pixel. Rows: `here` (I), `above`/`below` (I₁₈₀'s source rows), `keep_here` and
+// `keep_mirror` (all bits set where unmasked); `first_source` = ⌊x⌋ of the run's first pixel,
+// `mirror_step` whether x rounds up to the mirrored mask pixel.
+struct AsymmetryRun {
+    const double *here, *above, *below, *weights;
+    const std::uint64_t *keep_here, *keep_mirror;
+    long begin, end, first_source;
+    int mirror_step;
+    double fx, fy;
+};
+
+void add_run(const AsymmetryRun& run, AsymmetrySums& sums) {
+    for (long i = run.begin; i < run.end; ++i) {
+        const long k = i - run.begin, i0 = run.first_source - k;
+        if (!(run.keep_here[i] & run.keep_mirror[i0 + run.mirror_step])) continue;
+        const double rot = (1 - run.fy) * ((1 - run.fx) * run.above[i0] + run.fx * run.above[i0 + 1]) +
+                           run.fy * ((1 - run.fx) * run.below[i0] + run.fx * run.below[i0 + 1]);
+        sums.add(int(k & 3), run.here[i], rot, run.weights[k]);
+    }
+}
+
+// add_run four pixels at a time; the run's last pixels (under four) one at a time. A masked
+// pixel adds +0 to its lane where add_run leaves it out: the same sums (each starts at +0 and
+// adds only terms ≥ 0).
+__attribute__((target("avx2"))) void add_run_avx2(const AsymmetryRun& run, AsymmetrySums& sums) {
+    using lane::Doubles4;
+    using lane::Words4;
+    using Floats4 = float __attribute__((vector_size(16)));
+    // Loads and stores by memcpy (no lambdas: clang will not pass lanes through a function
+    // without the AVX2 target).
+    Doubles4 s_abs, d, area;
+    std::memcpy(&s_abs, sums.s_abs, sizeof s_abs);
+    std::memcpy(&d, sums.d, sizeof d);
+    std::memcpy(&area, sums.area, sizeof area);
+    const Doubles4 fx = Doubles4{} + run.fx, gx = Doubles4{} + (1 - run.fx),
+                   fy = Doubles4{} + run.fy, gy = Doubles4{} + (1 - run.fy);
+    long i = run.begin;
+    for (; i + 4 <= run.end; i += 4) {
+        const long k = i - run.begin, i0 = run.first_source - k;  // lanes' sources i0 … i0 − 3
+        Doubles4 a0, a1, b0, b1, img, weight;
+        Words4 mirror, keep;
+        std::memcpy(&a0, run.above + i0 - 3, sizeof a0);
+        std::memcpy(&a1, run.above + i0 - 2, sizeof a1);
+        std::memcpy(&b0, run.below + i0 - 3, sizeof b0);
+        std::memcpy(&b1, run.below + i0 - 2, sizeof b1);
+        std::memcpy(&mirror, run.keep_mirror + i0 + run.mirror_step - 3, sizeof mirror);
+        std::memcpy(&keep, run.keep_here + i, sizeof keep);
+        std::memcpy(&img, run.here + i, sizeof img);
+        std::memcpy(&weight, run.weights + k, sizeof weight);
+        a0 = __builtin_shufflevector(a0, a0, 3, 2, 1, 0);
+        a1 = __builtin_shufflevector(a1, a1, 3, 2, 1, 0);
+        b0 = __builtin_shufflevector(b0, b0, 3, 2, 1, 0);
+        b1 = __builtin_shufflevector(b1, b1, 3, 2, 1, 0);
+        keep &= __builtin_shufflevector(mirror, mirror, 3, 2, 1, 0);
+        const Doubles4 rot = gy * (gx * a0 + fx * a1) + fy * (gx * b0 + fx * b1);
+        const Doubles4 abs_img = __builtin_convertvector(
+                           __builtin_convertvector(lane::abs(img), Floats4), Doubles4),
+                       abs_diff = __builtin_convertvector(
+                           __builtin_convertvector(lane::abs(rot - img), Floats4), Doubles4);
+        s_abs += lane::from_bits(lane::bits(abs_img * weight) & keep);
+        d += lane::from_bits(lane::bits(abs_diff * weight) & keep);
+        area += lane::from_bits(lane::bits(weight) & keep);
+    }
+    std::memcpy(sums.s_abs, &s_abs, sizeof s_abs);
+    std::memcpy(sums.d, &d, sizeof d);
+    std::memcpy(sums.area, &area, sizeof area);
+    // GCC leaves the upper halves dirty here, and SSE code after it (the call below, and the
+    // caller) then runs several times slower on this machine's CPU.
+    _mm256_zeroupper();
+    AsymmetryRun rest = run;
+    rest.begin = i;
+    rest.first_source = run.first_source - (i - run.begin);
+    rest.weights = run.weights + (i - run.begin);
+    // add_run numbers lanes from its own first pixel, which is a multiple of 4 from the run's.
+    add_run(rest, sums);
+}
+
 // The asymmetry about a centre, in a circle of radius r (statmorph): Σ|I − I₁₈₀| less the sky's
 // share, over Σ|I|, with the mask made symmetric. Minimised over the centre (Nelder–Mead), so
 // it is a hot loop: one walk over the aperture's pixels, no images built.
 class Asymmetry {
 public:
     Asymmetry(const Grid& z, const Mask& masked, double r, double sky_asymmetry)
-        : z_(z), masked_(masked), r_(r), sky_asymmetry_(sky_asymmetry) {}
+        : z_(z), keep_(masked.rows(), masked.cols()), r_(r),
+          sky_asymmetry_(sky_asymmetry), lanes_(lane::have_avx2()) {
+        for (long j = 0; j < masked.rows(); ++j)
+            for (long i = 0; i < masked.cols(); ++i) keep_(j, i) = masked(j, i) ? 0 : ~0ULL;
+    }
 
     double operator()(const Centre& c) const {
         const long ny = z_.rows(), nx = z_.cols();
@@ -360,111 +467,86 @@ public:
             return 100.0;
         }
         // The box of pixels the aperture can touch (its radius and 3 pixels, clipped to the
-        // stamp, as sep clips the circle's own box), with the aperture's centre in it: sep's
-        // sums over its images |I|, |I₁₈₀ − I| and the unmasked indicator are those over the
-        // whole stamp. One walk gives all three (exact_aperture.hpp: sep's own arithmetic),
-        // computing each pixel's overlap once and rotating only the pixels the circle reaches.
+        // stamp, as sep clips the circle's own box), with the aperture's centre in it: the sums
+        // over |I|, |I₁₈₀ − I| and the unmasked indicator are those over the whole stamp. One
+        // walk gives all three (exact_aperture.hpp), computing each pixel's overlap once and
+        // rotating only the pixels the circle reaches.
         const Window box = aperture_box(xc, yc, r_, nx, ny);
         const double bx = xc - double(box.x0), by = yc - double(box.y0);  // exact
-        // The weights first, then the sums in the same order in a loop free of calls (whose
-        // accumulators stay in registers), row by row: what depends on the row only (I₁₈₀'s two
-        // source rows, the mirrored mask's row) is found once per row, by the same arithmetic.
-        runs_.clear();
-        if (weights_.size() < std::size_t(box.nx * box.ny))
-            weights_.resize(std::size_t(box.nx * box.ny));  // at most one per pixel of the box
-        if (r_ > 0.0) {
-            double* weights = weights_.data();
-            std::size_t count = 0;
-            Run run{-1, 0, 0, 0};
-            visit_circle(int(box.nx), int(box.ny), bx, by, r_, [&](int a, int b, double weight) {
-                const long j = box.y0 + b, i = box.x0 + a;
-                if (j != run.j || i != run.end) {
-                    if (run.end > run.begin) runs_.push_back(run);
-                    run = {j, i, i, count};
-                }
-                run.end = i + 1;
-                weights[count++] = weight;
-            });
-            if (run.end > run.begin) runs_.push_back(run);
-        }
-        double s_abs = 0.0, d = 0.0, area = 0.0;
-        for (const Run& run : runs_) {
-            const long j = run.j;
-            // I₁₈₀(j, i) = I(2 yc − j, 2 xc − i), bilinear, zero outside the stamp.
-            const double y = 2.0 * yc - double(j);
-            const double y0 = std::floor(y), fy = y - y0;
-            const long j0 = long(y0), rj = round_half_away(y);
-            const double* above = j0 >= 0 && j0 < ny ? &z_(j0, 0) : nullptr;
-            const double* below = j0 + 1 >= 0 && j0 + 1 < ny ? &z_(j0 + 1, 0) : nullptr;
-            const bool* mirror_row = rj >= 0 && rj < ny ? &masked_(rj, 0) : nullptr;
-            const double* here = &z_(j, 0);
-            const bool* masked_here = &masked_(j, 0);
-            const double* weights = weights_.data() + run.first_weight;
-            // Each pixel's four sources and mirrored mask pixel; `checked`: any may lie off the
-            // stamp (then 0, unmasked), else none does and the tests are left out.
-            auto sum_run = [&](auto checked) {
-                auto at = [&](const double* row, long a) {
-                    if constexpr (decltype(checked)::value)
-                        return (row == nullptr || a < 0 || a >= nx) ? 0.0 : row[a];
-                    else
-                        return row[a];
-                };
-                for (long i = run.begin; i < run.end; ++i) {
-                    const double x = 2.0 * xc - double(i);
-                    const double x0 = std::floor(x), fx = x - x0;
-                    const long i0 = long(x0);
-                    // The mask rotated by nearest neighbour (half away from zero), then OR. A
-                    // masked pixel (I and I₁₈₀ set to 0) adds ±0 to each sum, which changes none
-                    // of them (a sum that starts at +0 is never −0): left out.
-                    bool mirror;
-                    if constexpr (decltype(checked)::value) {
-                        const long ri = round_half_away(x);
-                        mirror = mirror_row != nullptr && ri >= 0 && ri < nx && mirror_row[ri];
-                    } else {
-                        // x ≥ 0 here, where trunc is floor: round_half_away(x) from x0 and fx.
-                        mirror = mirror_row[i0 + (fx >= 0.5 ? 1 : 0)];
-                    }
-                    if (masked_here[i] || mirror) continue;
-                    const double rot =
-                        (1 - fy) * ((1 - fx) * at(above, i0) + fx * at(above, i0 + 1)) +
-                        fy * ((1 - fx) * at(below, i0) + fx * at(below, i0 + 1));
-                    const double img = here[i], weight = weights[i - run.begin];
-                    s_abs += sep_term(std::abs(img), weight);
-                    d += sep_term(std::abs(rot - img), weight);
-                    area += weight;  // sep_term(1, weight)
-                }
-            };
-            // x = 2 xc − i falls with i, and so do ⌊x⌋ and x rounded: the run's ends bound them.
-            const double x_first = 2.0 * xc - double(run.begin),
-                         x_last = 2.0 * xc - double(run.end - 1);
-            const bool inside = above != nullptr && below != nullptr && mirror_row != nullptr &&
-                                long(std::floor(x_last)) >= 0 &&
-                                long(std::floor(x_first)) + 1 < nx &&
-                                round_half_away(x_last) >= 0 && round_half_away(x_first) < nx;
-            if (inside)
-                sum_run(std::false_type{});
-            else
-                sum_run(std::true_type{});
-        }
+        // Row by row, the aperture's run of pixels and their weights, then the sums over it:
+        // what depends on the row only (I₁₈₀'s two source rows, the mirrored mask's row) is
+        // found once per row.
+        AsymmetrySums sums;
+        if (r_ > 0.0)
+            visit_circle_rows(int(box.nx), int(box.ny), bx, by, r_,
+                              [&](int b, int begin, int end, const double* weights) {
+                                  add_row(xc, yc, box.y0 + b, box.x0 + begin, box.x0 + end,
+                                          weights, sums);
+                              });
+        const double s_abs = AsymmetrySums::total(sums.s_abs);
         if (!(s_abs > 0.0)) return nan;
-        return (d - area * sky_asymmetry_) / s_abs;
+        return (AsymmetrySums::total(sums.d) - AsymmetrySums::total(sums.area) * sky_asymmetry_) /
+               s_abs;
     }
     // Whether the search tried a centre off the stamp.
     bool left_stamp() const { return left_stamp_; }
 
 private:
+    // The sums over row j's aperture pixels begin … end − 1 (stamp columns), of weights
+    // `weights`, for the centre (xc, yc).
+    void add_row(double xc, double yc, long j, long begin, long end, const double* weights,
+                 AsymmetrySums& sums) const {
+        const long ny = z_.rows(), nx = z_.cols();
+        // I₁₈₀(j, i) = I(2 yc − j, 2 xc − i), bilinear, zero outside the stamp.
+        const double y = 2.0 * yc - double(j);
+        const double y0 = std::floor(y), fy = y - y0;
+        const long j0 = long(y0), rj = round_half_away(y);
+        const double* above = j0 >= 0 && j0 < ny ? &z_(j0, 0) : nullptr;
+        const double* below = j0 + 1 >= 0 && j0 + 1 < ny ? &z_(j0 + 1, 0) : nullptr;
+        const std::uint64_t* mirror_row = rj >= 0 && rj < ny ? &keep_(rj, 0) : nullptr;
+        // x = 2 xc − i falls with i, and so do ⌊x⌋ and x rounded: the run's ends bound them.
+        const double x_first = 2.0 * xc - double(begin), x_last = 2.0 * xc - double(end - 1);
+        const bool inside = above != nullptr && below != nullptr && mirror_row != nullptr &&
+                            long(std::floor(x_last)) >= 0 && long(std::floor(x_first)) + 1 < nx &&
+                            round_half_away(x_last) >= 0 && round_half_away(x_first) < nx;
+        if (inside) {
+            const double x0 = std::floor(x_first), fx = x_first - x0;
+            const AsymmetryRun on_stamp{&z_(j, 0), above,    below, weights,  &keep_(j, 0),
+                                        mirror_row, begin, end, long(x0), fx >= 0.5 ? 1 : 0,
+                                        fx,         fy};
+            if (lanes_)
+                add_run_avx2(on_stamp, sums);
+            else
+                add_run(on_stamp, sums);
+            return;
+        }
+        // Some source or mirrored mask pixel may lie off the stamp: then 0, unmasked.
+        auto at = [&](const double* row, long a) {
+            return (row == nullptr || a < 0 || a >= nx) ? 0.0 : row[a];
+        };
+        const std::uint64_t* keep_here = &keep_(j, 0);
+        for (long i = begin; i < end; ++i) {
+            const double x = 2.0 * xc - double(i);
+            const double x0 = std::floor(x), fx = x - x0;
+            const long i0 = long(x0);
+            // The mask rotated by nearest neighbour (half away from zero), then OR. A masked
+            // pixel (I and I₁₈₀ set to 0) is left out of the sums.
+            const long ri = round_half_away(x);
+            const bool mirror = mirror_row != nullptr && ri >= 0 && ri < nx && !mirror_row[ri];
+            if (!keep_here[i] || mirror) continue;
+            const double rot = (1 - fy) * ((1 - fx) * at(above, i0) + fx * at(above, i0 + 1)) +
+                               fy * ((1 - fx) * at(below, i0) + fx * at(below, i0 + 1));
+            sums.add(int((i - begin) & 3), z_(j, i), rot, weights[i - begin]);
+        }
+    }
+
+
     const Grid& z_;
-    const Mask& masked_;
+    // All bits set where the pixel is unmasked, none where it is masked.
+    Eigen::Array<std::uint64_t, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor> keep_;
     double r_, sky_asymmetry_;
+    bool lanes_;
     mutable bool left_stamp_ = false;
-    // The aperture's pixels, as runs along rows (stamp row j, columns begin … end − 1, their
-    // weights from weights_[first_weight]), and the weights, kept from call to call.
-    struct Run {
-        long j, begin, end;
-        std::size_t first_weight;
-    };
-    mutable std::vector<Run> runs_;
-    mutable std::vector<double> weights_;
 };
 
 // Elongation and orientation from the second moments of `zs` about `centre`, regularised (as

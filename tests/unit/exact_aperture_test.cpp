@@ -153,9 +153,11 @@ TEST(ExactAperture, OneWalkWeighsSeveralImages) {
         const double x = 18.0 + 20.0 * unit(rng), y = 14.0 + 16.0 * unit(rng);
         const double r = 0.3 + 12.0 * (1.0 + unit(rng));
         double sa = 0.0, sb = 0.0;
-        visit_circle(w, h, x, y, r, [&](int i, int j, double weight) {
-            sa += sep_term(a[std::size_t(j * w + i)], weight);
-            sb += sep_term(b[std::size_t(j * w + i)], weight);
+        visit_circle_rows(w, h, x, y, r, [&](int j, int begin, int end, const double* weights) {
+            for (int i = begin; i < end; ++i) {
+                sa += sep_term(a[std::size_t(j * w + i)], weights[i - begin]);
+                sb += sep_term(b[std::size_t(j * w + i)], weights[i - begin]);
+            }
         });
         EXPECT_EQ(sa, sum_circle(a.data(), w, h, x, y, r));
         EXPECT_EQ(sb, sum_circle(b.data(), w, h, x, y, r));

@@ -1,7 +1,8 @@
 #!/usr/bin/env bash
 # shapesim-measure on the shipped HDF cut: one shapesim.morph/1 record per galaxy that
 # shapesim-detect finds (same ids, same detection), C, A, S, Gini, M20 where measurable,
-# identical output for -j 1 and -j 2; bad input fails with one line.
+# identical output for -j 1 and -j 2 and for the asymmetry's AVX2 lanes and scalar code
+# (SHAPESIM_SIMD=none); bad input fails with one line.
 source "$(dirname "${BASH_SOURCE[0]}")/../lib.sh"
 prog=shapesim-measure
 cd "$TMPDIR"
@@ -12,6 +13,9 @@ weight=$HDF_DATA/hdfn_f814w_v2_weight.fits
 "$BIN/$prog" "$HDF_IMAGE" --weight "$weight" --zero-point 22.08 -j 1 -q >morph1.jsonl ||
   fail "-j 1 failed"
 cmp -s morph.jsonl morph1.jsonl || fail "-j 1 and -j 2 differ"
+SHAPESIM_SIMD=none "$BIN/$prog" "$HDF_IMAGE" --weight "$weight" --zero-point 22.08 -j 2 -q \
+  >morph_scalar.jsonl || fail "SHAPESIM_SIMD=none failed"
+cmp -s morph.jsonl morph_scalar.jsonl || fail "the AVX2 lanes and the scalar code differ"
 python3 - <<'PY' || fail "the records break the checks"
 import json
 src = [json.loads(l) for l in open("sources.jsonl")]
