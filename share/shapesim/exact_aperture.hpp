@@ -1,13 +1,15 @@
-// The exact circular aperture (as sep_sum_circle with subpix 0, no mask, no noise, and
-// photutils' "exact" method): each pixel weighted by the area of it inside the circle. One walk
-// over the pixels can weigh several images at once (the asymmetry's three sums).
+// Exact apertures (as sep_sum_circle and sep_sum_ellipse with subpix 0, no mask, no noise,
+// and photutils' "exact" method): each pixel weighted by the area of it inside the circle or
+// ellipse. One walk over a circle's pixels can weigh several images at once (the asymmetry's
+// three sums).
 //
-// The areas come from the area of the circle in the rectangle [0, x] × [0, y], which needs
-// √(r² − x²) and asin(x/r) of each grid line, not of each pixel: the transcendental functions
-// are evaluated once per row and column of the box (2 (2r + 4) of them), instead of sep's asin
-// and sin in up to four quadrant pieces of each of the ~8r pixels the edge crosses. The areas
-// equal sep's to rounding (tests/unit/exact_aperture_test.cpp: ≤ 1e-13 of a pixel, and its sums
-// against sep_sum_circle itself); the pixels visited, their order and each value's rounding to
+// The circle's areas come from the area of the circle in the rectangle [0, x] × [0, y], which
+// needs √(r² − x²) and asin(x/r) of each grid line, not of each pixel: the transcendental
+// functions are evaluated once per row and column of the box (2 (2r + 4) of them), instead of
+// sep's asin and sin in up to four quadrant pieces of each of the ~8r pixels the edge crosses.
+// The ellipse's (exact_aperture.cpp) likewise need one acos per grid line. The areas equal
+// sep's to rounding (tests/unit/exact_aperture_test.cpp: ≤ 4e-15 (1 + a²) of a pixel against
+// quadratures, and the sums against sep itself); the pixels' order and each value's rounding to
 // float (sep's PIXTYPE) are sep's.
 #pragma once
 
@@ -143,5 +145,16 @@ inline double sep_term(double value, double weight) { return double(float(value)
 
 /// The exact aperture's sum over a row-major w × h image (0 when r is not positive).
 double sum_circle(const double* data, int w, int h, double x, double y, double r);
+
+/// The area of the rectangle [xmin, xmax] × [ymin, ymax] inside the ellipse about the origin
+/// of semi-axes a, along the angle θ (radians, counter-clockwise from the x axis), and b.
+double ellipse_overlap(double xmin, double ymin, double xmax, double ymax, double a, double b,
+                       double theta);
+
+/// The exact elliptical aperture's sum over a row-major w × h image, as sep_sum_ellipse(x, y,
+/// a, b, θ, r = 1) with subpix 0 (each value rounded to float, as sep reads it), row by row;
+/// 0 when a or b is not positive.
+double sum_ellipse(const double* data, int w, int h, double x, double y, double a, double b,
+                   double theta);
 
 }  // namespace shapesim

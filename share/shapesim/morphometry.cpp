@@ -6,10 +6,6 @@
 #include "shapesim/lane_math.hpp"
 #include "shapesim/optimize.hpp"
 
-extern "C" {
-#include <sep.h>
-}
-
 #include <algorithm>
 #include <array>
 #include <cmath>
@@ -32,30 +28,21 @@ constexpr double nan = std::numeric_limits<double>::quiet_NaN();
 
 using Grid = Eigen::Array<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>;
 
-// Exact aperture sums (libsep, subpix 0) on a stamp; centres in 0-based pixel coordinates.
+// Exact aperture sums (sep's with subpix 0, exact_aperture.hpp) on a stamp; centres in 0-based
+// pixel coordinates.
 class Apertures {
 public:
-    explicit Apertures(const Grid& image) : image_(image) {
-        im_.data = image_.data();
-        im_.dtype = SEP_TDOUBLE;
-        im_.w = int(image_.cols());
-        im_.h = int(image_.rows());
-        im_.noise_type = SEP_NOISE_NONE;
-    }
-    // sep_sum_circle's sum, bit for bit (exact_aperture.hpp), without its per-pixel calls.
+    explicit Apertures(const Grid& image)
+        : image_(image), w_(int(image.cols())), h_(int(image.rows())) {}
     double circle(double x, double y, double r) const {
-        return sum_circle(image_.data(), im_.w, im_.h, x, y, r);
+        return sum_circle(image_.data(), w_, h_, x, y, r);
     }
     double annulus(double x, double y, double r_in, double r_out) const {
         return circle(x, y, r_out) - circle(x, y, std::max(r_in, 0.0));
     }
     // The ellipse of semi-axes (a, a/q) at angle θ.
     double ellipse(double x, double y, double a, double q, double theta) const {
-        if (!(a > 0.0)) return 0.0;
-        double sum = 0.0, err = 0.0, area = 0.0;
-        short flag = 0;
-        sep_sum_ellipse(&im_, x, y, 1.0, 1.0 / q, theta, a, 0, 0, 0, &sum, &err, &area, &flag);
-        return sum;
+        return sum_ellipse(image_.data(), w_, h_, x, y, a, a / q, theta);
     }
     double ellipse_annulus(double x, double y, double a_in, double a_out, double q,
                            double theta) const {
@@ -64,7 +51,7 @@ public:
 
 private:
     const Grid& image_;
-    sep_image im_{};
+    int w_, h_;
 };
 
 // Brent's root finder on a bracket [a, b] with f(a)·f(b) ≤ 0 (fa = f(a) and fb = f(b), known
