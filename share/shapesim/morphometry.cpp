@@ -385,8 +385,9 @@ __attribute__((target("avx2"))) void add_run_avx2(const AsymmetryRun& run, Asymm
     using lane::Doubles4;
     using lane::Words4;
     using Floats4 = float __attribute__((vector_size(16)));
-    // Loads and stores by memcpy (no lambdas: clang will not pass lanes through a function
-    // without the AVX2 target).
+    // Loads and stores by memcpy, |x| and the masks by vector casts: clang will not pass lanes
+    // to a function (a lambda, lane_math's) without the AVX2 target.
+    const Words4 magnitude = Words4{} + 0x7fffffffffffffffULL;
     Doubles4 s_abs, d, area;
     std::memcpy(&s_abs, sums.s_abs, sizeof s_abs);
     std::memcpy(&d, sums.d, sizeof d);
@@ -413,12 +414,15 @@ __attribute__((target("avx2"))) void add_run_avx2(const AsymmetryRun& run, Asymm
         keep &= __builtin_shufflevector(mirror, mirror, 3, 2, 1, 0);
         const Doubles4 rot = gy * (gx * a0 + fx * a1) + fy * (gx * b0 + fx * b1);
         const Doubles4 abs_img = __builtin_convertvector(
-                           __builtin_convertvector(lane::abs(img), Floats4), Doubles4),
+                           __builtin_convertvector((Doubles4)((Words4)img & magnitude), Floats4),
+                           Doubles4),
                        abs_diff = __builtin_convertvector(
-                           __builtin_convertvector(lane::abs(rot - img), Floats4), Doubles4);
-        s_abs += lane::from_bits(lane::bits(abs_img * weight) & keep);
-        d += lane::from_bits(lane::bits(abs_diff * weight) & keep);
-        area += lane::from_bits(lane::bits(weight) & keep);
+                           __builtin_convertvector((Doubles4)((Words4)(rot - img) & magnitude),
+                                                   Floats4),
+                           Doubles4);
+        s_abs += (Doubles4)((Words4)(abs_img * weight) & keep);
+        d += (Doubles4)((Words4)(abs_diff * weight) & keep);
+        area += (Doubles4)((Words4)weight & keep);
     }
     std::memcpy(sums.s_abs, &s_abs, sizeof s_abs);
     std::memcpy(sums.d, &d, sizeof d);
