@@ -19,24 +19,29 @@ using namespace shapesim;
 
 namespace {
 
-double sep_circle(std::vector<double>& data, int w, int h, double x, double y, double r) {
+// libsep's view of a row-major w × h image of doubles, no mask, no noise.
+sep_image sep_view_of(std::vector<double>& data, int w, int h) {
     sep_image im{};
     im.data = data.data();
     im.dtype = SEP_TDOUBLE;
     im.w = w;
     im.h = h;
     im.noise_type = SEP_NOISE_NONE;
+    return im;
+}
+
+double sep_circle(std::vector<double>& data, int w, int h, double x, double y, double r) {
+    const sep_image im = sep_view_of(data, w, h);
     double sum = 0.0, err = 0.0, area = 0.0;
     short flag = 0;
     EXPECT_EQ(sep_sum_circle(&im, x, y, r, 0, 0, 0, &sum, &err, &area, &flag), 0);
     return sum;
 }
 
-// The area of [x0, x1] × [y0, y1] inside the circle by quadrature, independently of the corner
-// areas: with t = r sin θ the column height min(y1, r cos θ) − max(y0, −r cos θ) times
-// r cos θ is smooth between the angles where r cos θ meets |y0| or |y1|; 20-point
-// Gauss–Legendre on 8 panels of each smooth piece.
-double overlap_by_quadrature(double x0, double y0, double x1, double y1, double r) {
+// ∫ f over [cuts.front(), cuts.back()], f smooth between consecutive cuts: 20-point
+// Gauss–Legendre on 8 panels of each piece.
+template <class F>
+double integrate_pieces(F f, std::vector<double> cuts) {
     static const double node[10] = {0.0765265211334973, 0.2277858511416451, 0.3737060887154195,
                                     0.5108670019508271, 0.6360536807265150, 0.7463319064601508,
                                     0.8391169718222188, 0.9122344282513259, 0.9639719272779138,
@@ -45,20 +50,7 @@ double overlap_by_quadrature(double x0, double y0, double x1, double y1, double 
                                       0.1316886384491766, 0.1181945319615184, 0.1019301198172404,
                                       0.0832767415767048, 0.0626720483341091, 0.0406014298003869,
                                       0.0176140071391521};
-    auto theta = [&](double t) { return std::asin(std::clamp(t / r, -1.0, 1.0)); };
-    const double lo = theta(x0), hi = theta(x1);
-    std::vector<double> cuts{lo, hi};
-    for (double y : {y0, y1})
-        if (std::abs(y) < r)
-            for (double s : {-1.0, 1.0}) {
-                const double c = s * std::acos(std::abs(y) / r);
-                if (c > lo && c < hi) cuts.push_back(c);
-            }
     std::sort(cuts.begin(), cuts.end());
-    auto f = [&](double th) {
-        const double height = r * std::cos(th);
-        return std::max(0.0, std::min(y1, height) - std::max(y0, -height)) * r * std::cos(th);
-    };
     double area = 0.0;
     for (std::size_t k = 0; k + 1 < cuts.size(); ++k)
         for (int p = 0; p < 8; ++p) {
@@ -69,6 +61,57 @@ double overlap_by_quadrature(double x0, double y0, double x1, double y1, double 
                 area += half * weight[n] * (f(mid - half * node[n]) + f(mid + half * node[n]));
         }
     return area;
+}
+
+// The area of [x0, x1] × [y0, y1] inside the circle by quadrature, independently of the corner
+// areas: with t = r sin θ the column height min(y1, r cos θ) − max(y0, −r cos θ) times
+// r cos θ is smooth between the angles where r cos θ meets |y0| or |y1|.
+double overlap_by_quadrature(double x0, double y0, double x1, double y1, double r) {
+    auto theta = [&](double t) { return std::asin(std::clamp(t / r, -1.0, 1.0)); };
+    const double lo = theta(x0), hi = theta(x1);
+    std::vector<double> cuts{lo, hi};
+    for (double y : {y0, y1})
+        if (std::abs(y) < r)
+            for (double s : {-1.0, 1.0}) {
+                const double c = s * std::acos(std::abs(y) / r);
+                if (c > lo && c < hi) cuts.push_back(c);
+            }
+    auto f = [&](double th) {
+        const double height = r * std::cos(th);
+        return std::max(0.0, std::min(y1, height) - std::max(y0, -height)) * r * std::cos(th);
+    };
+    return integrate_pieces(f, cuts);
+}
+
+// A w × h image (sides 1 … 60) of signed values over many decades and some zeros (float
+// rounding and cancellation matter), with Σ|v|.
+struct RandomImage {
+    int w, h;
+    std::vector<double> data;
+    double magnitude = 0.0;
+};
+
+RandomImage random_image(std::mt19937_64& rng) {
+    std::uniform_real_distribution<double> unit(0.0, 1.0);
+    RandomImage im;
+    im.w = 1 + int(unit(rng) * 60);
+    im.h = 1 + int(unit(rng) * 60);
+    im.data.resize(std::size_t(im.w) * std::size_t(im.h));
+    for (double& v : im.data) {
+        v = unit(rng) < 0.1 ? 0.0 : (unit(rng) - 0.3) * std::pow(10.0, 6.0 * unit(rng) - 3.0);
+        im.magnitude += std::abs(v);
+    }
+    return im;
+}
+
+// The k-th centre on it: inside or up to 5 px outside; some on pixel centres, edges, corners.
+void random_centre(std::mt19937_64& rng, int k, const RandomImage& im, double& x, double& y) {
+    std::uniform_real_distribution<double> unit(0.0, 1.0);
+    x = -5.0 + (im.w + 10.0) * unit(rng);
+    y = -5.0 + (im.h + 10.0) * unit(rng);
+    if (k % 4 == 1) x = std::round(x);
+    if (k % 4 == 2) y = std::round(y * 2.0) / 2.0;
+    if (k % 8 == 3) x = std::round(x) + 0.5, y = std::round(y);
 }
 
 }  // namespace
@@ -112,27 +155,19 @@ TEST(ExactAperture, SumsAsSepDoes) {
     std::uniform_real_distribution<double> unit(0.0, 1.0);
     int cases = 0;
     for (int image = 0; image < 40; ++image) {
-        const int w = 1 + int(unit(rng) * 60), h = 1 + int(unit(rng) * 60);
-        std::vector<double> data(std::size_t(w) * std::size_t(h));
-        // Signed values over many decades, some zeros: float rounding and cancellation matter.
-        for (double& v : data)
-            v = unit(rng) < 0.1 ? 0.0 : (unit(rng) - 0.3) * std::pow(10.0, 6.0 * unit(rng) - 3.0);
-        double magnitude = 0.0;
-        for (double v : data) magnitude += std::abs(v);
+        RandomImage im = random_image(rng);
         for (int k = 0; k < 400; ++k) {
-            // Centres inside and up to 5 px outside; some on pixel centres, edges and corners.
-            double x = -5.0 + (w + 10.0) * unit(rng), y = -5.0 + (h + 10.0) * unit(rng);
-            if (k % 4 == 1) x = std::round(x);
-            if (k % 4 == 2) y = std::round(y * 2.0) / 2.0;
-            if (k % 8 == 3) x = std::round(x) + 0.5, y = std::round(y);
+            double x, y;
+            random_centre(rng, k, im, x, y);
             const double r = k % 5 == 0 ? 1.5 * unit(rng)
                                         : (k % 5 == 1 ? std::round(8.0 * unit(rng)) / 2.0
                                                       : 0.05 + 40.0 * unit(rng) * unit(rng));
             if (!(r > 0.0)) continue;
             // Each pixel's area as OverlapMatchesQuadrature holds it (sep's to ~r ε).
-            ASSERT_NEAR(sum_circle(data.data(), w, h, x, y, r), sep_circle(data, w, h, x, y, r),
-                        2e-15 * (1.0 + r * r) * magnitude)
-                << "w " << w << " h " << h << " x " << x << " y " << y << " r " << r;
+            ASSERT_NEAR(sum_circle(im.data.data(), im.w, im.h, x, y, r),
+                        sep_circle(im.data, im.w, im.h, x, y, r),
+                        2e-15 * (1.0 + r * r) * im.magnitude)
+                << "w " << im.w << " h " << im.h << " x " << x << " y " << y << " r " << r;
             ++cases;
         }
     }
@@ -169,18 +204,9 @@ namespace {
 
 // The area of [x0, x1] × [y0, y1] inside the ellipse (semi-axes a along θ, b) by quadrature:
 // with x = e_x sin φ (e_x the ellipse's half-width) the height of the ellipse's column inside
-// [y0, y1] is smooth between the angles where the ellipse's edge meets y0 or y1; 20-point
-// Gauss–Legendre on 8 panels of each smooth piece.
+// [y0, y1] is smooth between the angles where the ellipse's edge meets y0 or y1.
 double ellipse_by_quadrature(double x0, double y0, double x1, double y1, double a, double b,
                              double theta) {
-    static const double node[10] = {0.0765265211334973, 0.2277858511416451, 0.3737060887154195,
-                                    0.5108670019508271, 0.6360536807265150, 0.7463319064601508,
-                                    0.8391169718222188, 0.9122344282513259, 0.9639719272779138,
-                                    0.9931285991850949};
-    static const double weight[10] = {0.1527533871307258, 0.1491729864726037, 0.1420961093183820,
-                                      0.1316886384491766, 0.1181945319615184, 0.1019301198172404,
-                                      0.0832767415767048, 0.0626720483341091, 0.0406014298003869,
-                                      0.0176140071391521};
     const double c = std::cos(theta), s = std::sin(theta);
     // cxx x² + cxy x y + cyy y² ≤ 1
     const double cxx = c * c / (a * a) + s * s / (b * b), cyy = s * s / (a * a) + c * c / (b * b),
@@ -198,7 +224,6 @@ double ellipse_by_quadrature(double x0, double y0, double x1, double y1, double 
             if (p > lo && p < hi) cuts.push_back(p);
         }
     }
-    std::sort(cuts.begin(), cuts.end());
     auto f = [&](double ph) {
         const double x = ex * std::sin(ph), root = std::cos(ph);  // √(1 − x²/e_x²)
         // y± = (−cxy x ± √D)/(2 cyy), √D = 2 √cyy · root
@@ -206,26 +231,12 @@ double ellipse_by_quadrature(double x0, double y0, double x1, double y1, double 
         const double height = std::max(0.0, std::min(y1, mid + half) - std::max(y0, mid - half));
         return height * ex * std::cos(ph);
     };
-    double area = 0.0;
-    for (std::size_t k = 0; k + 1 < cuts.size(); ++k)
-        for (int p = 0; p < 8; ++p) {
-            const double l = cuts[k] + (cuts[k + 1] - cuts[k]) * p / 8.0,
-                         r = cuts[k] + (cuts[k + 1] - cuts[k]) * (p + 1) / 8.0;
-            const double m = 0.5 * (l + r), h = 0.5 * (r - l);
-            for (int n = 0; n < 10; ++n)
-                area += h * weight[n] * (f(m - h * node[n]) + f(m + h * node[n]));
-        }
-    return area;
+    return integrate_pieces(f, cuts);
 }
 
 double sep_ellipse(std::vector<double>& data, int w, int h, double x, double y, double a,
                    double b, double theta) {
-    sep_image im{};
-    im.data = data.data();
-    im.dtype = SEP_TDOUBLE;
-    im.w = w;
-    im.h = h;
-    im.noise_type = SEP_NOISE_NONE;
+    const sep_image im = sep_view_of(data, w, h);
     double sum = 0.0, err = 0.0, area = 0.0;
     short flag = 0;
     EXPECT_EQ(sep_sum_ellipse(&im, x, y, 1.0, b / a, theta, a, 0, 0, 0, &sum, &err, &area, &flag),
@@ -305,23 +316,19 @@ TEST(ExactAperture, EllipseSumsAsSepDoes) {
     std::uniform_real_distribution<double> unit(0.0, 1.0);
     int cases = 0;
     for (int image = 0; image < 30; ++image) {
-        const int w = 1 + int(unit(rng) * 60), h = 1 + int(unit(rng) * 60);
-        std::vector<double> data(std::size_t(w) * std::size_t(h));
-        for (double& v : data)
-            v = unit(rng) < 0.1 ? 0.0 : (unit(rng) - 0.3) * std::pow(10.0, 6.0 * unit(rng) - 3.0);
-        double magnitude = 0.0;
-        for (double v : data) magnitude += std::abs(v);
+        RandomImage im = random_image(rng);
         for (int k = 0; k < 300; ++k) {
-            double x = -5.0 + (w + 10.0) * unit(rng), y = -5.0 + (h + 10.0) * unit(rng);
-            if (k % 4 == 1) x = std::round(x);
-            if (k % 8 == 3) x = std::round(x) + 0.5, y = std::round(y);
-            const double a = k % 5 == 0 ? 0.05 + 1.5 * unit(rng) : 0.05 + 30.0 * unit(rng) * unit(rng);
-            const double b = a / (1.0 + 4.0 * unit(rng)), theta = 3.14 * unit(rng) - 1.57;  // sep: |θ| ≤ π/2
-            ASSERT_NEAR(sum_ellipse(data.data(), w, h, x, y, a, b, theta),
-                        sep_ellipse(data, w, h, x, y, a, b, theta),
-                        4e-15 * (1.0 + a * a) * magnitude)
-                << "w " << w << " h " << h << " x " << x << " y " << y << " a " << a << " b "
-                << b << " θ " << theta;
+            double x, y;
+            random_centre(rng, k, im, x, y);
+            const double a =
+                k % 5 == 0 ? 0.05 + 1.5 * unit(rng) : 0.05 + 30.0 * unit(rng) * unit(rng);
+            const double b = a / (1.0 + 4.0 * unit(rng));
+            const double theta = 3.14 * unit(rng) - 1.57;  // sep takes |θ| ≤ π/2
+            ASSERT_NEAR(sum_ellipse(im.data.data(), im.w, im.h, x, y, a, b, theta),
+                        sep_ellipse(im.data, im.w, im.h, x, y, a, b, theta),
+                        4e-15 * (1.0 + a * a) * im.magnitude)
+                << "w " << im.w << " h " << im.h << " x " << x << " y " << y << " a " << a
+                << " b " << b << " θ " << theta;
             ++cases;
         }
     }
