@@ -1,5 +1,7 @@
 #include "shapesim/exact_aperture.hpp"
 
+#include "shapesim/constants.hpp"
+
 #include <algorithm>
 #include <cmath>
 #include <vector>
@@ -40,7 +42,7 @@ double sum_circle(const double* data, int w, int h, double x, double y, double r
 // the arcs are differences of them.
 namespace {
 
-constexpr double two_pi = 6.283185307179586;
+constexpr double two_pi = 2.0 * pi;
 
 struct Family {
     double dx, dy;  // unit direction in the scaled frame
@@ -144,7 +146,7 @@ public:
         }
         if (count == 0) {
             // No edge reaches the circle: it lies inside the pixel, or outside it.
-            return xl <= 0.0 && 0.0 <= xr && yb <= 0.0 && 0.0 <= yt ? pi_ * r_ * r_ / k_ : 0.0;
+            return xl <= 0.0 && 0.0 <= xr && yb <= 0.0 && 0.0 <= yt ? pi * r_ * r_ / k_ : 0.0;
         }
         double twice_area = 0.0, arcs = 0.0;
         for (int n = 0; n < count; ++n) {
@@ -172,8 +174,6 @@ public:
     }
 
 private:
-    static constexpr double pi_ = 3.141592653589793;
-
     static Family family(double dx, double dy) {
         const double n = std::hypot(dx, dy);
         Family f{dx / n, dy / n, dy / n, -dx / n, 0.0};
@@ -217,7 +217,7 @@ double sum_ellipse(const double* data, int w, int h, double x, double y, double 
     if (i0 >= i1 || j0 >= j1) return 0.0;
     // The band of pixels whose centres lie within a half-diagonal of the edge (in the scaled
     // frame) gets the exact area; those nearer the centre lie inside, those beyond outside.
-    const double reach = e.half_diagonal() * 1.0000001;
+    const double reach = e.half_diagonal() * 1.0000001;  // a margin for its rounding
     const double r_in = a - reach, r_out = a + reach;
     const double r_in2 = r_in > 0.0 ? r_in * r_in : -1.0, r_out2 = r_out * r_out;
     // The grid's lines (offsets from the centre, and as the scaled frame sees them), reused

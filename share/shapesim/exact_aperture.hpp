@@ -13,6 +13,8 @@
 // float (sep's PIXTYPE) are sep's.
 #pragma once
 
+#include "shapesim/constants.hpp"
+
 #include <algorithm>
 #include <cmath>
 #include <vector>
@@ -41,7 +43,7 @@ inline double corner_area(const CircleLine& x, const CircleLine& y, double r) {
     const double q = x.a * x.a + y.a * y.a <= r2
                          ? x.a * y.a
                          : 0.5 * (x.a * x.h + y.a * y.h) +
-                               0.5 * r2 * ((x.g + y.g) - 1.5707963267948966);  // π/2
+                               0.5 * r2 * ((x.g + y.g) - 0.5 * pi);
     return x.sign * y.sign * q;
 }
 
