@@ -12,8 +12,9 @@
 //    its pixels of Z give the sky's mean and σ and the background terms of A and S.
 //  - Petrosian radius about a centre: the root of |annulus mean (width 1)| / |disc mean| = η
 //    (0.2), bracketed on 100 radii from 1 to the stamp diagonal, refined to 1e-6 (exact
-//    aperture photometry: libsep, subpix 0). r_p about the centroid sizes the asymmetry
-//    aperture, r_p about the asymmetry centre everything else.
+//    aperture photometry, exact_aperture.hpp: sep's subpix 0 and photutils' "exact" sums, to
+//    rounding). r_p about the centroid sizes the asymmetry aperture, r_p about the asymmetry
+//    centre everything else.
 //  - A(c) = (Σ_ap |I_180 − I| − area_unmasked · B_A) / Σ_ap |I|, aperture 1.5 r_p(centroid),
 //    I_180 = I rotated by 180° about c (bilinear, zero outside), masks made symmetric;
 //    B_A = Σ |B_180 − B| / N over the sky box. Minimised over c by Nelder–Mead from the
