@@ -20,7 +20,6 @@ CircleLines& circle_lines_workspace() {
 }
 
 double sum_circle(const double* data, int w, int h, double x, double y, double r) {
-    if (!(r > 0.0)) return 0.0;
     double sum = 0.0;
     visit_circle_rows(w, h, x, y, r, [&](int j, int begin, int end, const double* weights) {
         const double* row = data + long(j) * w;
@@ -196,7 +195,7 @@ private:
 
 double ellipse_overlap(double xmin, double ymin, double xmax, double ymax, double a, double b,
                        double theta) {
-    if (!(a > 0.0 && b > 0.0)) return 0.0;
+    if (!(a > 0.0 && b > 0.0) || !std::isfinite(a) || !std::isfinite(b)) return 0.0;
     const ScaledEllipse e(a, b, theta);
     return e.pixel_area(xmin, xmax, ymin, ymax, e.column_line(xmin), e.column_line(xmax),
                         e.row_line(ymin), e.row_line(ymax));
@@ -205,6 +204,8 @@ double ellipse_overlap(double xmin, double ymin, double xmax, double ymax, doubl
 double sum_ellipse(const double* data, int w, int h, double x, double y, double a, double b,
                    double theta) {
     if (!(a > 0.0 && b > 0.0) || w <= 0 || h <= 0) return 0.0;
+    for (double p : {x, y, a, b, theta})
+        if (!std::isfinite(p)) return 0.0;
     const ScaledEllipse e(a, b, theta);
     // The ellipse's bounding box, a pixel wider each way, on the image.
     const double c = std::cos(theta), s = std::sin(theta);

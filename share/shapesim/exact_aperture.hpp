@@ -67,9 +67,11 @@ CircleLines& circle_lines_workspace();
 
 /// Calls row(j, begin, end, weights) for every row j (0-based, in order) of a w × h image that
 /// sep_sum_circle(x, y, r) reaches: the pixels it adds there are the columns begin … end − 1,
-/// weights[i − begin] the area of pixel i inside the circle. r > 0.
+/// weights[i − begin] the area of pixel i inside the circle. None for a radius that is not
+/// positive, or a centre or radius that is not finite.
 template <class Row>
 void visit_circle_rows(int w, int h, double x, double y, double r, Row&& row) {
+    if (!(r > 0.0) || !std::isfinite(r) || !std::isfinite(x) || !std::isfinite(y)) return;
     // sep's box, and its band of pixels within half a diagonal of the edge (r ± 0.7072): those
     // nearer the centre lie inside (weight 1), those beyond it outside. (sep also gives weight 1
     // to a pixel centred on the centre of a circle under 0.7072; here it gets its area.)
@@ -145,7 +147,8 @@ void visit_circle_rows(int w, int h, double x, double y, double r, Row&& row) {
 /// One term of sep's sum: the value as sep reads it (a float) times the pixel's weight.
 inline double sep_term(double value, double weight) { return double(float(value)) * weight; }
 
-/// The exact aperture's sum over a row-major w × h image (0 when r is not positive).
+/// The exact aperture's sum over a row-major w × h image (0 when r is not positive, or a
+/// parameter is not finite).
 double sum_circle(const double* data, int w, int h, double x, double y, double r);
 
 /// The area of the rectangle [xmin, xmax] × [ymin, ymax] inside the ellipse about the origin
@@ -155,7 +158,7 @@ double ellipse_overlap(double xmin, double ymin, double xmax, double ymax, doubl
 
 /// The exact elliptical aperture's sum over a row-major w × h image, as sep_sum_ellipse(x, y,
 /// a, b, θ, r = 1) with subpix 0 (each value rounded to float, as sep reads it), row by row;
-/// 0 when a or b is not positive.
+/// 0 when a or b is not positive, or any parameter is not finite.
 double sum_ellipse(const double* data, int w, int h, double x, double y, double a, double b,
                    double theta);
 

@@ -12,6 +12,7 @@ extern "C" {        // sep.h has no C++ guards
 
 #include <algorithm>
 #include <cmath>
+#include <limits>
 #include <random>
 #include <vector>
 
@@ -333,4 +334,24 @@ TEST(ExactAperture, EllipseSumsAsSepDoes) {
         }
     }
     EXPECT_GT(cases, 8000);
+}
+
+// Apertures that are not there (non-positive or non-finite radii, axes, angles or centres, as
+// a failed fit can hand on) sum to 0 rather than cast a NaN to a pixel index.
+TEST(ExactAperture, UndefinedAperturesSumToZero) {
+    const double nan = std::numeric_limits<double>::quiet_NaN(),
+                 inf = std::numeric_limits<double>::infinity();
+    const std::vector<double> data(100, 1.0);
+    EXPECT_EQ(sum_circle(data.data(), 10, 10, nan, 5.0, 2.0), 0.0);
+    EXPECT_EQ(sum_circle(data.data(), 10, 10, 5.0, inf, 2.0), 0.0);
+    EXPECT_EQ(sum_circle(data.data(), 10, 10, 5.0, 5.0, inf), 0.0);
+    EXPECT_EQ(sum_circle(data.data(), 10, 10, 5.0, 5.0, -1.0), 0.0);
+    EXPECT_EQ(sum_ellipse(data.data(), 10, 10, 5.0, 5.0, 2.0, 1.0, nan), 0.0);
+    EXPECT_EQ(sum_ellipse(data.data(), 10, 10, 5.0, 5.0, 2.0, inf, 0.0), 0.0);
+    EXPECT_EQ(sum_ellipse(data.data(), 10, 10, nan, 5.0, 2.0, 1.0, 0.0), 0.0);
+    EXPECT_EQ(sum_ellipse(data.data(), 10, 10, 5.0, 5.0, 0.0, 1.0, 0.0), 0.0);
+    // And a defined one on the same image: the area.
+    EXPECT_NEAR(sum_circle(data.data(), 10, 10, 4.5, 4.5, 2.0), 4.0 * std::atan(1.0) * 4.0, 1e-13);
+    EXPECT_NEAR(sum_ellipse(data.data(), 10, 10, 4.5, 4.5, 3.0, 1.5, 0.4),
+                4.0 * std::atan(1.0) * 4.5, 1e-13);
 }
