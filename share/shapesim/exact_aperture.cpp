@@ -60,6 +60,9 @@ public:
           column_(family(s_, k_ * c_)), row_(family(c_, -k_ * s_)) {}
 
     double k() const { return k_; }
+    // Half the width and height of the ellipse's bounding box.
+    double half_width() const { return std::hypot(r_ * c_, (r_ / k_) * s_); }
+    double half_height() const { return std::hypot(r_ * s_, (r_ / k_) * c_); }
     // The scaled frame's coordinates of the offset (px, py) from the centre.
     double u(double px, double py) const { return px * c_ + py * s_; }
     double v(double px, double py) const { return k_ * (py * c_ - px * s_); }
@@ -208,9 +211,7 @@ double sum_ellipse(const double* data, int w, int h, double x, double y, double 
         if (!std::isfinite(p)) return 0.0;
     const ScaledEllipse e(a, b, theta);
     // The ellipse's bounding box, a pixel wider each way, on the image.
-    const double c = std::cos(theta), s = std::sin(theta);
-    const double ex = std::sqrt(a * a * c * c + b * b * s * s),
-                 ey = std::sqrt(a * a * s * s + b * b * c * c);
+    const double ex = e.half_width(), ey = e.half_height();
     const int i0 = std::max(int(std::floor(x - ex - 1.0)), 0),
               i1 = std::min(int(std::ceil(x + ex + 1.0)) + 1, w);
     const int j0 = std::max(int(std::floor(y - ey - 1.0)), 0),

@@ -127,6 +127,7 @@ void visit_circle_rows(int w, int h, double x, double y, double r, Row&& row) {
         }
         // A corner's area is shared by the pixels either side of it.
         auto band = [&](int from, int to) {
+            if (from >= to) return;
             double left_above = corner_area(columns[from], above, r),
                    left_below = corner_area(columns[from], below, r);
             for (int i = from; i < to; ++i) {

@@ -523,8 +523,9 @@ private:
             // The mask rotated by nearest neighbour (half away from zero), then OR. A masked
             // pixel (I and I₁₈₀ set to 0) is left out of the sums.
             const long ri = round_half_away(x);
-            const bool mirror = mirror_row != nullptr && ri >= 0 && ri < nx && !mirror_row[ri];
-            if (!keep_here[i] || mirror) continue;
+            const bool mirror_masked =
+                mirror_row != nullptr && ri >= 0 && ri < nx && !mirror_row[ri];
+            if (!keep_here[i] || mirror_masked) continue;
             const double rot = (1 - fy) * ((1 - fx) * at(above, i0) + fx * at(above, i0 + 1)) +
                                fy * ((1 - fx) * at(below, i0) + fx * at(below, i0 + 1));
             sums.add(int((i - begin) & 3), z_(j, i), rot, weights[i - begin]);
