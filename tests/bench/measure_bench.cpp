@@ -17,11 +17,7 @@
 #include "shapesim/exact_aperture.hpp"
 #include "shapesim/fits_io.hpp"
 #include "shapesim/morphometry.hpp"
-
-#include <cstddef>  // sep.h uses size_t without including it
-extern "C" {        // sep.h has no C++ guards
-#include <sep.h>
-}
+#include "../unit/test_support.hpp"
 
 #include <benchmark/benchmark.h>
 
@@ -60,21 +56,9 @@ const ApertureCase& aperture_case() {
     return c;
 }
 
-double sep_sum(std::vector<double>& data, bool ellipse, double x, double y, double a) {
-    sep_image im{};
-    im.data = data.data();
-    im.dtype = SEP_TDOUBLE;
-    im.w = kSide;
-    im.h = kSide;
-    im.noise_type = SEP_NOISE_NONE;
-    double sum = 0.0, err = 0.0, area = 0.0;
-    short flag = 0;
-    if (ellipse)
-        sep_sum_ellipse(&im, x, y, 1.0, 1.0 / kAxisRatio, kTheta, a, 0, 0, 0, &sum, &err, &area,
-                        &flag);
-    else
-        sep_sum_circle(&im, x, y, a, 0, 0, 0, &sum, &err, &area, &flag);
-    return sum;
+double sep_sum(const std::vector<double>& data, bool ellipse, double x, double y, double a) {
+    return ellipse ? test::sep_ellipse_sum(data, kSide, kSide, x, y, a, a / kAxisRatio, kTheta)
+                   : test::sep_circle_sum(data, kSide, kSide, x, y, a);
 }
 
 double our_sum(const std::vector<double>& data, bool ellipse, double x, double y, double a) {
@@ -85,7 +69,7 @@ double our_sum(const std::vector<double>& data, bool ellipse, double x, double y
 void BM_ExactAperture(benchmark::State& state) {
     const bool ellipse = state.range(0) == 1, sep = state.range(1) == 1;
     const double a = double(state.range(2));
-    ApertureCase c = aperture_case();
+    const ApertureCase& c = aperture_case();
     double max_diff = 0.0;
     for (std::size_t k = 0; k < c.x.size(); ++k) {
         const double want = sep_sum(c.data, ellipse, c.x[k], c.y[k], a);

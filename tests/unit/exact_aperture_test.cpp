@@ -3,10 +3,7 @@
 // (circles cut by the edges, radii below a pixel, centres on pixel centres and corners).
 #include "shapesim/exact_aperture.hpp"
 
-#include <cstddef>  // sep.h uses size_t without including it
-extern "C" {        // sep.h has no C++ guards
-#include <sep.h>
-}
+#include "test_support.hpp"
 
 #include <gtest/gtest.h>
 
@@ -20,47 +17,14 @@ using namespace shapesim;
 
 namespace {
 
-// libsep's view of a row-major w × h image of doubles, no mask, no noise.
-sep_image sep_view_of(std::vector<double>& data, int w, int h) {
-    sep_image im{};
-    im.data = data.data();
-    im.dtype = SEP_TDOUBLE;
-    im.w = w;
-    im.h = h;
-    im.noise_type = SEP_NOISE_NONE;
-    return im;
-}
-
-double sep_circle(std::vector<double>& data, int w, int h, double x, double y, double r) {
-    const sep_image im = sep_view_of(data, w, h);
-    double sum = 0.0, err = 0.0, area = 0.0;
-    short flag = 0;
-    EXPECT_EQ(sep_sum_circle(&im, x, y, r, 0, 0, 0, &sum, &err, &area, &flag), 0);
-    return sum;
-}
-
-// ∫ f over [cuts.front(), cuts.back()], f smooth between consecutive cuts: 20-point
-// Gauss–Legendre on 8 panels of each piece.
+// ∫ f over [cuts.front(), cuts.back()], f smooth between consecutive cuts: test_support's
+// 20-point Gauss–Legendre on 8 panels of each piece.
 template <class F>
 double integrate_pieces(F f, std::vector<double> cuts) {
-    static const double node[10] = {0.0765265211334973, 0.2277858511416451, 0.3737060887154195,
-                                    0.5108670019508271, 0.6360536807265150, 0.7463319064601508,
-                                    0.8391169718222188, 0.9122344282513259, 0.9639719272779138,
-                                    0.9931285991850949};
-    static const double weight[10] = {0.1527533871307258, 0.1491729864726037, 0.1420961093183820,
-                                      0.1316886384491766, 0.1181945319615184, 0.1019301198172404,
-                                      0.0832767415767048, 0.0626720483341091, 0.0406014298003869,
-                                      0.0176140071391521};
     std::sort(cuts.begin(), cuts.end());
     double area = 0.0;
     for (std::size_t k = 0; k + 1 < cuts.size(); ++k)
-        for (int p = 0; p < 8; ++p) {
-            const double a = cuts[k] + (cuts[k + 1] - cuts[k]) * p / 8.0,
-                         b = cuts[k] + (cuts[k + 1] - cuts[k]) * (p + 1) / 8.0;
-            const double mid = 0.5 * (a + b), half = 0.5 * (b - a);
-            for (int n = 0; n < 10; ++n)
-                area += half * weight[n] * (f(mid - half * node[n]) + f(mid + half * node[n]));
-        }
+        area += test::integrate(f, cuts[k], cuts[k + 1], 8);
     return area;
 }
 
@@ -166,7 +130,7 @@ TEST(ExactAperture, SumsAsSepDoes) {
             if (!(r > 0.0)) continue;
             // Each pixel's area as OverlapMatchesQuadrature holds it (sep's to ~r ε).
             ASSERT_NEAR(sum_circle(im.data.data(), im.w, im.h, x, y, r),
-                        sep_circle(im.data, im.w, im.h, x, y, r),
+                        test::sep_circle_sum(im.data, im.w, im.h, x, y, r),
                         2e-15 * (1.0 + r * r) * im.magnitude)
                 << "w " << im.w << " h " << im.h << " x " << x << " y " << y << " r " << r;
             ++cases;
@@ -197,7 +161,7 @@ TEST(ExactAperture, OneWalkWeighsSeveralImages) {
         });
         EXPECT_EQ(sa, sum_circle(a.data(), w, h, x, y, r));
         EXPECT_EQ(sb, sum_circle(b.data(), w, h, x, y, r));
-        EXPECT_NEAR(sa, sep_circle(a, w, h, x, y, r), 1e-12 * w * h);
+        EXPECT_NEAR(sa, test::sep_circle_sum(a, w, h, x, y, r), 1e-12 * w * h);
     }
 }
 
@@ -233,16 +197,6 @@ double ellipse_by_quadrature(double x0, double y0, double x1, double y1, double 
         return height * ex * std::cos(ph);
     };
     return integrate_pieces(f, cuts);
-}
-
-double sep_ellipse(std::vector<double>& data, int w, int h, double x, double y, double a,
-                   double b, double theta) {
-    const sep_image im = sep_view_of(data, w, h);
-    double sum = 0.0, err = 0.0, area = 0.0;
-    short flag = 0;
-    EXPECT_EQ(sep_sum_ellipse(&im, x, y, 1.0, b / a, theta, a, 0, 0, 0, &sum, &err, &area, &flag),
-              0);
-    return sum;
 }
 
 }  // namespace
@@ -326,7 +280,7 @@ TEST(ExactAperture, EllipseSumsAsSepDoes) {
             const double b = a / (1.0 + 4.0 * unit(rng));
             const double theta = 3.14 * unit(rng) - 1.57;  // sep takes |θ| ≤ π/2
             ASSERT_NEAR(sum_ellipse(im.data.data(), im.w, im.h, x, y, a, b, theta),
-                        sep_ellipse(im.data, im.w, im.h, x, y, a, b, theta),
+                        test::sep_ellipse_sum(im.data, im.w, im.h, x, y, a, b, theta),
                         4e-15 * (1.0 + a * a) * im.magnitude)
                 << "w " << im.w << " h " << im.h << " x " << x << " y " << y << " a " << a
                 << " b " << b << " θ " << theta;

@@ -137,6 +137,13 @@ MeanRms mean_rms(const std::vector<double>& v, const std::vector<double>& key,
 /// 160 at 0, the rest 2–7), or `heavy`: n_max = k mod 16.
 Morphology synthetic_morphology(bool heavy);
 
+/// libsep's exact aperture sums (subpix 0, no mask, no noise) over a row-major w × h image: the
+/// circle of radius r, and the ellipse of semi-axes a (at θ, counter-clockwise from x) and b,
+/// about (x, y). NaN where sep refuses the aperture.
+double sep_circle_sum(const std::vector<double>& data, int w, int h, double x, double y, double r);
+double sep_ellipse_sum(const std::vector<double>& data, int w, int h, double x, double y,
+                       double a, double b, double theta);
+
 /// Kolmogorov–Smirnov p-value of a sample against a CDF (asymptotic distribution with
 /// Stephens' small-sample correction; Press et al., Numerical Recipes §14.3).
 double ks_p_value(std::vector<double> sample, const std::function<double(double)>& cdf);
