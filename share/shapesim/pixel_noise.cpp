@@ -383,16 +383,19 @@ __attribute__((always_inline)) inline void photon_run(const std::uint32_t* words
             const Doubles4 mu = inversion ? mean : 1.0;
             const Doubles4 u = top1 * 0x1.0p-53;  // uniform()
             // A lane that has stopped keeps stepping p and cdf (values no one reads), so the
-            // steps do not wait on the comparisons.
+            // steps do not wait on the comparisons; and the lanes are asked whether any still
+            // walks only every fourth step (the walk's length is random: a test per step
+            // mispredicts its last, and each group of pixels pays that).
             Doubles4 p = lane::exp(-mu), cdf = p;
             Mask4 walking = inversion & (u > cdf);
-            for (long k = 1; any(walking); ++k) {
-                p = p * (k < 64 ? mu * detail::reciprocals.value[k] : mu / double(k));
-                const Mask4 far = p < 1e-300;  // the far tail: stop there
-                count = walking ? double(k) : count;
-                cdf = cdf + p;
-                walking = walking & ~far & (u > cdf);
-            }
+            for (long k = 1; any(walking);)
+                for (const long last = k + 4; k < last; ++k) {
+                    p = p * (k < 64 ? mu * detail::reciprocals.value[k] : mu / double(k));
+                    const Mask4 far = p < 1e-300;  // the far tail: stop there
+                    count = walking ? double(k) : count;
+                    cdf = cdf + p;
+                    walking = walking & ~far & (u > cdf);
+                }
         }
         if (any(ptrs_lanes)) {
             const detail::Ptrs<Doubles4> ptrs(ptrs_lanes ? mean : 10.0);
@@ -493,24 +496,45 @@ void settle_open_baseline(const long* index, const double* mean,
 }
 
 // The first i in [from, count) whose pixel is bright enough for photon noise (s > 0 and
-// s ≥ least) when `bright`, or is not when !bright; count if there is none. Four pixels a
-// lane group: most of an image is dark sky, scanned here.
-__attribute__((target_clones("avx2", "default"))) long next_bright(const double* pixels, long from,
-                                                                  long count, double least,
-                                                                  bool bright) {
-    auto is_bright = [&](double s) { return s > 0.0 && s >= least; };
-    long i = from;
-    for (; i + 4 <= count; i += 4) {
-        Doubles4 s;
-        std::memcpy(&s, pixels + i, sizeof s);
-        const Mask4 lit = (s > 0.0) & (s >= least);
-        const Mask4 wanted = bright ? lit : ~lit;
-        // Reduced here, not by any(): clang refuses a 256-bit argument in the baseline clone.
-        if ((wanted[0] | wanted[1] | wanted[2] | wanted[3]) != 0) break;
-    }
-    for (; i < count; ++i)
-        if (is_bright(pixels[i]) == bright) return i;
+// s ≥ least) when `bright`, or is not when !bright; count if there is none. Most of an image is
+// dark sky, scanned here: eight pixels a step in AVX2, their tests as a bit mask whose lowest
+// set bit is the answer.
+long next_bright_scalar(const double* pixels, long from, long count, double least, bool bright) {
+    for (long i = from; i < count; ++i)
+        if ((pixels[i] > 0.0 && pixels[i] >= least) == bright) return i;
     return count;
+}
+
+#ifdef SHAPESIM_PHILOX_SIMD
+// Bit k set where pixel k of the four at `s` is bright (NaN is not).
+__attribute__((target("avx2"))) inline unsigned bright_bits(const double* s, __m256d least) {
+    const __m256d v = _mm256_loadu_pd(s);
+    return unsigned(_mm256_movemask_pd(_mm256_and_pd(_mm256_cmp_pd(v, _mm256_setzero_pd(), _CMP_GT_OQ),
+                                                     _mm256_cmp_pd(v, least, _CMP_GE_OQ))));
+}
+
+__attribute__((target("avx2"))) long next_bright_avx2(const double* pixels, long from, long count,
+                                                      double least, bool bright) {
+    const __m256d floor = _mm256_set1_pd(least);
+    const unsigned flip = bright ? 0u : 0xffu;
+    long i = from;
+    for (; i + 8 <= count; i += 8)
+        if (const unsigned wanted =
+                (bright_bits(pixels + i, floor) | bright_bits(pixels + i + 4, floor) << 4) ^ flip;
+            wanted != 0) {
+            _mm256_zeroupper();
+            return i + __builtin_ctz(wanted);
+        }
+    _mm256_zeroupper();
+    return next_bright_scalar(pixels, i, count, least, bright);
+}
+#endif
+
+long next_bright(const double* pixels, long from, long count, double least, bool bright) {
+#ifdef SHAPESIM_PHILOX_SIMD
+    if (have_avx2()) return next_bright_avx2(pixels, from, count, least, bright);
+#endif
+    return next_bright_scalar(pixels, from, count, least, bright);
 }
 
 // Ziggurat::slow's first steps for the words that did not decide alone (slow[0 … n): pixel

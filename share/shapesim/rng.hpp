@@ -168,9 +168,15 @@ SHAPESIM_LANES D log_factorial(D k, const double* small) {
     const D x = k + 1.0, inv = 1.0 / x, inv2 = inv * inv;
     const D series = inv * (1.0 / 12 - inv2 * (1.0 / 360 - inv2 * (1.0 / 1260 - inv2 / 1680)));
     D out = (x - 0.5) * lane::log(x) - x + 0.91893853320467274178 + series;  // ½ ln 2π
-    if constexpr (!std::is_same_v<D, double>)
-        for (int i = 0; i < int(sizeof(D) / sizeof(double)); ++i)
-            if (k[i] >= 0.0 && k[i] <= 20.0) out[i] = small[int(k[i])];
+    if constexpr (!std::is_same_v<D, double>) {
+        // The table's entries, made into lanes from scalars and chosen by a mask: lanes
+        // written one by one would go through memory, and the vector read back after those
+        // scalar writes waits for them.
+        static_assert(sizeof(D) == 4 * sizeof(double), "four lanes");
+        auto entry = [&](int i) { return k[i] >= 0.0 && k[i] <= 20.0 ? small[int(k[i])] : 0.0; };
+        const D table = {entry(0), entry(1), entry(2), entry(3)};
+        out = (k >= 0.0) & (k <= 20.0) ? table : out;
+    }
     return out;
 }
 inline double log_factorial(double k) { return log_factorial(k, small_log_factorials()); }
