@@ -432,12 +432,13 @@ __attribute__((always_inline)) inline void settle_open(const long* index, const 
     const double* small = detail::small_log_factorials();
     for (long i = 0; i < n; i += 4) {
         const int lanes = int(std::min(4L, n - i));
-        Doubles4 mean = {10.0, 10.0, 10.0, 10.0};
-        Words4 w[4] = {};
-        for (int j = 0; j < lanes; ++j) {
-            mean[j] = mean_of[i + j];
-            for (int q = 0; q < 4; ++q) w[q][j] = blocks[i + j][std::size_t(q)];
-        }
+        // Lanes made from scalars (past the end, copies of the last pixel), not written one
+        // by one: a vector read after lane-by-lane writes waits for them.
+        const auto p = [&](int j) { return std::size_t(i + std::min(j, lanes - 1)); };
+        const Doubles4 mean = {mean_of[p(0)], mean_of[p(1)], mean_of[p(2)], mean_of[p(3)]};
+        Words4 w[4];
+        for (std::size_t q = 0; q < 4; ++q)
+            w[q] = Words4{blocks[p(0)][q], blocks[p(1)][q], blocks[p(2)][q], blocks[p(3)][q]};
         const Mask4 real = real_lanes(lanes);
         const detail::Ptrs<Doubles4> ptrs(mean);
         Doubles4 count = {0.0, 0.0, 0.0, 0.0}, k;
@@ -552,22 +553,26 @@ __attribute__((always_inline)) inline long settle_slow_lanes(const std::uint32_t
     long unsettled = 0;
     for (long k = 0; k < n; k += 4) {
         const int lanes = int(std::min(4L, n - k));
-        Doubles4 x, f_layer, f_next, width, inner;
-        Words4 b0, b1;
-        Mask4 base;
-        for (int j = 0; j < 4; ++j) {  // past the end: copies of the last
-            const long s = k + std::min(j, lanes - 1);
-            const std::uint32_t word = words[slow[s]];
-            const int layer = int(word & 127), fresh = int(blocks[s][1] & 127);
-            x[j] = double(std::abs(out[slow[s]]));
-            f_layer[j] = zig.density(layer);
-            f_next[j] = zig.density(layer + 1);
-            width[j] = zig.edge(fresh);
-            inner[j] = zig.edge(fresh + 1);
-            b0[j] = blocks[s][0];
-            b1[j] = blocks[s][1];
-            base[j] = layer == 0 ? -1 : 0;
-        }
+        // Lanes made from scalars (past the end, copies of the last), not written one by one:
+        // a vector read after lane-by-lane writes waits for them.
+        const long s[4] = {k, k + std::min(1, lanes - 1), k + std::min(2, lanes - 1),
+                           k + std::min(3, lanes - 1)};
+        const auto layer = [&](int j) { return int(words[slow[s[j]]] & 127); };
+        const auto fresh = [&](int j) { return int(blocks[s[j]][1] & 127); };
+        const auto x_of = [&](int j) { return double(std::abs(out[slow[s[j]]])); };
+        const Doubles4 x = {x_of(0), x_of(1), x_of(2), x_of(3)};
+        const Doubles4 f_layer = {zig.density(layer(0)), zig.density(layer(1)),
+                                  zig.density(layer(2)), zig.density(layer(3))};
+        const Doubles4 f_next = {zig.density(layer(0) + 1), zig.density(layer(1) + 1),
+                                 zig.density(layer(2) + 1), zig.density(layer(3) + 1)};
+        const Doubles4 width = {zig.edge(fresh(0)), zig.edge(fresh(1)), zig.edge(fresh(2)),
+                                zig.edge(fresh(3))};
+        const Doubles4 inner = {zig.edge(fresh(0) + 1), zig.edge(fresh(1) + 1),
+                                zig.edge(fresh(2) + 1), zig.edge(fresh(3) + 1)};
+        const Words4 b0 = {blocks[s[0]][0], blocks[s[1]][0], blocks[s[2]][0], blocks[s[3]][0]};
+        const Words4 b1 = {blocks[s[0]][1], blocks[s[1]][1], blocks[s[2]][1], blocks[s[3]][1]};
+        const Mask4 base = Words4{std::uint64_t(layer(0)), std::uint64_t(layer(1)),
+                                  std::uint64_t(layer(2)), std::uint64_t(layer(3))} == 0;
         const Doubles4 top0 = top53(b0), top1 = top53(b1);
         // The wedge: accepted under the curve, else the fresh word's abscissa.
         const Doubles4 u = top0 * 0x1.0p-53;  // uniform()
