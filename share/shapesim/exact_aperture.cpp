@@ -71,9 +71,12 @@ public:
         const double U = u(px, py), V = v(px, py);
         return U * U + V * V;
     }
-    // A bound on how far a pixel's corners lie from its centre in the scaled frame: half the
-    // images of its sides, (c, −k s) and (s, k c), added.
-    double half_diagonal() const { return 0.5 * (std::hypot(c_, k_ * s_) + std::hypot(s_, k_ * c_)); }
+    // How far a pixel's corners lie from its centre in the scaled frame: half the longer
+    // diagonal of the parallelogram whose sides are the images (c, −k s) and (s, k c) of the
+    // pixel's, |s₁ ± s₂|² = 1 + k² ± 2 c s (1 − k²).
+    double half_diagonal() const {
+        return 0.5 * std::sqrt(1.0 + k_ * k_ + 2.0 * std::abs(c_ * s_ * (1.0 - k_ * k_)));
+    }
     Line column_line(double px) const { return line(column_, u(px, 0.0), v(px, 0.0)); }
     Line row_line(double py) const { return line(row_, u(0.0, py), v(0.0, py)); }
 
@@ -91,6 +94,8 @@ public:
             V[n] = v(px[n], py[n]);
             inside[n] = U[n] * U[n] + V[n] * V[n] <= r_ * r_;
         }
+        // A convex pixel with its corners inside the ellipse lies inside it.
+        if (inside[0] && inside[1] && inside[2] && inside[3]) return (xr - xl) * (yt - yb);
         struct Edge {
             const Family* family;
             const Line* line;
