@@ -71,6 +71,13 @@ public:
         const double U = u(px, py), V = v(px, py);
         return U * U + V * V;
     }
+    // Along the row py, ρ² = A (px − p*)² + k² py²/A with A = c² + k² s² and
+    // p* = −py c s (1 − k²)/A: the offset p* nearest the centre, and the half-width of the
+    // part of the row where ρ² ≤ limit2.
+    double row_middle(double py) const { return py * middle_slope_; }
+    double row_half_width(double py, double limit2) const {
+        return std::sqrt(std::max(limit2 - k2_over_a_ * py * py, 0.0) * inverse_a_);
+    }
     // How far a pixel's corners lie from its centre in the scaled frame: half the longer
     // diagonal of the parallelogram whose sides are the images (c, −k s) and (s, k c) of the
     // pixel's, |s₁ ± s₂|² = 1 + k² ± 2 c s (1 − k²).
@@ -197,6 +204,10 @@ private:
 
     double c_, s_, k_, r_;
     Family column_, row_;
+    // The rows' parabolas (row_middle): 1/A, −c s (1 − k²)/A and k²/A.
+    double inverse_a_ = 1.0 / (c_ * c_ + k_ * k_ * s_ * s_);
+    double middle_slope_ = -c_ * s_ * (1.0 - k_ * k_) * inverse_a_;
+    double k2_over_a_ = k_ * k_ * inverse_a_;
 };
 
 }  // namespace
@@ -250,17 +261,34 @@ double sum_ellipse(const double* data, int w, int h, double x, double y, double 
         const std::size_t b = std::size_t(j - j0);
         const double dy = double(j) - y;
         const double* row = data + long(j) * w;
-        for (int i = i0; i < i1; ++i) {
-            const double rho2 = e.rho2(double(i) - x, dy);
-            if (!(rho2 < r_out2)) continue;
-            const std::size_t l = std::size_t(i - i0);
-            const double weight =
-                rho2 <= r_in2 ? 1.0
-                              : e.pixel_area(column_at[l], column_at[l + 1], row_at[b],
-                                             row_at[b + 1], columns[l], columns[l + 1], rows[b],
-                                             rows[b + 1]);
-            sum += sep_term(row[i], weight);
+        // Along the row the pixels within r_out, and within them those within r_in, are runs
+        // about the column nearest the middle of the ellipse's chord (ρ² is a parabola in i).
+        const double middle = x + e.row_middle(dy);
+        const int nearest = std::clamp(int(std::floor(middle + 0.5)), i0, i1 - 1);
+        auto reached = [&](int i) { return e.rho2(double(i) - x, dy) < r_out2; };
+        auto inside = [&](int i) { return e.rho2(double(i) - x, dy) <= r_in2; };
+        int first, last;
+        const double out_half = e.row_half_width(dy, r_out2);
+        run_about(nearest, i0, i1, middle - out_half, middle + out_half, reached, first, last);
+        if (first > last) continue;
+        const int begin = first, end = last + 1;
+        int inner_begin = end, inner_end = end;
+        if (r_in2 > 0.0) {
+            const double in_half = e.row_half_width(dy, r_in2);
+            run_about(nearest, i0, i1, middle - in_half, middle + in_half, inside, first, last);
+            if (first <= last) inner_begin = first, inner_end = last + 1;
         }
+        auto band = [&](int from, int to) {
+            for (int i = from; i < to; ++i) {
+                const std::size_t l = std::size_t(i - i0);
+                sum += sep_term(row[i], e.pixel_area(column_at[l], column_at[l + 1], row_at[b],
+                                                     row_at[b + 1], columns[l], columns[l + 1],
+                                                     rows[b], rows[b + 1]));
+            }
+        };
+        band(begin, inner_begin);
+        for (int i = inner_begin; i < inner_end; ++i) sum += sep_term(row[i], 1.0);
+        band(inner_end, end);
     }
     return sum;
 }

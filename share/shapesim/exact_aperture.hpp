@@ -58,6 +58,20 @@ inline double pixel_overlap(const CircleLine& x0, const CircleLine& x1, const Ci
 /// the origin (0 for r ≤ 0).
 double circle_overlap(double xmin, double ymin, double xmax, double ymax, double r);
 
+/// The run [first, last] of columns in [lo, hi) about `nearest` where `test` holds (first >
+/// last: none), for a test that holds on an interval of columns holding `nearest` if on any:
+/// from estimates of its ends, moved column by column to where the test changes.
+template <class Test>
+void run_about(int nearest, int lo, int hi, double first_estimate, double last_estimate,
+               Test&& test, int& first, int& last) {
+    first = std::clamp(int(std::ceil(first_estimate)), lo, nearest);
+    while (first > lo && test(first - 1)) --first;
+    while (first <= nearest && !test(first)) ++first;
+    last = std::clamp(int(std::floor(last_estimate)), nearest, hi - 1);
+    while (last < hi - 1 && test(last + 1)) ++last;
+    while (last >= nearest && !test(last)) --last;
+}
+
 /// The lines of one circle's box and one row's weights; reused from call to call by each thread.
 struct CircleLines {
     std::vector<CircleLine> columns, rows;
@@ -108,12 +122,7 @@ void visit_circle_rows(int w, int h, double x, double y, double r, Row&& row) {
         // The run [first, last] about `nearest` where `test` holds (first > last: none).
         auto run = [&](auto test, double limit2, int& first, int& last) {
             const double half = std::sqrt(std::max(limit2 - dy2, 0.0));
-            first = std::clamp(int(std::ceil(x - half)), i0, nearest);
-            while (first > i0 && test(first - 1)) --first;
-            while (first <= nearest && !test(first)) ++first;
-            last = std::clamp(int(std::floor(x + half)), nearest, i1 - 1);
-            while (last < i1 - 1 && test(last + 1)) ++last;
-            while (last >= nearest && !test(last)) --last;
+            run_about(nearest, i0, i1, x - half, x + half, test, first, last);
         };
         int first, last;
         run(reached, r_out2, first, last);
