@@ -14,6 +14,7 @@
 #pragma once
 
 #include "shapesim/constants.hpp"
+#include "shapesim/lane_math.hpp"
 
 #include <algorithm>
 #include <cmath>
@@ -31,8 +32,12 @@ struct CircleLine {
 
 inline CircleLine circle_line(double t, double r) {
     const double a = std::min(std::abs(t), r);
-    return {t < 0.0 ? -1.0 : 1.0, a, std::sqrt((r - a) * (r + a)), std::asin(a / r)};
+    return {t < 0.0 ? -1.0 : 1.0, a, std::sqrt((r - a) * (r + a)), lane::asin(a / r)};
 }
+
+/// out[n] = circle_line((first + n − ½) − x, r) for n < count: the lines of a box, four at a
+/// time in lanes (the same bits).
+void circle_lines(int first, int count, double x, double r, CircleLine* out);
 
 /// The area of the circle of radius r about the origin inside [0, x] × [0, y], signed (odd in
 /// x and in y), for the lines x and y. A corner inside the circle bounds a rectangle inside it;
@@ -98,10 +103,8 @@ void visit_circle_rows(int w, int h, double x, double y, double r, Row&& row) {
     lines.columns.resize(std::size_t(i1 - i0 + 1));
     lines.rows.resize(std::size_t(j1 - j0 + 1));
     lines.weights.resize(std::size_t(i1 - i0));
-    for (int i = i0; i <= i1; ++i)
-        lines.columns[std::size_t(i - i0)] = circle_line((double(i) - 0.5) - x, r);
-    for (int j = j0; j <= j1; ++j)
-        lines.rows[std::size_t(j - j0)] = circle_line((double(j) - 0.5) - y, r);
+    circle_lines(i0, i1 - i0 + 1, x, r, lines.columns.data());
+    circle_lines(j0, j1 - j0 + 1, y, r, lines.rows.data());
     const CircleLine* columns = lines.columns.data() - i0;
     double* weights = lines.weights.data();
     // The box's column nearest the centre: along a row, sep's tests (dx² + dy² against r_out²

@@ -9,6 +9,9 @@
 //         degree-14 minimax R (|error| < 2⁻⁵⁸·⁴⁵), k ln 2 in two parts; < 1 ulp.
 //   eˣ    k = round(x/ln 2), r = x − k ln 2 (two parts), eʳ by fdlibm's degree-5 rational
 //         Remez form (|error| < 2⁻⁵⁹), scaled by 2^k; < 1 ulp.
+//   asin  |x| < ½: x + x·R(x²); above, from t = (1 − |x|)/2 and √t (π/2 − 2 asin √t), √t
+//         split in two parts below 0.975; R fdlibm's rational minimax (|error| < 2⁻⁵⁸·⁷⁵);
+//         < 1 ulp. In lanes every branch is computed and one chosen.
 // Tests hold them to within 1 ulp of libm over their domains and scalar = lane bit for bit.
 // The build's -ffp-contract=off keeps a·b + c from becoming an FMA in one width only.
 #pragma once
@@ -104,6 +107,37 @@ SHAPESIM_LANES D exp(D x) {
     // 2^k: k sits in the low bits of `shifted` (two's complement); its exponent field.
     const auto scale = (bits(shifted) - bits(D{} + shifter) + 1023) << 52;
     return y * from_bits(scale);
+}
+
+/// One of two values by a condition (a bool, or a comparison's lanes).
+SHAPESIM_LANES double select(bool m, double a, double b) { return m ? a : b; }
+SHAPESIM_LANES Doubles4 select(Mask4 m, Doubles4 a, Doubles4 b) { return m ? a : b; }
+
+/// asin x for x ∈ [−1, 1].
+template <class D>
+SHAPESIM_LANES D asin(D x) {
+    constexpr double pio2_hi = 1.57079632679489655800e+00, pio2_lo = 6.12323399573676603587e-17,
+                     pio4_hi = 7.85398163397448278999e-01;
+    constexpr double ps0 = 1.66666666666666657415e-01, ps1 = -3.25565818622400915405e-01,
+                     ps2 = 2.01212532134862925881e-01, ps3 = -4.00555345006794114027e-02,
+                     ps4 = 7.91534994289814532176e-04, ps5 = 3.47933107596021167570e-05;
+    constexpr double qs1 = -2.40339491173441421878e+00, qs2 = 2.02094576023350569471e+00,
+                     qs3 = -6.88283971605453293030e-01, qs4 = 7.70381505559019352791e-02;
+    const D ax = abs(x);
+    const auto high = bits(ax) >> 32;  // fdlibm's tests on the high word
+    const auto tiny = high < 0x3e400000ULL, small = high < 0x3fe00000ULL,
+               steep = high >= 0x3fef3333ULL;  // |x| < 2⁻²⁷, < ½, ≥ 0.975
+    const D t = select(small, ax * ax, (1.0 - ax) * 0.5);
+    const D p = t * (ps0 + t * (ps1 + t * (ps2 + t * (ps3 + t * (ps4 + t * ps5)))));
+    const D q = 1.0 + t * (qs1 + t * (qs2 + t * (qs3 + t * qs4)));
+    const D w = p / q;
+    const D s = sqrt(t);
+    const D s_high = from_bits(bits(s) & 0xffffffff00000000ULL);  // √t's leading half
+    const D c = (t - s_high * s_high) / (s + s_high);             // and the rest
+    const D near_one = pio2_hi - (2.0 * (s + s * w) - pio2_lo);
+    const D middle = pio4_hi - ((2.0 * s * w - (pio2_lo - 2.0 * c)) - (pio4_hi - 2.0 * s_high));
+    const D magnitude = select(small, select(tiny, ax, ax + ax * w), select(steep, near_one, middle));
+    return from_bits(bits(magnitude) | (bits(x) & 0x8000000000000000ULL));
 }
 
 }  // namespace shapesim::lane

@@ -1,4 +1,4 @@
-// lane::log and lane::exp: within 1 ulp of libm over their domains, and the same bits in a
+// lane::log, lane::exp and lane::asin: within 1 ulp of libm over their domains, and the same bits in a
 // vector lane as for a double (what lets photon noise draw four pixels at a time and still
 // give the per-pixel draw).
 // Lanes by value in code built without AVX (see lane_math.hpp: all inlined).
@@ -34,7 +34,8 @@ void expect_close_and_lanes_equal(const std::vector<double>& xs, F scalar, G lan
         for (int j = 0; j < 4; ++j) {
             const double s = scalar(x[j]);
             ASSERT_EQ(lane::bits(y[j]), lane::bits(s)) << what << " lane " << j << " of x = " << x[j];
-            worst = std::max(worst, ulps(s, what[0] == 'l' ? std::log(x[j]) : std::exp(x[j])));
+            const double libm = what[0] == 'l' ? std::log(x[j]) : what[0] == 'e' ? std::exp(x[j]) : std::asin(x[j]);
+            worst = std::max(worst, ulps(s, libm));
         }
     }
     EXPECT_LE(worst, 1) << what;
@@ -75,6 +76,30 @@ TEST(LaneMath, ExpWithinAnUlpAndLanesEqualScalar) {
             for (int j = 0; j < 4; ++j) y[j] = v[j];
         }, "exp");
     EXPECT_EQ(lane::exp(0.0), 1.0);
+}
+
+TEST(LaneMath, AsinWithinAnUlpAndLanesEqualScalar) {
+    RandomStream r(3, 4, "lane asin");
+    std::vector<double> xs;
+    for (int i = 0; i < 400000; ++i) xs.push_back(r.uniform(-1.0, 1.0));
+    for (int i = 0; i < 100000; ++i) xs.push_back(1.0 - std::exp(r.uniform(-36.0, 0.0)));  // near 1
+    for (int i = 0; i < 100000; ++i) xs.push_back(std::exp(r.uniform(-40.0, 0.0)));  // near 0
+    for (int i = 0; i < 4000; ++i) {  // about the branches' edges ½ and 0.975
+        xs.push_back(0.5 + (i - 2000) * 0x1.0p-52);
+        xs.push_back(0x1.f333300000000p-1 + (i - 2000) * 0x1.0p-52);
+    }
+    for (const double x : {0.0, -0.0, 1.0, -1.0, 0.5, -0.5, 0x1.0p-27, 0x1.fffffffffffffp-28, 0.975})
+        xs.push_back(x);
+    while (xs.size() % 4) xs.push_back(0.0);
+    expect_close_and_lanes_equal(
+        xs, [](double x) { return lane::asin(x); }, [](const double* x, double* y) {
+            const lane::Doubles4 v = lane::asin(lane::Doubles4{x[0], x[1], x[2], x[3]});
+            for (int j = 0; j < 4; ++j) y[j] = v[j];
+        }, "asin");
+    EXPECT_EQ(lane::bits(lane::asin(0.0)), lane::bits(0.0));
+    EXPECT_EQ(lane::bits(lane::asin(-0.0)), lane::bits(-0.0));
+    EXPECT_EQ(lane::asin(1.0), std::asin(1.0));
+    EXPECT_EQ(lane::asin(-1.0), -std::asin(1.0));
 }
 
 // ln k! against the exact sum of logs (long double), and lanes against the scalar, across the
