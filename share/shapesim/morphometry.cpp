@@ -24,6 +24,82 @@ namespace shapesim {
 
 namespace {
 
+// The outlier test of bad_pixels for pixels here[0 … count), away from the stamp's edges (rows
+// above and below, columns either side): out[i] = |v − m| > n_σ s, m and s² = m₂ − m² the mean
+// and variance of the eight neighbours, summed in the same order in lanes or not (the same
+// bits), four pixels a lane group.
+__attribute__((target_clones("avx2", "default"))) void outliers(const double* above,
+                                                               const double* here,
+                                                               const double* below, long count,
+                                                               double n_sigma, std::uint8_t* out) {
+    using lane::Doubles4;
+    long i = 0;
+    for (; i + 4 <= count; i += 4) {
+        Doubles4 m = {}, m2 = {};
+        for (const double* p : {above - 1, above, above + 1, here - 1, here + 1, below - 1, below,
+                                below + 1}) {
+            Doubles4 w;
+            std::memcpy(&w, p + i, sizeof w);
+            m += w / 8.0;
+            m2 += w * w / 8.0;
+        }
+        Doubles4 v;
+        std::memcpy(&v, here + i, sizeof v);
+        const lane::Mask4 outlier = lane::abs(v - m) > n_sigma * lane::sqrt(m2 - m * m);
+        for (int k = 0; k < 4; ++k) out[i + k] = outlier[k] != 0;
+    }
+    for (; i < count; ++i) {
+        double m = 0.0, m2 = 0.0;
+        for (const double* p : {above - 1, above, above + 1, here - 1, here + 1, below - 1, below,
+                                below + 1}) {
+            m += p[i] / 8.0;
+            m2 += p[i] * p[i] / 8.0;
+        }
+        out[i] = std::abs(here[i] - m) > n_sigma * std::sqrt(m2 - m * m);
+    }
+}
+
+}  // namespace
+
+// Outliers are cosmic rays and hot pixels.
+Eigen::Array<bool, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor> detail::bad_pixels(
+    const ImageArray& image, const LabelArray& labels, int label, const MaskArray* mask,
+    double n_sigma) {
+    const long ny = image.rows(), nx = image.cols();
+    Eigen::Array<bool, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor> masked(ny, nx);
+    thread_local std::vector<std::uint8_t> outlier;  // a row's, away from the edges
+    outlier.resize(std::size_t(nx));
+    for (long j = 0; j < ny; ++j) {
+        const bool inner_row = n_sigma > 0.0 && j > 0 && j + 1 < ny && nx > 2;
+        if (inner_row)
+            outliers(&image(j - 1, 1), &image(j, 1), &image(j + 1, 1), nx - 2, n_sigma,
+                     outlier.data() + 1);
+        for (long i = 0; i < nx; ++i) {
+            const double v = image(j, i);
+            bool bad = (labels(j, i) != 0 && labels(j, i) != label) || (mask && (*mask)(j, i)) ||
+                       !std::isfinite(v);
+            if (!bad && inner_row && i > 0 && i + 1 < nx) {
+                bad = outlier[std::size_t(i)] != 0;
+            } else if (!bad && n_sigma > 0.0) {  // on the edge: neighbours clamped to the stamp
+                double m = 0.0, m2 = 0.0;
+                for (long dj = -1; dj <= 1; ++dj)
+                    for (long di = -1; di <= 1; ++di) {
+                        if (!dj && !di) continue;
+                        const double w =
+                            image(std::clamp(j + dj, 0L, ny - 1), std::clamp(i + di, 0L, nx - 1));
+                        m += w / 8.0;
+                        m2 += w * w / 8.0;
+                    }
+                bad = std::abs(v - m) > n_sigma * std::sqrt(m2 - m * m);
+            }
+            masked(j, i) = bad;
+        }
+    }
+    return masked;
+}
+
+namespace {
+
 constexpr double nan = std::numeric_limits<double>::quiet_NaN();
 
 using Grid = Eigen::Array<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>;
@@ -221,45 +297,7 @@ void add_flag(Morphometry& out, const std::string& f) {
     if (std::find(out.flags.begin(), out.flags.end(), f) == out.flags.end()) out.flags.push_back(f);
 }
 
-// The pixels every statistic leaves out: other segments, the user mask, non-finite pixels and
-// `n_sigma` outliers from their 8 neighbours (cosmic rays, hot pixels).
-Mask bad_pixels(const ImageArray& image, const LabelArray& labels, int label, const MaskArray* mask,
-                double n_sigma) {
-    const long ny = image.rows(), nx = image.cols();
-    Mask masked(ny, nx);
-    for (long j = 0; j < ny; ++j)
-        for (long i = 0; i < nx; ++i) {
-            const double v = image(j, i);
-            bool bad = (labels(j, i) != 0 && labels(j, i) != label) || (mask && (*mask)(j, i)) ||
-                       !std::isfinite(v);
-            if (!bad && n_sigma > 0.0) {
-                double m = 0.0, m2 = 0.0;
-                auto add = [&](double w) {
-                    m += w / 8.0;
-                    m2 += w * w / 8.0;
-                };
-                if (j > 0 && i > 0 && j + 1 < ny && i + 1 < nx) {
-                    // Away from the edges the neighbours in the same order, without clamping.
-                    const double *above = &image(j - 1, i), *here = &image(j, i),
-                                 *below = &image(j + 1, i);
-                    for (const double* p : {above - 1, above, above + 1, here - 1, here + 1,
-                                            below - 1, below, below + 1})
-                        add(*p);
-                } else {
-                    for (long dj = -1; dj <= 1; ++dj)
-                        for (long di = -1; di <= 1; ++di) {
-                            if (!dj && !di) continue;
-                            add(image(std::clamp(j + dj, 0L, ny - 1),
-                                      std::clamp(i + di, 0L, nx - 1)));
-                        }
-                }
-                const double s = std::sqrt(m2 - m * m);
-                if (std::abs(v - m) > n_sigma * s) bad = true;
-            }
-            masked(j, i) = bad;
-        }
-    return masked;
-}
+using detail::bad_pixels;
 
 // The first-moment centre of the segment's light `zs` (of total `total`).
 Centre centroid(const Grid& zs, double total) {
