@@ -18,10 +18,14 @@ double circle_overlap(double xmin, double ymin, double xmax, double ymax, double
                          circle_line(ymax, r), r);
 }
 
+namespace {
+
 // Four lines a lane group: the asin, square root and division of each (the corner areas' only
-// costly steps) share their instructions.
-__attribute__((target_clones("avx2", "default"))) void circle_lines(int first, int count, double x,
-                                                                   double r, CircleLine* out) {
+// costly steps) share their instructions. Compiled for AVX2 and for the baseline, chosen by
+// lane::have_avx2 (clang will not pass lanes to lane_math's helpers from a target_clones
+// function's baseline copy).
+__attribute__((always_inline)) inline void circle_lines_lanes(int first, int count, double x,
+                                                             double r, CircleLine* out) {
     using lane::Doubles4;
     const Doubles4 radius = Doubles4{} + r;
     int n = 0;
@@ -35,6 +39,20 @@ __attribute__((target_clones("avx2", "default"))) void circle_lines(int first, i
         for (int j = 0; j < 4; ++j) out[n + j] = {t[j] < 0.0 ? -1.0 : 1.0, a[j], h[j], g[j]};
     }
     for (; n < count; ++n) out[n] = circle_line((double(first + n) - 0.5) - x, r);
+}
+
+__attribute__((target("avx2"))) void circle_lines_avx2(int first, int count, double x, double r,
+                                                       CircleLine* out) {
+    circle_lines_lanes(first, count, x, r, out);
+}
+
+}  // namespace
+
+void circle_lines(int first, int count, double x, double r, CircleLine* out) {
+    if (lane::have_avx2())
+        circle_lines_avx2(first, count, x, r, out);
+    else
+        circle_lines_lanes(first, count, x, r, out);
 }
 
 CircleLines& circle_lines_workspace() {

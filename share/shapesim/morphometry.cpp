@@ -27,11 +27,10 @@ namespace {
 // The outlier test of bad_pixels for pixels here[0 … count), away from the stamp's edges (rows
 // above and below, columns either side): out[i] = |v − m| > n_σ s, m and s² = m₂ − m² the mean
 // and variance of the eight neighbours, summed in the same order in lanes or not (the same
-// bits), four pixels a lane group.
-__attribute__((target_clones("avx2", "default"))) void outliers(const double* above,
-                                                               const double* here,
-                                                               const double* below, long count,
-                                                               double n_sigma, std::uint8_t* out) {
+// bits), four pixels a lane group. Compiled for AVX2 and for the baseline (outliers chooses).
+__attribute__((always_inline)) inline void outliers_lanes(const double* above, const double* here,
+                                                         const double* below, long count,
+                                                         double n_sigma, std::uint8_t* out) {
     using lane::Doubles4;
     long i = 0;
     for (; i + 4 <= count; i += 4) {
@@ -57,6 +56,20 @@ __attribute__((target_clones("avx2", "default"))) void outliers(const double* ab
         }
         out[i] = std::abs(here[i] - m) > n_sigma * std::sqrt(m2 - m * m);
     }
+}
+
+__attribute__((target("avx2"))) void outliers_avx2(const double* above, const double* here,
+                                                   const double* below, long count,
+                                                   double n_sigma, std::uint8_t* out) {
+    outliers_lanes(above, here, below, count, n_sigma, out);
+}
+
+void outliers(const double* above, const double* here, const double* below, long count,
+              double n_sigma, std::uint8_t* out) {
+    if (lane::have_avx2())
+        outliers_avx2(above, here, below, count, n_sigma, out);
+    else
+        outliers_lanes(above, here, below, count, n_sigma, out);
 }
 
 }  // namespace
