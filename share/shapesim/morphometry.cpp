@@ -24,6 +24,18 @@ namespace shapesim {
 
 namespace {
 
+// bad_pixels' outlier test of one pixel v from its eight neighbours (the row above left to
+// right, the two beside it, the row below): |v − m| > n_σ s, m and s² = m₂ − m² their mean and
+// variance.
+bool is_outlier(double v, const std::array<double, 8>& neighbours, double n_sigma) {
+    double m = 0.0, m2 = 0.0;
+    for (const double w : neighbours) {
+        m += w / 8.0;
+        m2 += w * w / 8.0;
+    }
+    return std::abs(v - m) > n_sigma * std::sqrt(m2 - m * m);
+}
+
 // The outlier test of bad_pixels for pixels here[0 … count), away from the stamp's edges (rows
 // above and below, columns either side): out[i] = |v − m| > n_σ s, m and s² = m₂ − m² the mean
 // and variance of the eight neighbours, summed in the same order in lanes or not (the same
@@ -47,15 +59,11 @@ __attribute__((always_inline)) inline void outliers_lanes(const double* above, c
         const lane::Mask4 outlier = lane::abs(v - m) > n_sigma * lane::sqrt(m2 - m * m);
         for (int k = 0; k < 4; ++k) out[i + k] = outlier[k] != 0;
     }
-    for (; i < count; ++i) {
-        double m = 0.0, m2 = 0.0;
-        for (const double* p : {above - 1, above, above + 1, here - 1, here + 1, below - 1, below,
-                                below + 1}) {
-            m += p[i] / 8.0;
-            m2 += p[i] * p[i] / 8.0;
-        }
-        out[i] = std::abs(here[i] - m) > n_sigma * std::sqrt(m2 - m * m);
-    }
+    for (; i < count; ++i)
+        out[i] = is_outlier(here[i],
+                            {above[i - 1], above[i], above[i + 1], here[i - 1], here[i + 1],
+                             below[i - 1], below[i], below[i + 1]},
+                            n_sigma);
 }
 
 __attribute__((target("avx2"))) void outliers_avx2(const double* above, const double* here,
@@ -94,16 +102,14 @@ Eigen::Array<bool, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor> detail::bad_
             if (!bad && inner_row && i > 0 && i + 1 < nx) {
                 bad = outlier[std::size_t(i)] != 0;
             } else if (!bad && n_sigma > 0.0) {  // on the edge: neighbours clamped to the stamp
-                double m = 0.0, m2 = 0.0;
+                std::array<double, 8> neighbours;
+                std::size_t n = 0;
                 for (long dj = -1; dj <= 1; ++dj)
-                    for (long di = -1; di <= 1; ++di) {
-                        if (!dj && !di) continue;
-                        const double w =
-                            image(std::clamp(j + dj, 0L, ny - 1), std::clamp(i + di, 0L, nx - 1));
-                        m += w / 8.0;
-                        m2 += w * w / 8.0;
-                    }
-                bad = std::abs(v - m) > n_sigma * std::sqrt(m2 - m * m);
+                    for (long di = -1; di <= 1; ++di)
+                        if (dj || di)
+                            neighbours[n++] = image(std::clamp(j + dj, 0L, ny - 1),
+                                                    std::clamp(i + di, 0L, nx - 1));
+                bad = is_outlier(v, neighbours, n_sigma);
             }
             masked(j, i) = bad;
         }

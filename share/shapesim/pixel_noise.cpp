@@ -516,12 +516,13 @@ __attribute__((target("avx2"))) inline unsigned bright_bits(const double* s, __m
 
 __attribute__((target("avx2"))) long next_bright_avx2(const double* pixels, long from, long count,
                                                       double least, bool bright) {
-    const __m256d floor = _mm256_set1_pd(least);
+    const __m256d least_lanes = _mm256_set1_pd(least);
     const unsigned flip = bright ? 0u : 0xffu;
     long i = from;
     for (; i + 8 <= count; i += 8)
-        if (const unsigned wanted =
-                (bright_bits(pixels + i, floor) | bright_bits(pixels + i + 4, floor) << 4) ^ flip;
+        if (const unsigned wanted = (bright_bits(pixels + i, least_lanes) |
+                                     bright_bits(pixels + i + 4, least_lanes) << 4) ^
+                                    flip;
             wanted != 0) {
             _mm256_zeroupper();
             return i + __builtin_ctz(wanted);

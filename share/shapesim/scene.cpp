@@ -5,6 +5,7 @@
 #include "shapesim/convolve.hpp"
 #include "shapesim/error.hpp"
 #include "shapesim/jsonl.hpp"
+#include "shapesim/lane_math.hpp"
 #include "shapesim/parallel.hpp"
 #include "shapesim/pixel_noise.hpp"
 #include "shapesim/polar.hpp"
@@ -56,7 +57,7 @@ void in_bands(long rows, int threads, const Work& work) {
 // pixels a lane group (each pixel its own sum: the same bits as one at a time).
 __attribute__((target_clones("avx2", "default"))) void add_stamp_row(
     double* __restrict to, const double* __restrict from, long n, bool clip) {
-    using Doubles4 = double __attribute__((vector_size(32)));
+    using lane::Doubles4;
     long c = 0;
     for (; c + 4 <= n; c += 4) {
         Doubles4 sum, light;
