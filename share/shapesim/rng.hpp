@@ -175,7 +175,7 @@ SHAPESIM_LANES D log_factorial(D k, const double* small) {
         static_assert(sizeof(D) == 4 * sizeof(double), "four lanes");
         auto entry = [&](int i) { return k[i] >= 0.0 && k[i] <= 20.0 ? small[int(k[i])] : 0.0; };
         const D table = {entry(0), entry(1), entry(2), entry(3)};
-        out = (k >= 0.0) & (k <= 20.0) ? table : out;
+        out = ((k >= 0.0) & (k <= 20.0)) ? table : out;
     }
     return out;
 }
