@@ -83,11 +83,10 @@ void outliers(const double* above, const double* here, const double* below, long
 }  // namespace
 
 // Outliers are cosmic rays and hot pixels.
-Eigen::Array<bool, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor> detail::bad_pixels(
-    const ImageArray& image, const LabelArray& labels, int label, const MaskArray* mask,
-    double n_sigma) {
+detail::PixelFlags detail::bad_pixels(const ImageArray& image, const LabelArray& labels,
+                                      int label, const MaskArray* mask, double n_sigma) {
     const long ny = image.rows(), nx = image.cols();
-    Eigen::Array<bool, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor> masked(ny, nx);
+    PixelFlags masked(ny, nx);
     thread_local std::vector<std::uint8_t> outlier;  // a row's, away from the edges
     outlier.resize(std::size_t(nx));
     for (long j = 0; j < ny; ++j) {
@@ -308,7 +307,7 @@ Window aperture_box(double x, double y, double r, long nx, long ny) {
     return {x0, y0, x1 - x0, y1 - y0};
 }
 
-using Mask = Eigen::Array<bool, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>;
+using Mask = detail::PixelFlags;
 using Centre = std::array<double, 2>;
 
 // A flag of the measurement, once, in the order the steps raise them.

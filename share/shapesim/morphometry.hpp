@@ -81,11 +81,12 @@ Morphometry measure_morphometry(const ImageArray& image, const LabelArray& label
                                 const MaskArray* mask, const MorphometryOptions& options = {});
 
 namespace detail {
+/// A flag per pixel, row-major.
+using PixelFlags = Eigen::Array<bool, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>;
 /// The pixels measure_morphometry leaves out (true): other segments, the mask's, non-finite
 /// pixels and, for n_sigma > 0, outliers from their eight neighbours. (Exposed for its test.)
-Eigen::Array<bool, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor> bad_pixels(
-    const ImageArray& image, const LabelArray& labels, int label, const MaskArray* mask,
-    double n_sigma);
+PixelFlags bad_pixels(const ImageArray& image, const LabelArray& labels, int label,
+                      const MaskArray* mask, double n_sigma);
 }  // namespace detail
 
 }  // namespace shapesim
