@@ -183,6 +183,9 @@ private:
         ++p_;  // '{'
         out = Json::object();
         auto& members = out.get_ref<Json::object_t&>();
+        // A member's key is const, so a growing vector copies the members (values and all)
+        // instead of moving them: room for a record's fields up front.
+        members.reserve(depth == 0 ? 32 : 4);
         space();
         if (take('}')) return true;
         for (;;) {
