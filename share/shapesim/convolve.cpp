@@ -114,7 +114,10 @@ CartesianModel convolve(const CartesianModel& galaxy, const CartesianModel& psf,
     const GaussHermite& rule = gauss_hermite(n_out + 1);
     signed_basis_at_nodes(rule, galaxy.beta_pix / gamma, galaxy.n_max, false, ws.d_galaxy);
     signed_basis_at_nodes(rule, psf.beta_pix / gamma, psf.n_max, false, ws.d_psf);
-    signed_basis_at_nodes(rule, 1.0, n_out, true, ws.project);
+    // The projection depends on n_out alone: computed once per order a workspace meets.
+    if (ws.projections.size() <= std::size_t(n_out)) ws.projections.resize(std::size_t(n_out) + 1);
+    Eigen::MatrixXd& project = ws.projections[std::size_t(n_out)];
+    if (project.size() == 0) signed_basis_at_nodes(rule, 1.0, n_out, true, project);
     // Galaxy transform on the node grid: F(i, j) = Σ f(n1, n2) D(n1, i) D(n2, j).
     ws.partial.noalias() = galaxy.b * ws.d_galaxy;
     ws.f_nodes.noalias() = ws.d_galaxy.transpose() * ws.partial;
@@ -127,8 +130,8 @@ CartesianModel convolve(const CartesianModel& galaxy, const CartesianModel& psf,
     // Project onto B_{l1} B_{l2} at γ: b_h = c_0² · Q H Qᵀ.
     CartesianModel out(galaxy.x, galaxy.y, gamma, n_out);
     const double c0 = tensor_constant(galaxy.beta_pix, psf.beta_pix, gamma);
-    ws.partial.noalias() = ws.h_nodes * ws.project.transpose();
-    out.b.noalias() = (c0 * c0) * (ws.project * ws.partial);
+    ws.partial.noalias() = ws.h_nodes * project.transpose();
+    out.b.noalias() = (c0 * c0) * (project * ws.partial);
     clear_above_order(out.b, n_out);
     return out;
 }

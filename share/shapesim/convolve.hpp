@@ -80,7 +80,8 @@ private:
 
 /// Reusable buffers for `convolve` in a loop over many galaxies (one per thread).
 struct ConvolveWorkspace {
-    Eigen::MatrixXd d_galaxy, d_psf, project;   // basis at the Gauss–Hermite nodes
+    Eigen::MatrixXd d_galaxy, d_psf;            // basis at the Gauss–Hermite nodes
+    std::vector<Eigen::MatrixXd> projections;   // by n_out (empty until met): the weighted basis
     Eigen::MatrixXd partial, f_nodes, h_nodes;  // transforms on the node grid
     Eigen::MatrixXd g_nodes[4], g_part, psf_part, d_parity[2];
 };

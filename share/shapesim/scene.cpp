@@ -97,7 +97,8 @@ double stamp_radius(const CartesianModel& model, double threshold) {
             rows[std::size_t(n1)] += std::abs(model.b(n1, n2));
             columns[std::size_t(n2)] += std::abs(model.b(n1, n2));
         }
-    std::vector<double> phi(static_cast<std::size_t>(n));
+    std::vector<double> phi(static_cast<std::size_t>(n)), turning(static_cast<std::size_t>(n));
+    for (int k = 0; k < n; ++k) turning[std::size_t(k)] = std::sqrt(2.0 * k + 1.0);
     // Bound on a pixel wholly beyond R in x (or y): (C/β) Σ_n S_n T_n(R), T_n = |φ_n(R/β)| past
     // φ_n's last turning point √(2n+1) (it only falls from there), else C.
     auto bound = [&](double r) {
@@ -105,8 +106,8 @@ double stamp_radius(const CartesianModel& model, double threshold) {
         hermite_functions(u, model.n_max, phi.data());
         double sx = 0.0, sy = 0.0;
         for (int k = 0; k < n; ++k) {
-            const double t = u >= std::sqrt(2.0 * k + 1.0) ? std::abs(phi[std::size_t(k)])
-                                                           : hermite_bound;
+            const double t = u >= turning[std::size_t(k)] ? std::abs(phi[std::size_t(k)])
+                                                          : hermite_bound;
             sx += rows[std::size_t(k)] * t;
             sy += columns[std::size_t(k)] * t;
         }
