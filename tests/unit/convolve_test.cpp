@@ -126,6 +126,24 @@ TEST(Convolve, FluxMultiplies) {
     }
 }
 
+// A workspace carried over galaxies of several orders (its projection kept per output order)
+// gives every one the bits a fresh workspace gives.
+TEST(Convolve, ReusedWorkspaceEqualsFreshOne) {
+    const CartesianModel psf = to_cartesian(random_model(4, 1.4, 90));
+    ConvolveWorkspace carried;
+    const int orders[] = {3, 2, 0, 7, 3, 1, 12, 2};
+    for (int k = 0; k < 8; ++k) {
+        const CartesianModel galaxy =
+            to_cartesian(random_model(orders[k], 0.7 + 0.3 * k, 100 + unsigned(k)));
+        const CartesianModel reused = convolve(galaxy, psf, carried);
+        ConvolveWorkspace fresh;
+        const CartesianModel alone = convolve(galaxy, psf, fresh);
+        ASSERT_EQ(reused.n_max, alone.n_max);
+        EXPECT_EQ(reused.beta_pix, alone.beta_pix);
+        EXPECT_TRUE((reused.b.array() == alone.b.array()).all()) << "galaxy " << k;
+    }
+}
+
 // Conventions: the result sits at the galaxy's centre, with β = γ and n_max N_f + N_g; the
 // PSF's position is ignored; f ∗ g = g ∗ f coefficient by coefficient.
 TEST(Convolve, ConventionsAndCommutation) {
