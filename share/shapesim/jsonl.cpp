@@ -183,11 +183,11 @@ private:
         ++p_;  // '{'
         out = Json::object();
         auto& members = out.get_ref<Json::object_t&>();
+        space();
+        if (take('}')) return true;
         // A member's key is const, so a growing vector copies the members (values and all)
         // instead of moving them: room for a record's fields up front.
         members.reserve(depth == 0 ? 32 : 4);
-        space();
-        if (take('}')) return true;
         for (;;) {
             std::string key;
             if (!string(key)) return false;
