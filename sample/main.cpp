@@ -75,6 +75,10 @@ int run(int argc, const char* const argv[]) {
          "take each galaxy's shape from one of this many real galaxies nearest to its drawn "
          "magnitude (no clones at the bright end); 0: the paper's draw, shape and magnitude of "
          "one parent")
+        ("mix", po::value(&o.draw.mix)->default_value(0)->notifier(in_range("mix", 0, 64)),
+         "each galaxy a mixture of this many real galaxies near its magnitude and shape, "
+         "weighted at random (new galaxies that do not ring; needs --neighbours >= it); 0: "
+         "a perturbation of one")
         ("max-mag-shift", po::value(&o.draw.max_mag_shift)->default_value(2.0)
              ->notifier(in_range("max-mag-shift", 0.0, 100.0)),
          "--neighbours only within this many magnitudes of the draw (the nearest always)")

@@ -9,6 +9,9 @@
 #include "shapesim/morphology.hpp"
 #include "shapesim/records.hpp"
 
+#include <algorithm>
+#include <vector>
+
 namespace {
 
 using namespace shapesim;
@@ -92,6 +95,9 @@ int run(int argc, const char* const argv[]) {
         ("lambda-modulus", po::value(&s.modulus)->notifier(in_range("lambda-modulus", 0.0, 1e6)),
          "override lambda of every coefficient axis (|a_nm/a_00|, a_n0/a_00)")
         ("delta", po::bool_switch(&s.smooth.delta), "every lambda = 0: the delta-function PDF")
+        ("keep-negative", po::bool_switch(&s.smooth.keep_negative),
+         "keep each shape as fitted, light below zero and all (by default each is moved to the "
+         "nearest shape whose light is nowhere negative; --delta keeps them always)")
         ("keep-colour-noise", po::bool_switch(&s.smooth.keep_colour_noise),
          "several bands: keep each parent's flux ratios as measured, noise and all (by default "
          "they are deconvolved from it, so a simulation does not carry its noise twice)");
@@ -141,6 +147,14 @@ int run(int argc, const char* const argv[]) {
              "); lambda: beta ", morphology.lambda.beta, "\", mag ", morphology.lambda.mag,
              ", phase ", morphology.lambda.phase_deg, " deg");
     for (const auto& [why, n] : selected.dropped) log.verbose(n, " dropped: ", why);
+    std::vector<double> moved;
+    for (const MorphologyPoint& p : morphology.points)
+        if (p.positivity_change > 0.0) moved.push_back(p.positivity_change);
+    if (!moved.empty()) {
+        std::sort(moved.begin(), moved.end());
+        log.verbose(moved.size(), " shapes moved to their nearest non-negative shape (change ",
+                    "|c'-c|/|c| median ", moved[moved.size() / 2], ", largest ", moved.back(), ")");
+    }
     return 0;
 }
 

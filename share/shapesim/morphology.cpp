@@ -5,6 +5,7 @@
 #include "shapesim/error.hpp"
 #include "shapesim/jsonl.hpp"
 #include "shapesim/moments.hpp"
+#include "shapesim/positivity.hpp"
 #include "shapesim/render.hpp"
 #include "shapesim/transform.hpp"
 #include "shapesim/version.hpp"
@@ -292,6 +293,38 @@ MorphologyPoint aligned_point(const ShapeletRecord& r, Morphology& out) {
     return p;
 }
 
+// The nearest shape of `p` (and band shapes) whose light is nowhere below zero (positivity.hpp),
+// c_{0,0} kept at 1; a shape the projection cannot keep positive in flux stays as fitted.
+void make_positive(MorphologyPoint& p) {
+    const auto nearest = [&](const std::vector<Complex>& shape) {
+        ShapeletModel m(0.0, 0.0, 1.0, p.n_max);
+        m.coeffs = shape;
+        return nearest_non_negative(m);
+    };
+    const double sum_before = even_sum(p.shape);
+    const PositiveModel reference = nearest(p.shape);
+    const double c00 = reference.model.coeffs[0].real();
+    if (reference.iterations == 0 || !(c00 > 0.0) || !(even_sum(reference.model.coeffs) > 0.0))
+        return;
+    for (std::size_t k = 0; k < p.shape.size(); ++k) p.shape[k] = reference.model.coeffs[k] / c00;
+    p.shape[0] = 1.0;
+    p.positivity_change = reference.change;
+    // Each band made non-negative too, scaled to keep its flux ratio to the shape (its colour).
+    const double sum = even_sum(p.shape);
+    for (std::size_t b = 0; b < p.band_shapes.size(); ++b) {
+        std::vector<Complex>& band = p.band_shapes[b];
+        const double ratio = even_sum(band) / sum_before;
+        const PositiveModel nearest_band = nearest(band);
+        const double band_sum = even_sum(nearest_band.model.coeffs);
+        if (ratio > 0.0 && band_sum > 0.0) {
+            for (std::size_t k = 0; k < band.size(); ++k)
+                band[k] = nearest_band.model.coeffs[k] * (ratio * sum / band_sum);
+        } else {  // no light to keep positive (a noisy band's flux ≤ 0): its ratio kept
+            for (Complex& c : band) c *= sum / sum_before;
+        }
+    }
+}
+
 // λ of every axis: k × the mean nearest-neighbour separation of the points along it, unless
 // overridden; 0 for the delta-function PDF.
 void set_smoothing_lengths(Morphology& out, const SmoothOptions& options) {
@@ -365,6 +398,8 @@ Morphology build_morphology(const std::vector<ShapeletRecord>& records,
         out.n_max = std::max(out.n_max, p.n_max);
         out.points.push_back(std::move(p));
     }
+    if (!options.delta && !options.keep_negative)
+        for (MorphologyPoint& p : out.points) make_positive(p);
     if (!out.bands.empty() && out.points.size() != records.size())
         throw Error("internal: band points lost", "", 0, "bands");
     if (!out.bands.empty()) out.reference_band = reference_band(records.front());
@@ -393,7 +428,25 @@ void Morphology::prepare() {
         ShapeletModel m(0.0, 0.0, 1.0, p.n_max);
         m.coeffs = p.shape;
         p.hole = hole_depth(m);
+        const RawMoments raw = raw_moments(m);
+        const double size2 = raw.flux > 0.0 ? raw.r2 / raw.flux : 0.0;
+        p.size2 = size2 > 0.0 && std::isfinite(size2) ? size2 : std::numeric_limits<double>::quiet_NaN();
+        p.ellipticity = std::abs(moments(m).chi);
     }
+    // The spreads that scale a mixture partner's distance (1 where undefined).
+    const auto spread = [&](auto value) {
+        double n = 0.0, sum = 0.0, sum2 = 0.0;
+        for (const MorphologyPoint& p : points) {
+            const double v = value(p);
+            if (!std::isfinite(v)) continue;
+            n += 1.0, sum += v, sum2 += v * v;
+        }
+        const double var = n > 1.0 ? (sum2 - sum * sum / n) / (n - 1.0) : 0.0;
+        return var > 0.0 ? std::sqrt(var) : 1.0;
+    };
+    spread_ellipticity = spread([](const MorphologyPoint& p) { return p.ellipticity; });
+    spread_log_radius =
+        spread([](const MorphologyPoint& p) { return std::log(p.beta * std::sqrt(p.size2)); });
     std::vector<double> counted;
     for (const MorphologyPoint& p : points)
         if (p.weight > 0.0) counted.push_back(p.mag);
@@ -594,6 +647,7 @@ Json Morphology::to_json() const {
                        {"reflected", p.alignment.reflected},
                        {"shape", shape}});
         if (p.psf_beta > 0.0) pts.back()["psf_beta"] = p.psf_beta;
+        if (p.positivity_change > 0.0) pts.back()["positivity_change"] = p.positivity_change;
         if (!p.band_shapes.empty()) {
             Json list = Json::array();
             for (const auto& band : p.band_shapes) {
@@ -742,6 +796,8 @@ MorphologyPoint read_point(const Json& pj, const std::string& where, const Morph
     p.mag = number(pj, "mag", where);
     p.weight = pj.contains("weight") ? number(pj, "weight", where) : 1.0;
     p.psf_beta = pj.contains("psf_beta") ? number(pj, "psf_beta", where) : 0.0;
+    p.positivity_change =
+        pj.contains("positivity_change") ? number(pj, "positivity_change", where) : 0.0;
     if (!(p.psf_beta >= 0.0)) throw Error("must be ≥ 0", "", 0, where + "psf_beta");
     if (!(p.weight >= 0.0)) throw Error("must be ≥ 0", "", 0, where + "weight");
     p.alignment.rotation = pj.contains("rotation") ? number(pj, "rotation", where) : 0.0;
@@ -893,6 +949,11 @@ void DrawOptions::validate() const {
     if (!(max_mag_shift >= 0.0)) throw Error("must be ≥ 0", "", 0, "max_mag_shift");
     if (!(max_perturbation > 0.0)) throw Error("must be > 0", "", 0, "max_perturbation");
     if (!(hole_allowance >= 0.0)) throw Error("must be ≥ 0", "", 0, "hole_allowance");
+    if (mix < 0 || mix > 64) throw Error("must be in [0, 64]", "", 0, "mix");
+    if (mix >= 2 && neighbours < mix)
+        throw Error("a mixture of " + std::to_string(mix) + " parents needs neighbours ≥ " +
+                        std::to_string(mix),
+                    "", 0, "mix");
 }
 
 std::vector<std::size_t> magnitude_order(const Morphology& morphology, double mag_limit) {
@@ -1107,17 +1168,160 @@ std::vector<ShapeletModel> band_models(const Morphology& morphology,
     return models;
 }
 
+// A mixture (see "Mixtures" in the header): the shape parent `first` and partners near it in
+// shape from the magnitude window about `mag`, each at unit flux and unit β, weighted by a
+// flat Dirichlet draw; `point` holds the mixed shape (c_{0,0} = 1) and bands.
+struct Mixture {
+    MorphologyPoint point;
+    std::vector<std::size_t> parents;
+    std::vector<double> weights;
+    double beta = 0.0;  ///< arcsec, at `mag`
+};
+
+// ln of a point's rms radius (arcsec) moved to magnitude `mag` by the size–luminosity slope.
+double log_radius(const MorphologyPoint& p, double mag, double size_slope) {
+    return std::log(p.beta * std::sqrt(p.size2)) - 0.4 * std::log(10.0) * size_slope * (mag - p.mag);
+}
+
+bool has_size(const MorphologyPoint& p) {
+    return std::isfinite(p.size2) && std::isfinite(p.ellipticity);
+}
+
+// The partners of `first` (up to M − 1): picked uniformly among the 2(M − 1) points of the
+// window nearest to it in (|χ|, ln r) over the points' spreads (ties by magnitude order).
+std::vector<std::size_t> mixture_partners(const Morphology& morphology, const DrawOptions& draw,
+                                          std::size_t first, double mag, RandomStream& stream) {
+    const MorphologyPoint& p0 = morphology.points[first];
+    if (!has_size(p0)) return {};
+    const auto [lo, hi] = magnitude_window(morphology, draw.by_magnitude, mag,
+                                           std::size_t(draw.neighbours), draw.max_mag_shift);
+    const double lr0 = log_radius(p0, p0.mag, 0.0);
+    std::vector<std::pair<double, std::size_t>> near;
+    for (std::size_t i = lo; i < hi; ++i) {
+        const std::size_t k = draw.by_magnitude[i];
+        const MorphologyPoint& q = morphology.points[k];
+        if (k == first || !has_size(q)) continue;
+        const double de = (q.ellipticity - p0.ellipticity) / morphology.spread_ellipticity;
+        const double dr = (log_radius(q, q.mag, 0.0) - lr0) / morphology.spread_log_radius;
+        near.emplace_back(de * de + dr * dr, k);
+    }
+    std::stable_sort(near.begin(), near.end(),
+                     [](const auto& a, const auto& b) { return a.first < b.first; });
+    const std::size_t want = std::size_t(draw.mix) - 1;
+    near.resize(std::min(near.size(), 2 * want));
+    std::vector<std::size_t> partners;
+    for (std::size_t j = 0; j < want && j < near.size(); ++j) {  // a partial Fisher–Yates
+        const std::size_t pick = j + std::size_t(stream.uniform_index(near.size() - j));
+        std::swap(near[j], near[pick]);
+        partners.push_back(near[j].second);
+    }
+    return partners;
+}
+
+Mixture mix_parents(const Morphology& morphology, const DrawOptions& draw, std::size_t first,
+                    double mag, RandomStream& stream) {
+    Mixture out;
+    out.parents.push_back(first);
+    for (std::size_t k : mixture_partners(morphology, draw, first, mag, stream))
+        out.parents.push_back(k);
+    // A flat Dirichlet: normalised standard exponentials.
+    double total = 0.0;
+    for (std::size_t j = 0; j < out.parents.size(); ++j) {
+        out.weights.push_back(out.parents.size() == 1 ? 1.0 : -std::log(stream.uniform_open()));
+        total += out.weights.back();
+    }
+    MorphologyPoint& mixed = out.point;
+    std::size_t count = 0, bands = 0;
+    for (std::size_t k : out.parents) {
+        const MorphologyPoint& p = morphology.points[k];
+        if (p.shape.size() > count) count = p.shape.size(), mixed.n_max = p.n_max;
+        bands = std::max(bands, p.band_shapes.size());
+    }
+    mixed.shape.assign(count, Complex(0.0, 0.0));
+    mixed.band_shapes.assign(bands, std::vector<Complex>(count, Complex(0.0, 0.0)));
+    double size2 = 0.0, log_r = 0.0;
+    for (std::size_t j = 0; j < out.parents.size(); ++j) {
+        const MorphologyPoint& p = morphology.points[out.parents[j]];
+        out.weights[j] /= total;
+        const double w = out.weights[j] / even_sum(p.shape);  // unit flux at unit β
+        for (std::size_t k = 0; k < p.shape.size(); ++k) mixed.shape[k] += w * p.shape[k];
+        for (std::size_t b = 0; b < p.band_shapes.size(); ++b)
+            for (std::size_t k = 0; k < p.band_shapes[b].size(); ++k)
+                mixed.band_shapes[b][k] += w * p.band_shapes[b][k];
+        size2 += out.weights[j] * p.size2;
+        log_r += out.weights[j] * log_radius(p, mag, draw.size_slope);
+    }
+    const double c00 = mixed.shape[0].real();  // Σ w_j / Σ_{n even} c_j > 0
+    for (Complex& c : mixed.shape) c /= c00;
+    for (auto& band : mixed.band_shapes)
+        for (Complex& c : band) c /= c00;
+    const MorphologyPoint& p0 = morphology.points[first];
+    out.beta = out.parents.size() > 1
+                   ? std::exp(log_r) / std::sqrt(size2)
+                   : p0.beta * std::pow(10.0, -0.4 * draw.size_slope * (mag - p0.mag));
+    return out;
+}
+
+// A conditional draw as a mixture: a magnitude (fitted counts, or a parent's smoothed), its
+// shape parent near it in magnitude, the mixture, a rotation and a reflection.
+DrawnGalaxy draw_mixture(const Morphology& morphology, const std::vector<double>& parents,
+                         RandomStream& stream, double pixel_scale, double zero_point,
+                         double mag_limit, const DrawOptions& draw) {
+    DrawnGalaxy g;
+    const double u = stream.uniform() * parents.back();
+    const std::size_t mag_parent = parent_at(parents, u);
+    if (draw.counts) {
+        g.mag = draw.counts->magnitude(u / parents.back());
+    } else {
+        const MorphologyPoint& p = morphology.points[mag_parent];
+        const double spread = conditional_mag_spread(p, morphology.lambda.mag, draw);
+        for (g.mag = mag_limit + 1.0; g.mag > mag_limit; ++g.redraws)
+            g.mag = g.redraws < 1000 ? p.mag + spread * stream.epanechnikov() : p.mag;
+        --g.redraws;
+    }
+    const std::size_t first = near_in_magnitude(morphology, draw, g.mag, stream.uniform());
+    Mixture mixture = mix_parents(morphology, draw, first, g.mag, stream);
+    const std::size_t heaviest = std::size_t(
+        std::max_element(mixture.weights.begin(), mixture.weights.end()) - mixture.weights.begin());
+    g.parent = mixture.parents[heaviest];
+    g.mag_parent = draw.counts ? g.parent : mag_parent;
+    g.parents = mixture.parents;
+    g.weights = mixture.weights;
+    g.beta = mixture.beta;
+    g.flux = std::pow(10.0, -0.4 * (g.mag - zero_point));
+    const double beta_pix = g.beta / pixel_scale;
+    const PerturbedShape drawn = unperturbed(mixture.point);
+    const double a00 = g.flux / (2.0 * std::sqrt(pi) * beta_pix * drawn.sum);
+    g.rotation = stream.angle();
+    g.reflected = stream.coin();
+    g.model = placed_model(drawn.shape, mixture.point.n_max, beta_pix, a00, g.rotation,
+                           g.reflected);
+    // How far the mixture is from its heaviest parent: ‖c − c_p‖/‖c_p‖ (both with c_{0,0} = 1).
+    const std::vector<Complex>& own = morphology.points[g.parent].shape;
+    double change = 0.0, norm = 0.0;
+    for (std::size_t k = 0; k < drawn.shape.size(); ++k) {
+        const Complex c = k < own.size() ? own[k] : Complex(0.0, 0.0);
+        change += std::norm(drawn.shape[k] - c);
+        norm += std::norm(c);
+    }
+    g.perturbation = std::sqrt(change / norm);
+    g.band_models = band_models(morphology, mixture.point, drawn, beta_pix, a00, g, stream);
+    return g;
+}
+
 }  // namespace
 
 DrawnGalaxy draw_galaxy(const Morphology& morphology, const std::vector<double>& parents,
                         RandomStream& stream, double pixel_scale, double zero_point,
                         double mag_limit, const DrawOptions& draw) {
-    DrawnGalaxy g;
-    const double u = stream.uniform() * parents.back();
-    g.parent = parent_at(parents, u);
     const SmoothingLengths& l = morphology.lambda;
     const bool delta = l.is_delta();
     const bool conditional = draw.neighbours > 0 && !delta && !draw.by_magnitude.empty();
+    if (conditional && draw.mix >= 2)
+        return draw_mixture(morphology, parents, stream, pixel_scale, zero_point, mag_limit, draw);
+    DrawnGalaxy g;
+    const double u = stream.uniform() * parents.back();
+    g.parent = parent_at(parents, u);
     // Magnitudes from the fitted counts: drawn once (the same deviate), the shape parent the
     // only parent.
     const bool counted = conditional && draw.counts.has_value();
@@ -1321,6 +1525,7 @@ Json smooth_provenance(const std::string& input, const SelectedRecords& selected
               {"lambda_phase", options.phase_deg},
               {"delta", options.delta},
               {"keep_colour_noise", options.keep_colour_noise},
+              {"keep_negative", options.keep_negative},
               {"lambda_colour", options.colour},
               {"require", selection.required},
               {"reject", selection.rejected}}}};

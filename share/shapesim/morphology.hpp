@@ -42,6 +42,26 @@
 // scaled to the drawn magnitude by the size–luminosity relation r ∝ L^s
 // (β·10^{−0.4·s·(m − m_parent)}, s = `size_slope`), then perturbed by λ_β.
 //
+// Positive parents (SmoothOptions::keep_negative false, not in δ mode). A fit of a noisy or
+// truncated galaxy rings below zero (half the HDF's n_max ≥ 2 models by more than 1% of their
+// peak; intrinsic fits of faint galaxies hold up to half their flux in negative rings). Every
+// point's shape, and each band's, is replaced by the nearest one (in ∫(f − f')²) whose light is
+// nowhere below zero, to 10⁻³ of its flux (nearest_non_negative()); the δ PDF keeps the real
+// models exactly.
+//
+// Mixtures (DrawOptions::mix = M ≥ 2, conditional draws only). A perturbed shapelet series
+// rings: its change in high orders is an oscillation at large radius, and a clipped negative
+// half leaves the positive half as a visible ring. A mixture is new without ringing: the shape
+// parent (chosen as above) and M − 1 partners, picked among the 2(M − 1) points of its
+// magnitude window nearest to it in (|χ|, ln rms radius) (each over the points' spread), are
+// each scaled to unit flux at unit β (c / Σ_{n even} c_{n,0}) and added with weights w from a
+// flat Dirichlet draw. In the coordinates u = x/β every term is its parent's image stretched,
+// positive where the parent is; a convex sum of positive images is positive, so the mixture
+// rings no deeper than its parents do. Its β sets its rms radius to the weighted geometric
+// mean of the parents' (each at the drawn magnitude by the size–luminosity slope): β =
+// exp(Σ w ln(β_j r_j s_j)) / √(Σ w r_j²), r_j² the parent's size2. Bands mix with the same
+// weights (a red bulge of one parent stays red). No coefficient is perturbed.
+//
 // Several bands (issue 17). Models of a joint fit (shapesim-decompose on shapesim-detect
 // --bands records) carry every band's coefficients at one centre, β and n_max. A point keeps
 // them aligned as its reference shape is (the same rotation and reflection) and normalised by
@@ -123,6 +143,13 @@ struct MorphologyPoint {
     /// alone): conditional draws smooth its magnitude over max(λ_mag, gap), so sparse bright
     /// parents spread over the gaps between them instead of spiking at their own magnitudes.
     double mag_gap = 0.0;
+    /// The shape's mean |z|² about its centre over its flux, in units of β² (derived,
+    /// prepare(); NaN when not positive): a mixture's size is set from it (draw_galaxy, mix).
+    double size2 = 0.0;
+    /// |χ| of the aligned shape's second moments (derived, prepare(); NaN when undefined).
+    double ellipticity = 0.0;
+    /// How far the shape was moved to be non-negative, ‖c' − c‖/‖c‖ (0: as fitted).
+    double positivity_change = 0.0;
 };
 
 /// Smoothing length of every axis.
@@ -146,6 +173,9 @@ struct SmoothOptions {
     /// Multi-band: keep each parent's colours as measured, noise and all (by default they are
     /// denoised: see build_morphology).
     bool keep_colour_noise = false;
+    /// Keep every shape as fitted, light below zero and all (by default, outside δ mode, each
+    /// is moved to its nearest non-negative shape: positivity.hpp, "Positive parents" above).
+    bool keep_negative = false;
     /// Multi-band: the colour kernel's width h (see above).
     double colour = 0.25;
     void validate() const;
@@ -229,6 +259,9 @@ struct Morphology {
     std::vector<double> colour_mean;
     Eigen::MatrixXd colour_covariance;
     Eigen::MatrixXd colour_root;         ///< V^{1/2} (prepare() fills it)
+    /// Mixture partners' distance scales (prepare()): the spread (standard deviation) of the
+    /// points' ellipticity and of the log of their rms radius.
+    double spread_ellipticity = 1.0, spread_log_radius = 1.0;
     Json provenance = Json::object();    ///< input hash, options, program version
 
     Json to_json() const;
@@ -332,6 +365,10 @@ struct DrawnGalaxy {
     /// Multi-band: each band's model (Morphology::bands order; the reference's is `model`), in
     /// the reference band's units: band b's flux over `flux` is the drawn colour's ratio.
     std::vector<ShapeletModel> band_models;
+    /// A mixture (DrawOptions::mix): every parent (indices into Morphology::points) and its
+    /// weight, `parent` the heaviest; empty for a perturbed draw.
+    std::vector<std::size_t> parents;
+    std::vector<double> weights;
 };
 
 /// Cumulative parent weights for draw_galaxy(), over the points with mag ≤ `mag_limit`.
@@ -357,6 +394,9 @@ struct DrawOptions {
     /// Conditional draws take their magnitude from these counts (fit_counts), not from a
     /// parent's: then the shape parent is the only parent.
     std::optional<CountModel> counts;
+    /// M ≥ 2: a conditional draw is a mixture of M parents, not a perturbation (see "Mixtures"
+    /// above); 0 or 1: the perturbed draw.
+    int mix = 0;
     void validate() const;
 };
 

@@ -8,6 +8,7 @@
 #include <algorithm>
 #include <cmath>
 #include <fstream>
+#include <limits>
 #include <sstream>
 
 namespace shapesim {
@@ -279,6 +280,19 @@ double galaxy_reach_bound(const Morphology& morphology, const DrawOptions& draw,
                          std::pow(10.0, -0.4 * draw.size_slope * (options.mag_limit - p.mag)));
         beta_max = std::max(beta_max, p.beta * scale_up);
     }
+    if (conditional && draw.mix >= 2) {
+        // A mixture's β is at most the largest parent radius (moved to the brightest magnitude)
+        // over the smallest parent radius in units of β.
+        double radius = 0.0, size = std::numeric_limits<double>::infinity();
+        for (const auto& p : morphology.points) {
+            if (!std::isfinite(p.size2)) continue;
+            const double up = std::pow(10.0, -0.4 * draw.size_slope * (brightest - p.mag));
+            const double down = std::pow(10.0, -0.4 * draw.size_slope * (options.mag_limit - p.mag));
+            radius = std::max(radius, p.beta * std::sqrt(p.size2) * std::max(up, down));
+            size = std::min(size, std::sqrt(p.size2));
+        }
+        if (radius > 0.0) beta_max = std::max(beta_max, radius / size);
+    }
     return model_reach((beta_max + morphology.lambda.beta) / scale, morphology.n_max) +
            options.margin;
 }
@@ -302,6 +316,15 @@ ObjectRecord galaxy_record(const Morphology& morphology, const DrawnGalaxy& g, s
     if (morphology.points[g.parent].psf_beta > 0.0)
         o.extra["psf_beta"] = morphology.points[g.parent].psf_beta;
     if (g.mag_parent != g.parent) o.extra["mag_parent"] = morphology.points[g.mag_parent].id;
+    if (!g.parents.empty()) {
+        Json ids = Json::array(), weights = Json::array();
+        for (std::size_t j = 0; j < g.parents.size(); ++j) {
+            ids.push_back(morphology.points[g.parents[j]].id);
+            weights.push_back(g.weights[j]);
+        }
+        o.extra["parents"] = std::move(ids);
+        o.extra["weights"] = std::move(weights);
+    }
     o.extra["reach"] = reach;
     for (std::size_t b = 0; b < g.band_models.size(); ++b)
         o.bands.push_back(band_part(morphology, b, options.zero_point, &g.band_models[b], 0.0));

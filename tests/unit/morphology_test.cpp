@@ -600,7 +600,9 @@ TEST(MorphologyConditional, DrawsDoNotRingBelowZero) {
 // the rule a quarter of its draws are.
 TEST(MorphologyConditional, BrighterDrawsKeepHolesOnlyAtTheirFluxDepth) {
     const ShapeletModel holed = test::random_model(8, 2.0, 0.0, 0.0, 17, true, 0.25);
-    Morphology morph = build_morphology({record_of(holed, "faint", 24.0)}, SmoothOptions{});
+    SmoothOptions as_fitted;  // the hole rule guards models kept as fitted (keep_negative)
+    as_fitted.keep_negative = true;
+    Morphology morph = build_morphology({record_of(holed, "faint", 24.0)}, as_fitted);
     for (auto& c : morph.lambda.coefficient) c = 0.0;
     morph.lambda.beta = 0.0;
     morph.lambda.mag = 0.3;
@@ -628,10 +630,12 @@ TEST(MorphologyConditional, BrighterDrawsKeepHolesOnlyAtTheirFluxDepth) {
 // one two thirds of them.
 TEST(MorphologyConditional, ShapeParentIsKeptThroughRedraws) {
     const ShapeletModel holed = test::random_model(8, 2.0, 0.0, 0.0, 17, true, 0.25);
+    SmoothOptions as_fitted;
+    as_fitted.keep_negative = true;
     ShapeletModel clean(0.0, 0.0, 2.0, 2);
     clean.coeffs[0] = 1.0;  // a round Gaussian, its perturbations (0.2) seldom ring
     Morphology morph = build_morphology(
-        {record_of(holed, "holed", 24.0), record_of(clean, "clean", 24.0)}, SmoothOptions{});
+        {record_of(holed, "holed", 24.0), record_of(clean, "clean", 24.0)}, as_fitted);
     for (std::size_t k = 1; k < morph.lambda.coefficient.size(); ++k) morph.lambda.coefficient[k] = 0.2;
     ASSERT_GT(morph.points[0].hole, 0.05);
     ASSERT_LT(morph.points[1].hole, 1e-12);
@@ -1080,5 +1084,139 @@ TEST(Morphology, HugeNmaxIsRefused) {
         const Json doc = Json::parse(std::string(R"({"schema":"shapesim.morphology/1","n_max":)") +
                                      n_max + R"(,"zero_point":2})");
         EXPECT_THROW(Morphology::from_json(doc), Error) << n_max;
+    }
+}
+
+// =============================================================================================
+// Mixtures (DrawOptions::mix).
+
+namespace {
+
+// The light below zero of a unit-β shape drawn at unit flux on a fine grid (β = 3 pixels, out
+// to 8β), as a fraction of its flux: positive and negative light are pixel sums.
+double negative_fraction(const std::vector<Complex>& shape, int n_max) {
+    ShapeletModel m(25.0, 25.0, 3.0, n_max);
+    m.coeffs = shape;
+    const double scale = 1.0 / flux(m);
+    for (Complex& c : m.coeffs) c *= scale;
+    const ImageArray stamp = render_stamp(m, 49, 49);
+    return -stamp.cwiseMin(0.0).sum();
+}
+
+// A mixture draw turned back to its aligned frame, at unit β: its shape c (c_{0,0} = 1).
+std::vector<Complex> mixed_shape(const DrawnGalaxy& g) {
+    ShapeletModel s = aligned_frame(g);
+    const Complex c00 = s.coeffs[0];
+    for (Complex& c : s.coeffs) c /= c00;
+    return s.coeffs;
+}
+
+DrawOptions mixture_options(const Morphology& morph, int k, int mix) {
+    DrawOptions draw;
+    draw.neighbours = k;
+    draw.mix = mix;
+    draw.by_magnitude = magnitude_order(morph, 99.0);
+    return draw;
+}
+
+}  // namespace
+
+// A mixture is a convex sum of its parents' images at unit flux and unit β, so its negative
+// light (as a fraction of its flux) is at most the weighted sum of theirs, whatever they ring;
+// parents with holes give mixtures no deeper. Each mixture's weights sum to 1 over distinct
+// parents of the magnitude window, the heaviest is `parent`, the flux is the drawn magnitude's
+// and the rms radius the weighted geometric mean of the parents' moved to that magnitude.
+TEST(MorphologyMixture, ConvexSumOfParentsWithItsFluxAndSize) {
+    const Morphology morph = ladder();
+    const std::vector<double> parents = parent_table(morph, 99.0);
+    const DrawOptions draw = mixture_options(morph, 8, 3);
+    std::vector<double> negative(morph.points.size());
+    for (std::size_t k = 0; k < morph.points.size(); ++k)
+        negative[k] = negative_fraction(morph.points[k].shape, morph.points[k].n_max);
+    double worst = -1.0, parents_worst = 0.0;
+    int mixtures = 0;
+    for (int i = 0; i < 300; ++i) {
+        RandomStream stream(21, std::uint64_t(i), "galaxy");
+        const DrawnGalaxy g = draw_galaxy(morph, parents, stream, 0.04, 25.0, 99.0, draw);
+        ASSERT_EQ(g.parents.size(), 3u) << i;
+        ASSERT_EQ(g.weights.size(), 3u);
+        double total = 0.0, bound = 0.0, log_r = 0.0, heaviest = 0.0;
+        for (std::size_t j = 0; j < 3; ++j) {
+            const MorphologyPoint& p = morph.points[g.parents[j]];
+            total += g.weights[j];
+            bound += g.weights[j] * negative[g.parents[j]];
+            log_r += g.weights[j] * (std::log(p.beta * std::sqrt(p.size2)) -
+                                     0.4 * std::log(10.0) * 0.3 * (g.mag - p.mag));
+            EXPECT_LE(std::abs(p.mag - g.mag), 8 * 0.25 + 1e-9) << i;  // within the window
+            for (std::size_t k = 0; k < j; ++k) EXPECT_NE(g.parents[j], g.parents[k]) << i;
+            if (g.weights[j] > heaviest) heaviest = g.weights[j];
+        }
+        EXPECT_NEAR(total, 1.0, 1e-12);
+        EXPECT_EQ(g.weights[std::size_t(std::find(g.parents.begin(), g.parents.end(), g.parent) -
+                                        g.parents.begin())],
+                  heaviest);
+        const double mixed = negative_fraction(mixed_shape(g), g.model.n_max);
+        EXPECT_LE(mixed, bound + 1e-12) << i;
+        worst = std::max(worst, mixed - bound);
+        parents_worst = std::max(parents_worst, bound);
+        EXPECT_NEAR(flux(g.model), std::pow(10.0, -0.4 * (g.mag - 25.0)),
+                    1e-12 * flux(g.model));
+        const Moments mom = moments(g.model);
+        EXPECT_NEAR(std::sqrt(mom.r2_about_centre) * 0.04, std::exp(log_r), 1e-10 * std::exp(log_r))
+            << i;
+        ++mixtures;
+    }
+    std::cout << "  [measured] " << mixtures << " mixtures: negative light at most "
+              << worst << " above the weighted parents' (which reach " << parents_worst << ")\n";
+    EXPECT_GT(parents_worst, 0.001);  // the parents do ring: the bound has work to do
+}
+
+// Same stream, same bits; a mixture is new: no two of 2000 draws share a shape, and none is
+// its heaviest parent's (the weights are continuous). Bright draws spread over the window's
+// parents as perturbed conditional draws do.
+TEST(MorphologyMixture, DeterministicNewAndSpreadOverTheParents) {
+    const Morphology morph = ladder();
+    const std::vector<double> parents = parent_table(morph, 99.0);
+    const DrawOptions draw = mixture_options(morph, 8, 3);
+    std::map<std::size_t, int> heaviest;
+    std::vector<std::vector<Complex>> shapes;
+    int bright = 0;
+    for (int i = 0; i < 2000; ++i) {
+        RandomStream a(22, std::uint64_t(i), "galaxy"), b(22, std::uint64_t(i), "galaxy");
+        const DrawnGalaxy g = draw_galaxy(morph, parents, a, 0.04, 25.0, 99.0, draw);
+        const DrawnGalaxy h = draw_galaxy(morph, parents, b, 0.04, 25.0, 99.0, draw);
+        ASSERT_EQ(g.model.coeffs, h.model.coeffs);
+        EXPECT_GT(g.perturbation, 1e-6) << i;
+        shapes.push_back(mixed_shape(g));
+        if (g.mag < 21.0) ++bright, ++heaviest[g.parent];
+    }
+    std::sort(shapes.begin(), shapes.end(), [](const auto& a, const auto& b) {
+        return std::lexicographical_compare(a.begin(), a.end(), b.begin(), b.end(),
+                                            [](Complex x, Complex y) { return x.real() < y.real(); });
+    });
+    for (std::size_t i = 1; i < shapes.size(); ++i) EXPECT_NE(shapes[i], shapes[i - 1]);
+    int largest = 0;
+    for (const auto& [k, n] : heaviest) largest = std::max(largest, n);
+    std::cout << "  [measured] mixtures brighter than 21: " << bright
+              << ", largest share of one heaviest parent " << double(largest) / bright << "\n";
+    ASSERT_GT(bright, 40);
+    EXPECT_LT(double(largest) / bright, 0.3);
+}
+
+// A mixture needs K ≥ M neighbours; δ mode and mix ≤ 1 draw as before, bit for bit.
+TEST(MorphologyMixture, OptionsAndTheDrawsItLeavesAlone) {
+    const Morphology morph = ladder();
+    DrawOptions draw = mixture_options(morph, 2, 3);
+    EXPECT_THROW(draw.validate(), Error);
+    draw.neighbours = 3;
+    EXPECT_NO_THROW(draw.validate());
+    const std::vector<double> parents = parent_table(morph, 99.0);
+    DrawOptions one = mixture_options(morph, 8, 1), none = mixture_options(morph, 8, 0);
+    for (int i = 0; i < 50; ++i) {
+        RandomStream a(23, std::uint64_t(i), "galaxy"), b(23, std::uint64_t(i), "galaxy");
+        const DrawnGalaxy g = draw_galaxy(morph, parents, a, 0.04, 25.0, 99.0, one);
+        const DrawnGalaxy h = draw_galaxy(morph, parents, b, 0.04, 25.0, 99.0, none);
+        EXPECT_EQ(g.model.coeffs, h.model.coeffs);
+        EXPECT_TRUE(g.parents.empty());
     }
 }
