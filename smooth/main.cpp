@@ -128,6 +128,7 @@ int run(int argc, const char* const argv[]) {
     Morphology morphology = build_morphology(selected.kept, smooth);
     fields.complete();
     weight_by_counted_area(fields.counted, selected.kept, selected.field, selected.weights);
+    weight_by_kept_fraction(fields.counted, selected.kept, selected.field, selected.weights);
     const long shape_only =
         mark_point_fields(morphology, selected, selection, fields.counted.size());
     if (shape_only > 0 && shape_only == long(selected.kept.size()))

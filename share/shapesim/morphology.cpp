@@ -431,22 +431,7 @@ void Morphology::prepare() {
         const RawMoments raw = raw_moments(m);
         const double size2 = raw.flux > 0.0 ? raw.r2 / raw.flux : 0.0;
         p.size2 = size2 > 0.0 && std::isfinite(size2) ? size2 : std::numeric_limits<double>::quiet_NaN();
-        p.ellipticity = std::abs(moments(m).chi);
     }
-    // The spreads that scale a mixture partner's distance (1 where undefined).
-    const auto spread = [&](auto value) {
-        double n = 0.0, sum = 0.0, sum2 = 0.0;
-        for (const MorphologyPoint& p : points) {
-            const double v = value(p);
-            if (!std::isfinite(v)) continue;
-            n += 1.0, sum += v, sum2 += v * v;
-        }
-        const double var = n > 1.0 ? (sum2 - sum * sum / n) / (n - 1.0) : 0.0;
-        return var > 0.0 ? std::sqrt(var) : 1.0;
-    };
-    spread_ellipticity = spread([](const MorphologyPoint& p) { return p.ellipticity; });
-    spread_log_radius =
-        spread([](const MorphologyPoint& p) { return std::log(p.beta * std::sqrt(p.size2)); });
     std::vector<double> counted;
     for (const MorphologyPoint& p : points)
         if (p.weight > 0.0) counted.push_back(p.mag);
@@ -1183,27 +1168,35 @@ double log_radius(const MorphologyPoint& p, double mag, double size_slope) {
     return std::log(p.beta * std::sqrt(p.size2)) - 0.4 * std::log(10.0) * size_slope * (mag - p.mag);
 }
 
-bool has_size(const MorphologyPoint& p) {
-    return std::isfinite(p.size2) && std::isfinite(p.ellipticity);
+// The image inner product ∫ f g of two shapes at one β (orthonormality: a_{n,−m} = conj a_{n,m}
+// counts each m > 0 twice).
+double shape_product(const std::vector<Complex>& a, const std::vector<Complex>& b) {
+    const PolarIndex* index = packed_indices().data();
+    double sum = 0.0;
+    for (std::size_t k = 0; k < std::min(a.size(), b.size()); ++k)
+        sum += (index[k].m == 0 ? 1.0 : 2.0) * (a[k] * std::conj(b[k])).real();
+    return sum;
 }
 
 // The partners of `first` (up to M − 1): picked uniformly among the 2(M − 1) points of the
-// window nearest to it in (|χ|, ln r) over the points' spreads (ties by magnitude order).
+// window whose aligned shapes (at unit β) are most alike to its own, by the cosine of the angle
+// between the images, so that a mixture averages galaxies of one kind and keeps the population's
+// spread of concentration, asymmetry and clumpiness (ties by magnitude order).
 std::vector<std::size_t> mixture_partners(const Morphology& morphology, const DrawOptions& draw,
                                           std::size_t first, double mag, RandomStream& stream) {
     const MorphologyPoint& p0 = morphology.points[first];
-    if (!has_size(p0)) return {};
+    if (!std::isfinite(p0.size2)) return {};
     const auto [lo, hi] = magnitude_window(morphology, draw.by_magnitude, mag,
                                            std::size_t(draw.neighbours), draw.max_mag_shift);
-    const double lr0 = log_radius(p0, p0.mag, 0.0);
+    const double norm0 = std::sqrt(shape_product(p0.shape, p0.shape));
     std::vector<std::pair<double, std::size_t>> near;
     for (std::size_t i = lo; i < hi; ++i) {
         const std::size_t k = draw.by_magnitude[i];
         const MorphologyPoint& q = morphology.points[k];
-        if (k == first || !has_size(q)) continue;
-        const double de = (q.ellipticity - p0.ellipticity) / morphology.spread_ellipticity;
-        const double dr = (log_radius(q, q.mag, 0.0) - lr0) / morphology.spread_log_radius;
-        near.emplace_back(de * de + dr * dr, k);
+        if (k == first || !std::isfinite(q.size2)) continue;
+        const double cosine = shape_product(q.shape, p0.shape) /
+                              (norm0 * std::sqrt(shape_product(q.shape, q.shape)));
+        near.emplace_back(1.0 - cosine, k);
     }
     std::stable_sort(near.begin(), near.end(),
                      [](const auto& a, const auto& b) { return a.first < b.first; });
@@ -1224,12 +1217,14 @@ Mixture mix_parents(const Morphology& morphology, const DrawOptions& draw, std::
     out.parents.push_back(first);
     for (std::size_t k : mixture_partners(morphology, draw, first, mag, stream))
         out.parents.push_back(k);
-    // A flat Dirichlet: normalised standard exponentials.
+    // A flat Dirichlet (normalised standard exponentials), its largest weight the shape
+    // parent's: the mixture is a new galaxy of its parent's kind.
     double total = 0.0;
     for (std::size_t j = 0; j < out.parents.size(); ++j) {
         out.weights.push_back(out.parents.size() == 1 ? 1.0 : -std::log(stream.uniform_open()));
         total += out.weights.back();
     }
+    std::swap(out.weights[0], *std::max_element(out.weights.begin(), out.weights.end()));
     MorphologyPoint& mixed = out.point;
     std::size_t count = 0, bands = 0;
     for (std::size_t k : out.parents) {
@@ -1239,7 +1234,7 @@ Mixture mix_parents(const Morphology& morphology, const DrawOptions& draw, std::
     }
     mixed.shape.assign(count, Complex(0.0, 0.0));
     mixed.band_shapes.assign(bands, std::vector<Complex>(count, Complex(0.0, 0.0)));
-    double size2 = 0.0, log_r = 0.0;
+    double size2 = 0.0;
     for (std::size_t j = 0; j < out.parents.size(); ++j) {
         const MorphologyPoint& p = morphology.points[out.parents[j]];
         out.weights[j] /= total;
@@ -1249,15 +1244,15 @@ Mixture mix_parents(const Morphology& morphology, const DrawOptions& draw, std::
             for (std::size_t k = 0; k < p.band_shapes[b].size(); ++k)
                 mixed.band_shapes[b][k] += w * p.band_shapes[b][k];
         size2 += out.weights[j] * p.size2;
-        log_r += out.weights[j] * log_radius(p, mag, draw.size_slope);
     }
     const double c00 = mixed.shape[0].real();  // Σ w_j / Σ_{n even} c_j > 0
     for (Complex& c : mixed.shape) c /= c00;
     for (auto& band : mixed.band_shapes)
         for (Complex& c : band) c /= c00;
+    // The shape parent's rms radius (at `mag`), so the sizes are the parents'.
     const MorphologyPoint& p0 = morphology.points[first];
     out.beta = out.parents.size() > 1
-                   ? std::exp(log_r) / std::sqrt(size2)
+                   ? std::exp(log_radius(p0, mag, draw.size_slope)) / std::sqrt(size2)
                    : p0.beta * std::pow(10.0, -0.4 * draw.size_slope * (mag - p0.mag));
     return out;
 }
@@ -1478,6 +1473,23 @@ void weight_by_counted_area(const std::vector<SourceField>& fields,
             mine = mine || k == field[i];
         }
         weights[i] = mine ? weights[i] / area : 0.0;
+    }
+}
+
+void weight_by_kept_fraction(const std::vector<SourceField>& fields,
+                             const std::vector<ShapeletRecord>& kept,
+                             const std::vector<std::size_t>& field, std::vector<double>& weights) {
+    const auto bin = [](double mag) { return long(std::floor(mag / 0.5)); };
+    std::vector<std::map<long, double>> all(fields.size()), mine(fields.size());
+    for (std::size_t f = 0; f < fields.size(); ++f)
+        for (double mag : fields[f].mags) all[f][bin(mag)] += 1.0;
+    for (std::size_t i = 0; i < kept.size(); ++i)
+        if (field[i] < fields.size()) mine[field[i]][bin(*kept[i].mag)] += 1.0;
+    for (std::size_t i = 0; i < kept.size(); ++i) {
+        if (field[i] >= fields.size()) continue;  // shape-only
+        const long b = bin(*kept[i].mag);
+        const double seen = all[field[i]][b];
+        if (seen > mine[field[i]][b]) weights[i] *= seen / mine[field[i]][b];
     }
 }
 

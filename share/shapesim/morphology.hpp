@@ -53,13 +53,14 @@
 // rings: its change in high orders is an oscillation at large radius, and a clipped negative
 // half leaves the positive half as a visible ring. A mixture is new without ringing: the shape
 // parent (chosen as above) and M − 1 partners, picked among the 2(M − 1) points of its
-// magnitude window nearest to it in (|χ|, ln rms radius) (each over the points' spread), are
+// magnitude window whose aligned unit-β images are most alike to its own (the cosine of the
+// angle between them: a mixture averages galaxies of one kind), are
 // each scaled to unit flux at unit β (c / Σ_{n even} c_{n,0}) and added with weights w from a
-// flat Dirichlet draw. In the coordinates u = x/β every term is its parent's image stretched,
+// flat Dirichlet draw, the largest the shape parent's. In the coordinates u = x/β every term is its parent's image stretched,
 // positive where the parent is; a convex sum of positive images is positive, so the mixture
-// rings no deeper than its parents do. Its β sets its rms radius to the weighted geometric
-// mean of the parents' (each at the drawn magnitude by the size–luminosity slope): β =
-// exp(Σ w ln(β_j r_j s_j)) / √(Σ w r_j²), r_j² the parent's size2. Bands mix with the same
+// rings no deeper than its parents do. Its β gives it the shape parent's rms radius (moved to
+// the drawn magnitude by the size–luminosity slope s): β = β_0 r_0 10^{−0.4 s (m − m_0)} /
+// √(Σ w r_j²), r_j² the parent's size2, so the sizes are the parents'. Bands mix with the same
 // weights (a red bulge of one parent stays red). No coefficient is perturbed.
 //
 // Several bands (issue 17). Models of a joint fit (shapesim-decompose on shapesim-detect
@@ -146,8 +147,6 @@ struct MorphologyPoint {
     /// The shape's mean |z|² about its centre over its flux, in units of β² (derived,
     /// prepare(); NaN when not positive): a mixture's size is set from it (draw_galaxy, mix).
     double size2 = 0.0;
-    /// |χ| of the aligned shape's second moments (derived, prepare(); NaN when undefined).
-    double ellipticity = 0.0;
     /// How far the shape was moved to be non-negative, ‖c' − c‖/‖c‖ (0: as fitted).
     double positivity_change = 0.0;
 };
@@ -259,9 +258,6 @@ struct Morphology {
     std::vector<double> colour_mean;
     Eigen::MatrixXd colour_covariance;
     Eigen::MatrixXd colour_root;         ///< V^{1/2} (prepare() fills it)
-    /// Mixture partners' distance scales (prepare()): the spread (standard deviation) of the
-    /// points' ellipticity and of the log of their rms radius.
-    double spread_ellipticity = 1.0, spread_log_radius = 1.0;
     Json provenance = Json::object();    ///< input hash, options, program version
 
     Json to_json() const;
@@ -330,6 +326,15 @@ SelectedRecords select_records(JsonlReader& reader, const RecordSelection& selec
 void weight_by_counted_area(const std::vector<SourceField>& fields,
                             const std::vector<ShapeletRecord>& kept,
                             const std::vector<std::size_t>& field, std::vector<double>& weights);
+
+/// Each kept galaxy of a counted field also stands for the field's galaxies left out near its
+/// magnitude (noise detections, edges, bad fits): its weight × (the field's galaxies) / (its
+/// kept galaxies) in its 0.5-mag bin, so parents drawn by weight have the magnitudes of every
+/// galaxy the field holds, not only of those that fitted (issue 36 §2: the faint galaxies left
+/// out are the small ones). Shape-only galaxies are left as they are.
+void weight_by_kept_fraction(const std::vector<SourceField>& fields,
+                             const std::vector<ShapeletRecord>& kept,
+                             const std::vector<std::size_t>& field, std::vector<double>& weights);
 
 /// Ids are per image: the short name of each image that prefixes its points' ids
 /// ("hdfn_f814w_v2", "AEGIS_F814w_images_01[1]": no folder, no ".fits"); where two clash, the

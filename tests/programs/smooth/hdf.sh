@@ -2,7 +2,8 @@
 # shapesim-smooth on the HDF models (detect → decompose → smooth): one shapesim.morphology/1
 # document whose points are the models not flagged edge, bright_star, noise or bad_fit (whatever
 # stopped their order search); --require 'converged|n_max_cap' is the paper's selection;
-# --delta zeroes every λ; the same
+# --delta zeroes every λ and keeps the shapes as fitted (--keep-negative), which otherwise move
+# to their nearest non-negative shapes where they ring below zero; the same
 # input gives the same bytes; bad input gives one clear stderr line and a non-zero exit.
 source "$(dirname "${BASH_SOURCE[0]}")/../lib.sh"
 prog=shapesim-smooth
@@ -15,6 +16,7 @@ hdf_models
 "$BIN/$prog" -q <shapelets.jsonl >again.json || fail "second run failed"
 cmp -s morph.json again.json || fail "two runs differ"
 "$BIN/$prog" -q --delta <shapelets.jsonl >delta.json || fail "--delta failed"
+"$BIN/$prog" -q --keep-negative <shapelets.jsonl >fitted.json || fail "--keep-negative failed"
 "$BIN/$prog" -q --require 'converged|n_max_cap' <shapelets.jsonl >strict.json ||
   fail "--require 'converged|n_max_cap' failed"
 python3 - <<'PY' || fail "the morphology documents break the checks"
@@ -42,18 +44,27 @@ assert m["n_max"] == max(p["n_max"] for p in m["points"])
 lam = m["lambda"]
 assert lam["phase_deg"] == 15 and lam["beta"] > 0 and lam["mag"] > 0, lam
 assert len(lam["coefficient"]) == ((m["n_max"] + 2) // 2) * ((m["n_max"] + 3) // 2)
-# Every point's shape is a_nm/a_00 of its record (moduli kept by the alignment), c_00 = 1.
+# With --keep-negative every point's shape is a_nm/a_00 of its record (moduli kept by the
+# alignment), c_00 = 1; by default the shapes that ring below zero are moved (positivity_change)
+# and the others kept.
 by_id = {r["id"]: r for r in records}
-for p in m["points"]:
+fitted = json.load(open("fitted.json"))
+for p in fitted["points"]:
     c = by_id[p["id"]]["coeffs"]
     assert p["shape"][0] == [1.0, 0.0], p["id"]
+    assert "positivity_change" not in p, p["id"]
     for (re, im), (pr, pi) in zip(c, p["shape"]):
         assert abs(math.hypot(re, im) / c[0][0] - math.hypot(pr, pi)) < 1e-9, p["id"]
+moved = [p["id"] for p in m["points"] if p.get("positivity_change", 0) > 0]
+assert 0 < len(moved) < len(m["points"]), len(moved)
+for p, q in zip(m["points"], fitted["points"]):
+    assert p["shape"][0] == [1.0, 0.0], p["id"]
+    assert (p["shape"] != q["shape"]) == (p["id"] in moved), p["id"]
 assert m["provenance"]["input_records"] == len(records)
 d = json.load(open("delta.json"))
 assert d["lambda"]["phase_deg"] == 0 and d["lambda"]["beta"] == 0 and d["lambda"]["mag"] == 0
 assert all(v == 0 for v in d["lambda"]["coefficient"])
-assert [p["shape"] for p in d["points"]] == [p["shape"] for p in m["points"]]
+assert [p["shape"] for p in d["points"]] == [p["shape"] for p in fitted["points"]]
 PY
 
 # Capped at n_max 4, the bright galaxies end far above χ²_r 1.5: flagged bad_fit and dropped.
@@ -98,7 +109,18 @@ a, f = json.load(open("area.json")), json.load(open("field.json"))
 [one] = f["source_fields"]
 assert one["area_arcmin2"] == a["source_field"]["area_arcmin2"] and one["mags"] == a["source_field"]["mags"]
 assert one["completeness"] > 28, one["completeness"]  # the turnover of the HDF counts
-assert [p["weight"] if "weight" in p else 1 for p in f["points"]] == [1] * len(f["points"])' ||
+w = lambda m: [p.get("weight", 1) for p in m["points"]]
+assert w(f) == w(a), "one --field weighs its parents as --area does"
+# A kept galaxy stands for the field galaxies left out in its 0.5-mag bin (noise detections,
+# edges): weights of at least 1, above 1 where galaxies were left out.
+import collections
+mags = a["source_field"]["mags"]
+all_bins = collections.Counter(int(m // 0.5) for m in mags)
+kept_bins = collections.Counter(int(p["mag"] // 0.5) for p in a["points"])
+for p, weight in zip(a["points"], w(a)):
+    b = int(p["mag"] // 0.5)
+    assert abs(weight - max(1, all_bins[b] / kept_bins[b])) < 1e-12, (p["id"], weight)
+assert max(w(a)) > 1' ||
   fail "--field does not record the field as --area does"
 rc=0; "$BIN/$prog" --field other.fits=1 <shapelets.jsonl >out 2>err || rc=$?
 expect_error "$rc" 1 'none of the --field images'
@@ -120,7 +142,7 @@ assert s["shape_fields"] == ["cutout.fits[1]"], s.get("shape_fields")
 n = len(f["points"])
 assert len(s["points"]) == 2 * n, (len(s["points"]), n)
 for p, q in zip(f["points"], s["points"][:n]):
-    assert q["id"] == "hdfn_f814w_v2:" + p["id"] and "shape_only" not in q and q["weight"] == 1, q["id"]
+    assert q["id"] == "hdfn_f814w_v2:" + p["id"] and "shape_only" not in q and q["weight"] == p["weight"], q["id"]
 for p, q in zip(f["points"], s["points"][n:]):
     assert q["id"] == "cutout[1]:" + p["id"] and q["shape_only"] is True and q["weight"] == 0, q["id"]' ||
   fail "shape-only points are not weight 0, flagged and named by their image"
