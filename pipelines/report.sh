@@ -47,6 +47,16 @@ seed_shares() {
         list = list (n > 1 ? ", " : "") sprintf("%s (%.0f%%)", f[1] "/" f[2], 100 * share) } }
     END { printf "%s; at most 10%% in %d of %d", list, k, n }' "$1"
 }
+# A truth catalogue's galaxies that lost at least 1% of their flux where the renderer clipped
+# negative model light: "k of n (p%); at most f of a galaxy's flux".
+clipped_share() {
+  awk 'match($0, /"kind":"galaxy"/) && match($0, /"flux":[-0-9.e+]+/) {
+      f = substr($0, RSTART + 7, RLENGTH - 7) + 0; c = 0; n++
+      if (match($0, /"clipped_flux":[-0-9.e+]+/)) c = substr($0, RSTART + 15, RLENGTH - 15) + 0
+      if (f > 0 && c / f >= 0.01) k++
+      if (f > 0 && c / f > worst) worst = c / f }
+    END { printf "%d of %d (%.1f%%); at most %.2g of a galaxy'"'"'s flux", k, n, n ? 100 * k / n : 0, worst }' "$1"
+}
 # "N objects from K real galaxies".
 bright_parents() {
   parent_counts "$1" "$2" | awk '{ printf "%d objects from %d real galaxies", $1, $2 }'
@@ -152,11 +162,27 @@ Number counts (Fig. 5), sizes (Fig. 6), size against magnitude (Fig. 7), ellipti
 ![number counts](compare/counts.png) ![sizes](compare/size.png) ![size against magnitude](compare/size_mag.png)
 ![ellipticity](compare/ellipticity.png) ![C against A](compare/c_a.png) ![C against r_p](compare/c_rp.png) ![A against S](compare/a_s.png)
 
+## Light below zero
+
+A galaxy's light is never negative, but a truncated, noisy shapelet fit rings below zero, and
+so do perturbations of it; the renderer clips what remains. \`shapesim-smooth\` moves every
+parent to its nearest shape that is nowhere negative (the δ model keeps the fits as they are),
+and \`shapesim-sample\` draws each new galaxy as a mixture of real ones, which rings no deeper
+than they do. Galaxies that lost at least 1% of their flux to the clip:
+
+| simulation | clipped ≥ 1% of the flux |
+|---|---|
+| delta (the real fits) | $(clipped_share "$out/delta.truth.jsonl") |
+| sim | $(clipped_share "$out/sim.truth.jsonl") |
+| sim6 | $(clipped_share "$out/sim6.truth.jsonl") |
+| merged6 | $(clipped_share "$out/merged6.truth.jsonl") |
+
 ## A larger simulation
 
 $(fits_card "$out/sim6.fits" FIELDNX) × $(fits_card "$out/sim6.fits" FIELDNY) pixels at the HDF's scale and depth, drawn from the same PDF
-(shown at 1200 pixels across). Brighter than I = 23 it holds $(bright_parents "$out/sim6.objects.jsonl" 23):
-the bootstrap can only copy the bright galaxies the real cut has, and a 512² cut has few.
+(shown at 1200 pixels across). Brighter than I = 23 it holds $(bright_parents "$out/sim6.objects.jsonl" 23)
+as the mixtures' shape parents: each is a new galaxy, but of the kinds a 512² cut holds, and it
+holds few bright ones.
 
 ![the larger simulation](figures/sim6.png)
 
@@ -169,7 +195,7 @@ cutouts of single galaxies (ACS, 0.03″). Each galaxy is fitted through its own
 \`shapesim-smooth --field\` combines the two fields' counts where each is complete
 ($(grep -o '"completeness":[0-9.]*' "$out/merged.json" | cut -d: -f2 | paste -sd/ -) mag) and takes the cutouts as shape-only parents (\`IMAGE=shapes\`: they
 shape the draws near their magnitude but are not counted), and \`shapesim-sample --neighbours\`
-draws shapes conditional on magnitude. The magnitudes come from a power law fitted to the two
+draws shapes conditional on magnitude, each a mixture of $(merged_option "$out/pipeline.log" mix) real galaxies. The magnitudes come from a power law fitted to the two
 fields' counts (\`--counts fit\`, Poisson maximum likelihood: $(counts_fit "$out/pipeline.log")), not from
 their few bright galaxies' luck: each bright draw then takes the shape of one of the
 $(merged_option "$out/pipeline.log" neighbours) parents nearest its magnitude, at most $(merged_option "$out/pipeline.log" max-mag-shift) mag away, its β scaled as L^0.3. Rendered through the HDF's PSF and noise, measured in

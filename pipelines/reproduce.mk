@@ -113,8 +113,10 @@ HDF_AREA   := 0.115643
 XDF_AREA   := 0.25
 # Shapes from the 32 parents nearest each drawn magnitude, moved by at most 3 mag (β as L^0.3):
 # with magnitudes from the fitted counts, the few bright parents must reach the I < 24 draws.
+# Each galaxy a mixture of MIX of them (shapesim-sample's default draw).
 NEIGHBOURS ?= 32
 MAX_MAG_SHIFT ?= 3
+MIX ?= 3
 INPUTS     += $(XDF_IMAGE) $(XDF_WEIGHT)
 
 $(OUT)/xdf/psf.jsonl: $(XDF_IMAGE) $(call prog,decompose)
@@ -187,7 +189,7 @@ $(OUT)/merged.json: $(OUT)/intrinsic.jsonl $(OUT)/xdf/intrinsic.jsonl $(STAMPS:%
 	  $(foreach s,$(STAMPS),--field '$(call stamp_image,$(s))=shapes') > $(tmp)
 	mv $(tmp) $@
 MERGED_SAMPLE = $(call prog,sample) $(OUT)/merged.json $(LARGE_FIELD) --zero-point $(ZERO_POINT) \
-  --neighbours $(NEIGHBOURS) --max-mag-shift $(MAX_MAG_SHIFT)
+  --neighbours $(NEIGHBOURS) --max-mag-shift $(MAX_MAG_SHIFT) --mix $(MIX)
 $(OUT)/merged6.objects.jsonl: $(OUT)/merged.json $(OUT)/params/seed $(OUT)/params/area $(call prog,sample)
 	$(MERGED_SAMPLE) --seed $(SEED) > $(tmp)
 	mv $(tmp) $@
@@ -231,8 +233,8 @@ XDF_MEASURE = $(call prog,measure) --zero-point $(XDF_ZERO_POINT) --mag-limit $(
 $(OUT)/xdf/real.morph.jsonl: $(XDF_IMAGE) $(XDF_WEIGHT) $(OUT)/xdf/psf.jsonl $(call prog,measure)
 	$(XDF_MEASURE) $(XDF_IMAGE) --weight $(XDF_WEIGHT) --pixel-scale $(XDF_SCALE) > $(tmp)
 	mv $(tmp) $@
-$(OUT)/xdf/delta.morph.jsonl: $(OUT)/xdf/delta.fits $(OUT)/xdf/psf.jsonl $(call prog,measure)
-	$(XDF_MEASURE) $< > $(tmp)
+$(OUT)/xdf/delta.morph.jsonl: $(OUT)/xdf/delta.fits $(OUT)/xdf/psf.jsonl $(XDF_WEIGHT) $(call prog,measure)
+	$(XDF_MEASURE) $< --weight $(XDF_WEIGHT) > $(tmp)
 	mv $(tmp) $@
 $(OUT)/xdf/table.md: $(OUT)/xdf/real.morph.jsonl $(OUT)/xdf/delta.morph.jsonl $(call prog,measure)
 	$(call prog,measure) --compare $(foreach c,real delta,xdf_$c=$(OUT)/xdf/$c.morph.jsonl) \
@@ -251,8 +253,8 @@ $(OUT)/seeds/hdf_%.objects.jsonl: $(OUT)/delta.json $(IMAGE) $(call prog,sample)
 	mv $(tmp) $@
 $(OUT)/seeds/hdf_%.fits: $(OUT)/seeds/hdf_%.objects.jsonl $(OUT)/psf.jsonl $(OUT)/hdf.noise.jsonl $(call prog,render)
 	$(HDF_RENDER) -q --seed $* --like $(IMAGE) --noise-weight $(WEIGHT) -o $@ < $<
-$(OUT)/seeds/hdf_%.morph.jsonl: $(OUT)/seeds/hdf_%.fits $(call prog,measure)
-	$(MEASURE) -q $< > $(tmp)
+$(OUT)/seeds/hdf_%.morph.jsonl: $(OUT)/seeds/hdf_%.fits $(WEIGHT) $(call prog,measure)
+	$(MEASURE) -q $< --weight $(WEIGHT) > $(tmp)
 	mv $(tmp) $@
 $(OUT)/seeds/xdf_%.objects.jsonl: $(OUT)/xdf/delta.json $(call prog,sample)
 	@mkdir -p $(@D)
@@ -260,15 +262,18 @@ $(OUT)/seeds/xdf_%.objects.jsonl: $(OUT)/xdf/delta.json $(call prog,sample)
 	mv $(tmp) $@
 $(OUT)/seeds/xdf_%.fits: $(OUT)/seeds/xdf_%.objects.jsonl $(OUT)/xdf/psf.jsonl $(OUT)/xdf/real.noise.jsonl $(XDF_WEIGHT) $(call prog,render)
 	$(XDF_RENDER) -q --seed $* -o $@ < $<
-$(OUT)/seeds/xdf_%.morph.jsonl: $(OUT)/seeds/xdf_%.fits $(OUT)/xdf/psf.jsonl $(call prog,measure)
-	$(XDF_MEASURE) -q $< > $(tmp)
+$(OUT)/seeds/xdf_%.morph.jsonl: $(OUT)/seeds/xdf_%.fits $(OUT)/xdf/psf.jsonl $(XDF_WEIGHT) $(call prog,measure)
+	$(XDF_MEASURE) -q $< --weight $(XDF_WEIGHT) > $(tmp)
 	mv $(tmp) $@
 SEED_FILES := $(foreach f,hdf xdf,$(foreach s,$(SEEDS),$(foreach e,objects.jsonl fits morph.jsonl,$(OUT)/seeds/$(f)_$(s).$(e))))
+# The five seeds pooled ("pooled": one catalogue of them all) are compared too.
 $(OUT)/seeds.md: $(R)pipelines/seeds.sh $(SEED_FILES) $(OUT)/hdf.morph.jsonl $(OUT)/xdf/real.morph.jsonl $(call prog,measure)
+	cat $(foreach s,$(SEEDS),$(OUT)/seeds/hdf_$(s).morph.jsonl) > $(OUT)/seeds/hdf_pooled.morph.jsonl
+	cat $(foreach s,$(SEEDS),$(OUT)/seeds/xdf_$(s).morph.jsonl) > $(OUT)/seeds/xdf_pooled.morph.jsonl
 	$(call prog,measure) -q --compare hdf=$(OUT)/hdf.morph.jsonl \
-	  $(foreach s,$(SEEDS),delta$(s)=$(OUT)/seeds/hdf_$(s).morph.jsonl) -o $(OUT)/seeds/hdf
+	  $(foreach s,$(SEEDS) pooled,delta$(s)=$(OUT)/seeds/hdf_$(s).morph.jsonl) -o $(OUT)/seeds/hdf
 	$(call prog,measure) -q --compare xdf=$(OUT)/xdf/real.morph.jsonl \
-	  $(foreach s,$(SEEDS),delta$(s)=$(OUT)/seeds/xdf_$(s).morph.jsonl) -o $(OUT)/seeds/xdf
+	  $(foreach s,$(SEEDS) pooled,delta$(s)=$(OUT)/seeds/xdf_$(s).morph.jsonl) -o $(OUT)/seeds/xdf
 	$(R)pipelines/seeds.sh $(OUT)/seeds/hdf $(OUT)/seeds/xdf > $(tmp)
 	mv $(tmp) $@
 
@@ -276,6 +281,11 @@ $(OUT)/seeds.md: $(R)pipelines/seeds.sh $(SEED_FILES) $(OUT)/hdf.morph.jsonl $(O
 MEASURE = $(call prog,measure) --zero-point $(ZERO_POINT) --mag-limit $(MAG_LIMIT) -j $(THREADS)
 $(OUT)/hdf.morph.jsonl: $(IMAGE) $(WEIGHT) $(call prog,measure)
 	$(MEASURE) $(IMAGE) --weight $(WEIGHT) > $(tmp)
+	mv $(tmp) $@
+# The simulations of the HDF's own field carry its weight map's noise: measured with it, as the
+# HDF is (issue 36 §2: without it the δ image's FWHM median read 0.456″ against 0.424″ with it).
+$(OUT)/delta.morph.jsonl $(OUT)/sim.morph.jsonl: $(OUT)/%.morph.jsonl: $(OUT)/%.fits $(WEIGHT) $(call prog,measure)
+	$(MEASURE) $< --weight $(WEIGHT) > $(tmp)
 	mv $(tmp) $@
 $(OUT)/%.morph.jsonl: $(OUT)/%.fits $(call prog,measure)
 	$(MEASURE) $< > $(tmp)

@@ -16,12 +16,14 @@ using namespace shapesim;
 namespace po = app::po;
 
 const char* const description =
-    "Draw new galaxies from the morphology model by Silverman's bootstrap (a real galaxy\n"
-    "picked at random, its magnitude perturbed, the shape of one of the --neighbours real\n"
-    "galaxies nearest that magnitude, every parameter perturbed by an Epanechnikov kernel\n"
-    "of its smoothing length), give each a uniform position, orientation and flip, add\n"
-    "stars, and write shapesim.object/1 records. Every draw comes from the stream of (seed,\n"
-    "object), so a tile (--tile) holds exactly the objects of the whole field that reach it.\n"
+    "Draw new galaxies from the morphology model: each a magnitude from the counts fitted to\n"
+    "the model's fields (--counts), a shape parent among the --neighbours real galaxies\n"
+    "nearest that magnitude, mixed with the --mix - 1 galaxies of its window most alike to it\n"
+    "(random weights: a new galaxy whose light is nowhere negative), then a uniform position,\n"
+    "orientation and flip; add stars; write shapesim.object/1 records. --neighbours 0 is the\n"
+    "paper's draw (Silverman's bootstrap: one real galaxy, every parameter perturbed by an\n"
+    "Epanechnikov kernel). Every draw comes from the stream of (seed, object), so a tile\n"
+    "(--tile) holds exactly the objects of the whole field that reach it.\n"
     "\n"
     "Examples:\n"
     "  shapesim-sample morphology.pdf.json --like hdf.fits --seed 7 > objects.jsonl\n"
@@ -68,17 +70,21 @@ int run(int argc, const char* const argv[]) {
         ("count", po::value(&s.count), "exactly this many galaxies instead")
         ("mag-limit", po::value(&o.mag_limit)->default_value(29.0)
              ->notifier(in_range("mag-limit", -100.0, 100.0)), "nothing fainter")
+        ("faint-limit", po::value<double>()->notifier([&o](double m) { o.faint_limit = m; })
+             ->value_name("MAG"),
+         "also galaxies fainter than --mag-limit down to MAG, from the fitted counts "
+         "extrapolated: the sky's unresolved light (ids u<k>, \"below_limit\": true)")
         ("zero-point", po::value(&o.zero_point)->notifier(in_range("zero-point", -100.0, 100.0)),
          "of the output fluxes (default: the model's)")
-        ("neighbours", po::value(&o.draw.neighbours)->default_value(0)
+        ("neighbours", po::value(&o.draw.neighbours)->default_value(16)
              ->notifier(in_range("neighbours", 0, 1000000)),
          "take each galaxy's shape from one of this many real galaxies nearest to its drawn "
          "magnitude (no clones at the bright end); 0: the paper's draw, shape and magnitude of "
          "one parent")
-        ("mix", po::value(&o.draw.mix)->default_value(0)->notifier(in_range("mix", 0, 64)),
-         "each galaxy a mixture of this many real galaxies near its magnitude and shape, "
-         "weighted at random (new galaxies that do not ring; needs --neighbours >= it); 0: "
-         "a perturbation of one")
+        ("mix", po::value(&o.draw.mix)->default_value(3)->notifier(in_range("mix", 0, 64)),
+         "each --neighbours galaxy a mixture of this many real galaxies near its magnitude and "
+         "shape, weighted at random (new galaxies that do not ring; at most --neighbours); "
+         "0 or 1: one galaxy, perturbed")
         ("max-mag-shift", po::value(&o.draw.max_mag_shift)->default_value(2.0)
              ->notifier(in_range("max-mag-shift", 0.0, 100.0)),
          "--neighbours only within this many magnitudes of the draw (the nearest always)")
@@ -134,6 +140,7 @@ int run(int argc, const char* const argv[]) {
     if (!s.star_histogram.empty()) o.stars.bins = read_star_histogram(s.star_histogram);
     o.margin = s.margin / field.pixel_scale;
 
+    if (!options.given("mix")) o.draw.mix = std::min(o.draw.mix, o.draw.neighbours);
     const long shape_only = count_shape_only(morphology);
     if (shape_only > 0 && o.draw.neighbours == 0)
         log.info(shape_only, " shape-only models unused: only --neighbours draws take their shapes");

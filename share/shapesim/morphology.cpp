@@ -935,7 +935,7 @@ void DrawOptions::validate() const {
     if (!(max_perturbation > 0.0)) throw Error("must be > 0", "", 0, "max_perturbation");
     if (!(hole_allowance >= 0.0)) throw Error("must be ≥ 0", "", 0, "hole_allowance");
     if (mix < 0 || mix > 64) throw Error("must be in [0, 64]", "", 0, "mix");
-    if (mix >= 2 && neighbours < mix)
+    if (mix >= 2 && neighbours > 0 && neighbours < mix)
         throw Error("a mixture of " + std::to_string(mix) + " parents needs neighbours ≥ " +
                         std::to_string(mix),
                     "", 0, "mix");
@@ -1200,7 +1200,7 @@ std::vector<std::size_t> mixture_partners(const Morphology& morphology, const Dr
     }
     std::stable_sort(near.begin(), near.end(),
                      [](const auto& a, const auto& b) { return a.first < b.first; });
-    const std::size_t want = std::size_t(draw.mix) - 1;
+    const std::size_t want = std::size_t(std::max(draw.mix, 1)) - 1;
     near.resize(std::min(near.size(), 2 * want));
     std::vector<std::size_t> partners;
     for (std::size_t j = 0; j < want && j < near.size(); ++j) {  // a partial Fisher–Yates
@@ -1385,6 +1385,17 @@ DrawnGalaxy draw_galaxy(const Morphology& morphology, const std::vector<double>&
     g.perturbation = drawn.norm > 0.0 ? std::sqrt(drawn.change / drawn.norm) : 0.0;
     g.band_models = band_models(morphology, shape_parent, drawn, beta_pix, a00, g, stream);
     return g;
+}
+
+DrawnGalaxy draw_faint_galaxy(const Morphology& morphology, RandomStream& stream,
+                              double pixel_scale, double zero_point, const DrawOptions& draw) {
+    if (!draw.counts || draw.by_magnitude.empty())
+        throw Error("faint galaxies need the fitted counts and the parents by magnitude");
+    DrawOptions faint = draw;
+    faint.neighbours = std::max(draw.neighbours, 1);
+    faint.mix = morphology.lambda.is_delta() ? 1 : std::max(draw.mix, 1);
+    return draw_mixture(morphology, {1.0}, stream, pixel_scale, zero_point, draw.counts->faint,
+                        faint);
 }
 
 double model_reach(double beta_pix, int n_max) {

@@ -400,7 +400,7 @@ struct DrawOptions {
     /// parent's: then the shape parent is the only parent.
     std::optional<CountModel> counts;
     /// M ≥ 2: a conditional draw is a mixture of M parents, not a perturbation (see "Mixtures"
-    /// above); 0 or 1: the perturbed draw.
+    /// above; neighbours ≥ M); 0 or 1, or neighbours 0: the perturbed draw.
     int mix = 0;
     void validate() const;
 };
@@ -429,6 +429,15 @@ std::vector<std::size_t> magnitude_order(const Morphology& morphology, double ma
 DrawnGalaxy draw_galaxy(const Morphology& morphology, const std::vector<double>& parents,
                         RandomStream& stream, double pixel_scale, double zero_point,
                         double mag_limit, const DrawOptions& draw = DrawOptions{});
+
+/// A galaxy fainter than the catalogue the model was trained on (the sky's unresolved light,
+/// issue 36 §4): its magnitude from `draw.counts` (the fitted counts, extrapolated from
+/// `counts->bright` to `counts->faint`), its shape parent among the `draw.neighbours` parents
+/// nearest that magnitude (the faintest), mixed with draw.mix − 1 partners as a mixture draw is
+/// (in δ mode, or mix ≤ 1, the parent alone), its size scaled to that magnitude as L^size_slope.
+/// Throws Error without counts.
+DrawnGalaxy draw_faint_galaxy(const Morphology& morphology, RandomStream& stream,
+                              double pixel_scale, double zero_point, const DrawOptions& draw);
 
 /// Radius (pixels) beyond which a model of scale β_pix and order n_max contributes less than
 /// ~1e-6 of its peak: β(√(2 n_max + 1) + 5) — the Gaussian envelope past the basis's last

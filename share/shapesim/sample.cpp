@@ -71,6 +71,11 @@ void SampleOptions::validate() const {
     if (!std::isfinite(zero_point)) throw Error("must be finite", "", 0, "zero_point");
     if (!(margin >= 0.0 && std::isfinite(margin))) throw Error("must be ≥ 0", "", 0, "margin");
     if (cell < 1) throw Error("must be ≥ 1 pixel", "", 0, "cell");
+    if (faint_limit && !(std::isfinite(*faint_limit) && *faint_limit > mag_limit))
+        throw Error("must be fainter than the magnitude limit", "", 0, "faint_limit");
+    if (faint_limit && !faint_counts)
+        throw Error("needs the fitted counts (a model that recorded its fields)", "", 0,
+                    "faint_limit");
     draw.validate();
     // The star counts matter only when there are stars to draw.
     if (stars.density > 0.0 || (star_count && *star_count > 0)) stars.validate();
@@ -104,6 +109,8 @@ std::string SampleSummary::describe(const FieldGeometry& field, double density,
          << " pixels); " << galaxies_out << " galaxies and " << stars_out << " stars written"
          << (in_tile ? " (in the tile)" : "") << " from " << cells_read << " of " << cells
          << " sky cells; " << redraws << " perturbations redrawn; ";
+    if (faint > 0)
+        line << faint << " galaxies below the limit (" << faint_out << " written); ";
     return line.str();
 }
 
@@ -118,6 +125,8 @@ void write_tile_grid(std::ostream& out, const std::string& name, long field_nx, 
 
 void apply_model_counts(SampleOptions& options, const Morphology& morphology, bool fit_counts,
                         bool density_given, const std::string& model_path) {
+    if (options.faint_limit && !(*options.faint_limit > options.mag_limit))
+        throw Error("must be fainter than the magnitude limit", "", 0, "faint_limit");
     if (fit_counts) {
         try {
             options.draw.counts = conditional_counts(morphology, options.draw, options.mag_limit);
@@ -129,6 +138,29 @@ void apply_model_counts(SampleOptions& options, const Morphology& morphology, bo
     if (!density_given && !morphology.source_fields.empty())
         options.density = counts ? counts->density()
                                  : field_density(morphology.source_fields, options.mag_limit);
+    if (!options.faint_limit) return;
+    // The unresolved galaxies' counts: the conditional draw's fit, or one made for them over
+    // every parent's range, extrapolated past the limit.
+    if (morphology.source_fields.empty())
+        throw Error("--faint-limit needs a model that recorded its fields (shapesim-smooth "
+                    "--like, --area or --field) for the counts it extrapolates", model_path);
+    CountModel faint;
+    if (counts) {
+        faint = *counts;
+    } else {
+        const std::vector<std::size_t> order = magnitude_order(morphology, options.mag_limit);
+        if (order.empty()) throw Error("no parent as bright as the magnitude limit", model_path);
+        const double bright =
+            morphology.points[order.front()].mag - 0.5 * options.draw.max_mag_shift;
+        try {
+            faint = shapesim::fit_counts(morphology.source_fields, bright, options.mag_limit);
+        } catch (const Error& e) {
+            throw Error(e.message() + " (for --faint-limit)", model_path);
+        }
+    }
+    faint.bright = options.mag_limit;
+    faint.faint = *options.faint_limit;
+    options.faint_counts = faint;
 }
 
 namespace {
@@ -280,7 +312,7 @@ double galaxy_reach_bound(const Morphology& morphology, const DrawOptions& draw,
                          std::pow(10.0, -0.4 * draw.size_slope * (options.mag_limit - p.mag)));
         beta_max = std::max(beta_max, p.beta * scale_up);
     }
-    if (conditional && draw.mix >= 2) {
+    if ((conditional || options.faint_limit) && draw.mix >= 2) {
         // A mixture's β is at most the largest parent radius (moved to the brightest magnitude)
         // over the smallest parent radius in units of β.
         double radius = 0.0, size = std::numeric_limits<double>::infinity();
@@ -329,6 +361,39 @@ ObjectRecord galaxy_record(const Morphology& morphology, const DrawnGalaxy& g, s
     for (std::size_t b = 0; b < g.band_models.size(); ++b)
         o.bands.push_back(band_part(morphology, b, options.zero_point, &g.band_models[b], 0.0));
     return o;
+}
+
+// The galaxies below the magnitude limit (SampleOptions::faint_limit), each cell's after its
+// galaxies, keyed apart from them: a field drawn with them holds the same galaxies as without.
+void sample_faint(const Morphology& morphology, const FieldGeometry& field,
+                  const SampleOptions& options, const std::optional<Tile>& tile,
+                  const Cells& cells, const DrawOptions& draw, double reach_bound,
+                  const std::function<void(const ObjectRecord&)>& emit, SampleSummary& summary) {
+    if (!options.faint_limit || !options.faint_counts) return;
+    DrawOptions faint = draw;
+    faint.counts = options.faint_counts;
+    const std::vector<std::uint64_t> counts = cell_counts(
+        cells, options.seed, options.faint_counts->density(), std::nullopt, "faint galaxy count");
+    for (const std::uint64_t n : counts) summary.faint += n;
+    for (std::uint64_t cell = 0; cell < cells.count(); ++cell) {
+        if (tile && !cells.reaches(cell, *tile, reach_bound)) continue;
+        for (std::uint64_t j = 0; j < counts[cell]; ++j) {
+            const std::uint64_t k = object_key(cell, j);
+            RandomStream where(options.seed, k, "faint galaxy position");
+            const PixelPosition p = cells.position(cell, where);
+            if (tile && !tile->reaches(p.x, p.y, reach_bound)) continue;
+            RandomStream stream(options.seed, k, "faint galaxy");
+            const DrawnGalaxy g =
+                draw_faint_galaxy(morphology, stream, field.pixel_scale, options.zero_point, faint);
+            const double reach = model_reach(g.model.beta_pix, g.model.n_max) + options.margin;
+            if (tile && !tile->reaches(p.x, p.y, reach)) continue;
+            ObjectRecord o = galaxy_record(morphology, g, cell, j, p, field, options, reach);
+            o.id = object_id("u", cell, j);
+            o.extra["below_limit"] = true;
+            emit(o);
+            ++summary.faint_out;
+        }
+    }
 }
 
 // Stars: the PSF at a magnitude from the star counts, each cell's after the galaxies.
@@ -398,6 +463,7 @@ SampleSummary sample_field(const Morphology& morphology, const FieldGeometry& fi
             ++summary.galaxies_out;
         }
     }
+    sample_faint(morphology, field, options, tile, cells, draw, reach_bound, emit, summary);
     sample_stars(morphology, field, options, tile, cells, emit, summary);
     return summary;
 }

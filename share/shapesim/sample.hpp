@@ -66,6 +66,13 @@ struct SampleOptions {
     /// With draw.counts (conditional_counts), conditional draws take their magnitudes from
     /// those fitted counts; without, from a parent's magnitude, perturbed.
     DrawOptions draw;
+    /// The sky's unresolved galaxies: galaxies fainter than mag_limit down to this magnitude,
+    /// from the fitted counts extrapolated (draw_faint_galaxy), ids "u<k>" (cell c > 0:
+    /// "u<c>.<k>"), `"below_limit": true`. None: nothing fainter than mag_limit.
+    std::optional<double> faint_limit;
+    /// Their counts (apply_model_counts fills them): the slope and density of the fitted
+    /// counts, on (mag_limit, faint_limit].
+    std::optional<CountModel> faint_counts;
     StarCounts stars;
     std::optional<std::uint64_t> star_count;
     void validate() const;
@@ -102,6 +109,7 @@ struct SampleSummary {
     std::uint64_t galaxies = 0, stars = 0;      ///< drawn over the whole field
     std::uint64_t galaxies_out = 0, stars_out = 0;  ///< emitted (in the tile)
     std::uint64_t redraws = 0;                  ///< perturbations refused and redrawn
+    std::uint64_t faint = 0, faint_out = 0;     ///< galaxies below mag_limit: drawn, emitted
     std::uint64_t cells = 0, cells_read = 0;    ///< sky cells, and those whose draws were read
     /// The run's summary as shapesim-sample logs it (its elapsed time follows): drawn over
     /// `field` at `density` per arcmin², written (`in_tile`: in the tile), cells, redraws.

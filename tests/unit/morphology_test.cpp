@@ -1224,12 +1224,15 @@ TEST(MorphologyMixture, DeterministicNewAndSpreadOverTheParents) {
     EXPECT_LT(double(largest) / bright, 0.3);
 }
 
-// A mixture needs K ≥ M neighbours; δ mode and mix ≤ 1 draw as before, bit for bit.
+// A mixture needs K ≥ M neighbours (K = 0 is the paper's draw, unmixed); mix ≤ 1 draws as
+// before, bit for bit.
 TEST(MorphologyMixture, OptionsAndTheDrawsItLeavesAlone) {
     const Morphology morph = ladder();
     DrawOptions draw = mixture_options(morph, 2, 3);
     EXPECT_THROW(draw.validate(), Error);
     draw.neighbours = 3;
+    EXPECT_NO_THROW(draw.validate());
+    draw.neighbours = 0;  // the paper's draw: no mixture
     EXPECT_NO_THROW(draw.validate());
     const std::vector<double> parents = parent_table(morph, 99.0);
     DrawOptions one = mixture_options(morph, 8, 1), none = mixture_options(morph, 8, 0);

@@ -9,6 +9,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <iostream>
 #include <map>
 #include <sstream>
 #include <tuple>
@@ -371,4 +372,109 @@ TEST(Sample, MultiBandObjectsKeepTheirParentsColours) {
     });
     EXPECT_GT(galaxies, 50);
     EXPECT_GT(stars, 2);
+}
+
+// The sky's unresolved galaxies (SampleOptions::faint_limit): a field of parents to I = 27.8
+// counted over 0.1 arcmin², drawn to 27 with galaxies to 29.5 below the limit. Those follow the
+// fitted counts extrapolated (their number Poisson about the fit's density on (27, 29.5], their
+// magnitudes by KS against its power law), each a scaled copy of one of the faintest parents in
+// δ mode and a mixture otherwise, with ids u<k> and below_limit; the galaxies above the limit
+// are the same records as without them; a 3×3 tiling gives the whole field; a model without
+// fields is refused.
+TEST(Sample, GalaxiesBelowTheLimitFollowTheExtrapolatedCounts) {
+    Morphology m = test_morphology();
+    SourceField field;
+    field.area_arcmin2 = 0.1;
+    for (const MorphologyPoint& p : m.points) field.mags.push_back(p.mag);
+    std::sort(field.mags.begin(), field.mags.end());
+    m.source_fields = {field};
+    const FieldGeometry f = test_field(1500, 1500);  // 1 arcmin²
+    SampleOptions o;
+    o.seed = 5;
+    o.zero_point = 25.0;
+    o.mag_limit = 27.0;
+    o.density = 300.0;
+    o.draw.neighbours = 4;
+    o.draw.mix = 3;
+    SampleOptions faint = o;
+    faint.faint_limit = 29.5;
+    apply_model_counts(faint, m, false, true, "model");
+    ASSERT_TRUE(faint.faint_counts);
+    const CountModel counts = *faint.faint_counts;
+    EXPECT_EQ(counts.bright, 27.0);
+    EXPECT_EQ(counts.faint, 29.5);
+    std::map<std::string, std::string> plain, with;
+    std::vector<double> mags;
+    int mixed = 0;
+    sample_field(m, f, o, std::nullopt, [&](const ObjectRecord& r) { plain[r.id] = r.to_json().dump(); });
+    const SampleSummary s = sample_field(m, f, faint, std::nullopt, [&](const ObjectRecord& r) {
+        const Json j = r.to_json();
+        with[r.id] = j.dump();
+        if (r.id[0] != 'u') return;
+        EXPECT_TRUE(j.at("below_limit").get<bool>());
+        EXPECT_GT(*r.mag, 27.0);
+        EXPECT_LE(*r.mag, 29.5);
+        // The window: the 4 parents nearest, those within 2 mag (the nearest always).
+        EXPECT_GE(j.at("parents").size(), 1u) << r.id;
+        EXPECT_LE(j.at("parents").size(), 3u) << r.id;
+        mixed += j.at("parents").size() > 1;
+        EXPECT_NEAR(flux(r.to_model(0.0, 0.0)), r.flux, 1e-10 * r.flux) << r.id;
+        mags.push_back(*r.mag);
+    });
+    for (const auto& [id, text] : plain) EXPECT_EQ(with.at(id), text) << id;
+    EXPECT_EQ(with.size(), plain.size() + mags.size());
+    const double expected = counts.density(27.0, 29.5) * f.area_arcmin2();
+    EXPECT_EQ(double(s.faint), double(mags.size()));
+    EXPECT_NEAR(double(mags.size()), expected, 4.0 * std::sqrt(expected));
+    std::sort(mags.begin(), mags.end());
+    double d = 0.0;
+    const double n = double(mags.size());
+    const auto cdf = [&](double mag) {
+        return (std::pow(10.0, counts.slope * (mag - 27.0)) - 1.0) /
+               (std::pow(10.0, counts.slope * 2.5) - 1.0);
+    };
+    for (std::size_t i = 0; i < mags.size(); ++i)
+        d = std::max({d, std::abs(cdf(mags[i]) - double(i) / n), std::abs(double(i + 1) / n - cdf(mags[i]))});
+    std::cout << "  [measured] " << mags.size() << " galaxies below the limit (fit expects " << expected
+              << "), slope " << counts.slope << ", KS distance " << d << "\n";
+    ASSERT_GT(n, 150.0);
+    EXPECT_LT(d, 1.63 / std::sqrt(n));  // the 1% critical value
+    EXPECT_GT(mixed, 50);
+
+    // Tiles: every tile's records are the whole field's, their union is the whole field.
+    std::map<std::string, std::string> merged;
+    for (int j = 0; j < 3; ++j)
+        for (int i = 0; i < 3; ++i) {
+            const Tile t{1 + 500 * i, 1 + 500 * j, 500 * (i + 1), 500 * (j + 1)};
+            sample_field(m, f, faint, t, [&](const ObjectRecord& r) {
+                const std::string text = r.to_json().dump();
+                EXPECT_EQ(text, with.at(r.id)) << r.id;
+                merged[r.id] = text;
+            });
+        }
+    EXPECT_EQ(merged, with);
+
+    // δ mode: a copy of a faint parent, scaled to its magnitude as L^0.3.
+    Morphology dm = m;
+    dm.lambda = SmoothingLengths{};
+    dm.lambda.phase_deg = 0.0;
+    dm.lambda.coefficient.assign(m.lambda.coefficient.size(), 0.0);
+    ASSERT_TRUE(dm.lambda.is_delta());
+    int copies = 0;
+    sample_field(dm, f, faint, std::nullopt, [&](const ObjectRecord& r) {
+        if (r.id[0] != 'u') return;
+        const Json j = r.to_json();
+        EXPECT_EQ(j.at("parents").size(), 1u);
+        ++copies;
+    });
+    EXPECT_GT(copies, 150);
+
+    Morphology bare = m;
+    bare.source_fields.clear();
+    SampleOptions refused = o;
+    refused.faint_limit = 29.5;
+    EXPECT_THROW(apply_model_counts(refused, bare, false, true, "model"), Error);
+    refused.faint_limit = 26.0;  // not below the limit
+    refused.faint_counts = counts;
+    EXPECT_THROW(refused.validate(), Error);
 }

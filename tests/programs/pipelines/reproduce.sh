@@ -79,10 +79,12 @@ grep -q '^- brighter than I = 24: .*; at most 10% in [0-9]* of 10;$' "$out/repor
   fail "report.md lacks the shares over ten seeds"
 # The δ simulations at five seeds: one row per statistic, each seed a KS p, and the count.
 for field in hdf xdf; do
-  grep -q "^| $field: statistic | seed 7 | seed 8 | seed 9 | seed 10 | seed 11 | above 0.05 |$" "$out/seeds.md" ||
+  grep -q "^| $field: statistic | seed 7 | seed 8 | seed 9 | seed 10 | seed 11 | pooled | above 0.05 |$" "$out/seeds.md" ||
     fail "seeds.md lacks the $field table: $(cat "$out/seeds.md")"
-  grep -q "^| KS p, gini | [0-9.e-]* | [0-9.e-]* | [0-9.e-]* | [0-9.e-]* | [0-9.e-]* | [0-5] of 5 |$" "$out/seeds.md" ||
+  grep -q "^| KS p, gini | [0-9.e-]* | [0-9.e-]* | [0-9.e-]* | [0-9.e-]* | [0-9.e-]* | [0-9.e-]* | [0-6] of 6 |$" "$out/seeds.md" ||
     fail "seeds.md lacks the Gini row"
+  grep -q "^| FWHM median, ″ ($field: [0-9.]* ± [0-9.]*) | .* | [0-6] of 6 within 3% |$" "$out/seeds.md" ||
+    fail "seeds.md lacks the FWHM median row"
 done
 grep -q '^| hdf: statistic | seed 7' "$out/report.md" || fail "report.md lacks the seeds table"
 grep -q 'Poisson maximum likelihood: slope 0\.[0-9]* dex/mag, [0-9]* per arcmin² over I = [0-9.]*–29, fitted to [0-9]* galaxies)' \

@@ -112,12 +112,13 @@ rc=0; "$BIN/$prog" --area 1 >out 2>err || rc=$?
 expect_error "$rc" 2 'MODEL'
 
 # Bad input.
-# Shapes conditional on magnitude: a 6 arcmin² field's bright end no longer copies one parent
-# alone (the summary's largest share at I < 22 falls), tiles still reproduce the field, and a
-# shape taken from another parent than the magnitude names both.
-"$BIN/$prog" morph.json --area 6 --pixel-scale 0.03985 --seed 7 >paper6.jsonl 2>paper6.err ||
+# Shapes conditional on magnitude (perturbed, --mix 1): a 6 arcmin² field's bright end no longer
+# copies one parent alone as the paper's draw (--neighbours 0) does (the summary's largest share
+# at I < 22 falls), tiles still reproduce the field, and a shape taken from another parent than
+# the magnitude names both.
+"$BIN/$prog" morph.json --area 6 --pixel-scale 0.03985 --seed 7 --neighbours 0 >paper6.jsonl 2>paper6.err ||
   fail "6 arcmin² failed"
-"$BIN/$prog" morph.json --area 6 --pixel-scale 0.03985 --seed 7 --neighbours 16 \
+"$BIN/$prog" morph.json --area 6 --pixel-scale 0.03985 --seed 7 --neighbours 16 --mix 1 \
   >cond6.jsonl 2>cond6.err || fail "--neighbours 16 failed"
 python3 - <<'PY' || fail "--neighbours does not spread the bright end: $(cat paper6.err cond6.err)"
 import json, re
@@ -187,6 +188,38 @@ expect_error "$rc" 1 'thin.json: .*too few to fit counts to; draw with --counts 
 "$BIN/$prog" thin.json --area 1 --neighbours 4 --counts parents -q >out || fail "--counts parents on a thin field failed"
 rc=0; "$BIN/$prog" dense.json --area 1 --neighbours 4 --counts bogus >out 2>err || rc=$?
 expect_error "$rc" 2 'counts'
+
+# Mixtures (the default with --neighbours): every galaxy names its parents and their weights
+# (summing to 1, the parent's the largest); --faint-limit adds galaxies below --mag-limit
+# (ids u…, below_limit) and leaves the others' records as they were.
+"$BIN/$prog" dense.json --size 0.6797 --pixel-scale 0.03985 --seed 7 -q >mix.jsonl || fail "mixtures failed"
+"$BIN/$prog" dense.json --size 0.6797 --pixel-scale 0.03985 --seed 7 --faint-limit 31 >faint.jsonl 2>err ||
+  fail "--faint-limit failed: $(cat err)"
+grep -q 'galaxies below the limit' err || fail "no count of the galaxies below the limit: $(cat err)"
+python3 - <<'PY' || fail "mixtures or faint galaxies break the checks"
+import json
+mix = [json.loads(l) for l in open("mix.jsonl")]
+faint = [json.loads(l) for l in open("faint.jsonl")]
+for r in mix:
+    w = r["weights"]
+    assert len(r["parents"]) == len(w) and abs(sum(w) - 1) < 1e-12 and w[0] == max(w), r["id"]
+    assert r["parent"] == r["parents"][0], r["id"]
+below = [r for r in faint if r["id"].startswith("u")]
+assert [r for r in faint if not r["id"].startswith("u")] == mix
+assert len(below) > len(mix) / 2, (len(below), len(mix))
+assert all(r["below_limit"] and 29 < r["mag"] <= 31 for r in below)
+PY
+rc=0; "$BIN/$prog" dense.json --area 1 --faint-limit 28 >out 2>err || rc=$?
+expect_error "$rc" 1 'faint_limit: must be fainter than the magnitude limit'
+rc=0; "$BIN/$prog" morph.json --area 1 --faint-limit 31 >out 2>err || rc=$?
+expect_error "$rc" 1 'morph.json: --faint-limit needs a model that recorded its fields'
+"$BIN/shapesim-smooth" -q --delta --like "$hdf" <shapelets.jsonl >ddense.json || fail "smooth --delta --like failed"
+"$BIN/$prog" ddense.json --area 1 --faint-limit 31 -q >dfaint.jsonl || fail "δ with --faint-limit failed"
+python3 -c 'import json
+rows = [json.loads(l) for l in open("dfaint.jsonl")]
+below = [r for r in rows if r.get("below_limit")]
+assert below and all(len(r["parents"]) == 1 for r in below), len(below)' ||
+  fail "δ galaxies below the limit are not scaled copies of one parent"
 
 rc=0; "$BIN/$prog" nosuch.json --area 1 >out 2>err || rc=$?
 expect_error "$rc" 1 'nosuch.json: cannot open'
