@@ -139,6 +139,9 @@ int run(int argc, const char* const argv[]) {
     log.info(out.count(), " galaxies, ", tally.stars, " stars (stellarity > ",
              context.star_threshold, ", through ", detected.locus_note, ") in ", log.elapsed(),
              " s");
+    if (tally.saturated > 0)
+        log.info(tally.saturated, " saturated objects (a pixel at or above ",
+                 s.detection.detection.saturation, ") set aside with the stars");
     if (tally.single_pixel_events > 0)
         log.info(tally.single_pixel_events, " single-pixel events (cosmic rays, hot pixels: ",
                  "the peak holds ≥ 75% of the flux) left out");

@@ -37,7 +37,7 @@ struct Settings {
     // flattened at the noise, the cap, the stamp), unless χ²_r says it misses real structure
     // ("bad_fit"), rings ("holes") or lies off its data ("unsupported"). The paper's
     // `converged|n_max_cap` is one --require away.
-    std::string input = "-", require, reject = "edge,bright_star,noise,bad_fit,holes,unsupported",
+    std::string input = "-", require, reject = "edge,bright_star,saturated,noise,bad_fit,holes,unsupported",
                 weight_field;
     double beta = 0.0, mag = 0.0, modulus = 0.0, mag_limit = 0.0, area = 0.0, pixel_scale = 0.0;
     SmoothOptions smooth;  // k, lambda-phase, lambda-colour, delta, keep-colour-noise

@@ -756,7 +756,7 @@ void add_fit_flags(ShapeletRecord& r, const Decomposition& decomposition) {
     r.extra["unsupported_light"] = finite_or_null(decomposition.unsupported_light);
 }
 
-// The flags that need the source and its stamp: neighbour, edge and noise.
+// The flags that need the source and its stamp: neighbour, edge, saturated and noise.
 void add_source_flags(ShapeletRecord& r, const SourceRecord& source, const Stamp& stamp,
                       const Decomposition& decomposition) {
     const ShapeletFit& fit = decomposition.fit;
@@ -768,6 +768,8 @@ void add_source_flags(ShapeletRecord& r, const SourceRecord& source, const Stamp
     // aperture running off the image ("aperture_truncated") costs detection's photometry, not
     // the model, whose flux is its own: a galaxy filling an isolated-galaxy cutout keeps it.
     if (has(source.flags, "edge") || has(source.flags, "truncated")) r.flags.push_back("edge");
+    // A saturated source's pixels are clipped: no model of them is the object's.
+    if (has(source.flags, "saturated")) r.flags.push_back("saturated");
     // A noise detection is judged by the noise alone: truncation's share says how well the
     // flux is known, not whether the object is there.
     const auto significant = [](double flux, double error, double truncation) {

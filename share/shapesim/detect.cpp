@@ -240,6 +240,7 @@ void DetectionOptions::validate() const {
     if (!(clean_param > 0.0)) fail("CLEAN_PARAM", "must be > 0");
     if (back_size < 1) fail("BACK_SIZE", "must be ≥ 1");
     if (back_filter_size < 1) fail("BACK_FILTERSIZE", "must be ≥ 1");
+    if (!(saturation > 0.0)) fail("SATUR_LEVEL", "must be > 0");
     if (filter.nx < 1 || filter.ny < 1 ||
         filter.values.size() != std::size_t(filter.nx) * std::size_t(filter.ny))
         fail("FILTER_NAME", "filter kernel is empty or inconsistent");
@@ -723,6 +724,14 @@ DetectionResult detect_sources(const ImageArray& image, const ImageArray* invers
     std::vector<std::array<double, 3>> pixels;
     for (int k = 0; k < cat.nobj; ++k) {
         Detection d = catalog_detection(cat, k, result, options);
+        // Saturated: a pixel of the object's, as read, at or above the level (SExtractor's
+        // FLAGS bit 4); its shape and flux are not the object's.
+        if (std::isfinite(options.saturation))
+            for (int p = 0; p < cat.npix[k]; ++p)
+                if (image.data()[cat.pix[k][p]] >= options.saturation) {
+                    d.flags.push_back("saturated");
+                    break;
+                }
         measure_iso_and_fwhm(d, cat, k, result, options, pixels);
         measure_auto(d, cat, k, result, sep_sigma, options);
         result.objects.push_back(std::move(d));

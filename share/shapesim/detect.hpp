@@ -30,6 +30,7 @@
 
 #include <cstdint>
 #include <iosfwd>
+#include <limits>
 #include <string>
 #include <vector>
 
@@ -88,6 +89,9 @@ struct DetectionOptions {
     double kron_factor = 2.5;       ///< PHOT_AUTOPARAMS[0]
     double kron_min_radius = 3.5;   ///< PHOT_AUTOPARAMS[1], in units of a, b
     double gain = 0.0;              ///< GAIN, e⁻ per image unit (0: background noise only)
+    /// SATUR_LEVEL, in the image's units as read (sky included): an object with a pixel at or
+    /// above it is flagged "saturated" (∞: no level).
+    double saturation = std::numeric_limits<double>::infinity();
 
     /// Throws Error (field = SExtractor name) for values out of range.
     void validate() const;

@@ -1249,8 +1249,17 @@ Mixture mix_parents(const Morphology& morphology, const DrawOptions& draw, std::
     for (Complex& c : mixed.shape) c /= c00;
     for (auto& band : mixed.band_shapes)
         for (Complex& c : band) c /= c00;
-    // The shape parent's rms radius (at `mag`), so the sizes are the parents'.
+    // Each band's flux ratio is the shape parent's (the colour kernel then draws about it): a
+    // mixture takes its partners' colour gradients, not an average of their colours, which
+    // would narrow the colours' spread.
     const MorphologyPoint& p0 = morphology.points[first];
+    const double sum = even_sum(mixed.shape);
+    for (std::size_t b = 0; b < mixed.band_shapes.size() && b < p0.band_shapes.size(); ++b) {
+        const double own = flux_ratio(p0, b), ratio = even_sum(mixed.band_shapes[b]) / sum;
+        if (std::isfinite(own) && ratio > 0.0 && own > 0.0)
+            for (Complex& c : mixed.band_shapes[b]) c *= own / ratio;
+    }
+    // The shape parent's rms radius (at `mag`), so the sizes are the parents'.
     out.beta = out.parents.size() > 1
                    ? std::exp(log_radius(p0, mag, draw.size_slope)) / std::sqrt(size2)
                    : p0.beta * std::pow(10.0, -0.4 * draw.size_slope * (mag - p0.mag));

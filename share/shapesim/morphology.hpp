@@ -61,7 +61,8 @@
 // rings no deeper than its parents do. Its β gives it the shape parent's rms radius (moved to
 // the drawn magnitude by the size–luminosity slope s): β = β_0 r_0 10^{−0.4 s (m − m_0)} /
 // √(Σ w r_j²), r_j² the parent's size2, so the sizes are the parents'. Bands mix with the same
-// weights (a red bulge of one parent stays red). No coefficient is perturbed.
+// weights (a red bulge of one parent stays red), each then scaled to the shape parent's flux
+// ratio: the colours are the parents', not averages of them. No coefficient is perturbed.
 //
 // Several bands (issue 17). Models of a joint fit (shapesim-decompose on shapesim-detect
 // --bands records) carry every band's coefficients at one centre, β and n_max. A point keeps

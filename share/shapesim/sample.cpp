@@ -363,6 +363,28 @@ ObjectRecord galaxy_record(const Morphology& morphology, const DrawnGalaxy& g, s
     return o;
 }
 
+// Object j of every cell a tile reaches (all cells without a tile), with its key and its
+// position from the stream of (seed, key, `where`), when the position lies within
+// `reach_bound` of the tile: visit(cell, j, key, position). Returns the cells read.
+template <class Visit>
+std::uint64_t for_each_placed(const Cells& cells, const std::vector<std::uint64_t>& counts,
+                              std::uint64_t seed, const char* where,
+                              const std::optional<Tile>& tile, double reach_bound, Visit&& visit) {
+    std::uint64_t read = 0;
+    for (std::uint64_t cell = 0; cell < cells.count(); ++cell) {
+        if (tile && !cells.reaches(cell, *tile, reach_bound)) continue;  // a tile reads its cells
+        ++read;
+        for (std::uint64_t j = 0; j < counts[cell]; ++j) {
+            const std::uint64_t k = object_key(cell, j);
+            RandomStream stream(seed, k, where);
+            const PixelPosition p = cells.position(cell, stream);
+            if (tile && !tile->reaches(p.x, p.y, reach_bound)) continue;
+            visit(cell, j, k, p);
+        }
+    }
+    return read;
+}
+
 // The galaxies below the magnitude limit (SampleOptions::faint_limit), each cell's after its
 // galaxies, keyed apart from them: a field drawn with them holds the same galaxies as without.
 void sample_faint(const Morphology& morphology, const FieldGeometry& field,
@@ -375,25 +397,19 @@ void sample_faint(const Morphology& morphology, const FieldGeometry& field,
     const std::vector<std::uint64_t> counts = cell_counts(
         cells, options.seed, options.faint_counts->density(), std::nullopt, "faint galaxy count");
     for (const std::uint64_t n : counts) summary.faint += n;
-    for (std::uint64_t cell = 0; cell < cells.count(); ++cell) {
-        if (tile && !cells.reaches(cell, *tile, reach_bound)) continue;
-        for (std::uint64_t j = 0; j < counts[cell]; ++j) {
-            const std::uint64_t k = object_key(cell, j);
-            RandomStream where(options.seed, k, "faint galaxy position");
-            const PixelPosition p = cells.position(cell, where);
-            if (tile && !tile->reaches(p.x, p.y, reach_bound)) continue;
-            RandomStream stream(options.seed, k, "faint galaxy");
-            const DrawnGalaxy g =
-                draw_faint_galaxy(morphology, stream, field.pixel_scale, options.zero_point, faint);
-            const double reach = model_reach(g.model.beta_pix, g.model.n_max) + options.margin;
-            if (tile && !tile->reaches(p.x, p.y, reach)) continue;
-            ObjectRecord o = galaxy_record(morphology, g, cell, j, p, field, options, reach);
-            o.id = object_id("u", cell, j);
-            o.extra["below_limit"] = true;
-            emit(o);
-            ++summary.faint_out;
-        }
-    }
+    for_each_placed(cells, counts, options.seed, "faint galaxy position", tile, reach_bound,
+                    [&](std::uint64_t cell, std::uint64_t j, std::uint64_t k, const PixelPosition& p) {
+        RandomStream stream(options.seed, k, "faint galaxy");
+        const DrawnGalaxy g =
+            draw_faint_galaxy(morphology, stream, field.pixel_scale, options.zero_point, faint);
+        const double reach = model_reach(g.model.beta_pix, g.model.n_max) + options.margin;
+        if (tile && !tile->reaches(p.x, p.y, reach)) return;
+        ObjectRecord o = galaxy_record(morphology, g, cell, j, p, field, options, reach);
+        o.id = object_id("u", cell, j);
+        o.extra["below_limit"] = true;
+        emit(o);
+        ++summary.faint_out;
+    });
 }
 
 // Stars: the PSF at a magnitude from the star counts, each cell's after the galaxies.
@@ -445,24 +461,18 @@ SampleSummary sample_field(const Morphology& morphology, const FieldGeometry& fi
     for (const std::uint64_t n : galaxies) summary.galaxies += n;
     const double reach_bound = galaxy_reach_bound(morphology, draw, options, scale);
     summary.cells = cells.count();
-    for (std::uint64_t cell = 0; cell < cells.count(); ++cell) {
-        if (tile && !cells.reaches(cell, *tile, reach_bound)) continue;  // a tile reads its cells
-        ++summary.cells_read;
-        for (std::uint64_t j = 0; j < galaxies[cell]; ++j) {
-            const std::uint64_t k = object_key(cell, j);
-            RandomStream where(options.seed, k, "galaxy position");
-            const PixelPosition p = cells.position(cell, where);
-            if (tile && !tile->reaches(p.x, p.y, reach_bound)) continue;
+    summary.cells_read = for_each_placed(
+        cells, galaxies, options.seed, "galaxy position", tile, reach_bound,
+        [&](std::uint64_t cell, std::uint64_t j, std::uint64_t k, const PixelPosition& p) {
             RandomStream stream(options.seed, k, "galaxy");
             const DrawnGalaxy g = draw_galaxy(morphology, parents, stream, scale,
                                               options.zero_point, options.mag_limit, draw);
             const double reach = model_reach(g.model.beta_pix, g.model.n_max) + options.margin;
-            if (tile && !tile->reaches(p.x, p.y, reach)) continue;
+            if (tile && !tile->reaches(p.x, p.y, reach)) return;
             summary.redraws += std::uint64_t(g.redraws);
             emit(galaxy_record(morphology, g, cell, j, p, field, options, reach));
             ++summary.galaxies_out;
-        }
-    }
+        });
     sample_faint(morphology, field, options, tile, cells, draw, reach_bound, emit, summary);
     sample_stars(morphology, field, options, tile, cells, emit, summary);
     return summary;

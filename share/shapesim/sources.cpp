@@ -85,7 +85,11 @@ CatalogueTally catalogue_sources(const DetectionResult& field, const PointSource
         }
         const CoreFraction core = core_fraction(field, object, locus);
         const double star = stellarity(core, locus);
-        const bool is_star = star > context.star_threshold;
+        // A saturated object is set aside with the stars: its shape is not its own, and its
+        // wings flag the galaxies they reach (shapesim-decompose --stars: "bright_star").
+        const bool saturated = std::find(object.flags.begin(), object.flags.end(),
+                                         "saturated") != object.flags.end();
+        const bool is_star = star > context.star_threshold || saturated;
         std::unique_ptr<CutStamp> cut;
         if (stamps && (!is_star || stamp_stars)) {
             cut = std::make_unique<CutStamp>(
@@ -97,6 +101,7 @@ CatalogueTally catalogue_sources(const DetectionResult& field, const PointSource
             add_bands(record, bands, std::size_t(object.label - 1), object, cut.get(), stamps,
                       context.stamps, stamp);
         if (is_star) ++tally.stars;
+        if (saturated) ++tally.saturated;
         sink(object, record, is_star, star);
     }
     return tally;

@@ -46,7 +46,8 @@ SourceRecord source_record(const Detection& object, const CoreFraction& core,
 
 /// What catalogue_sources() left out or set aside.
 struct CatalogueTally {
-    long stars = 0;                ///< stellarity above context.star_threshold
+    long stars = 0;                ///< stellarity above context.star_threshold, or saturated
+    long saturated = 0;            ///< of them, saturated (Detection flag "saturated")
     long single_pixel_events = 0;  ///< cosmic rays, hot pixels: not recorded at all
 };
 

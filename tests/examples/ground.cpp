@@ -11,7 +11,8 @@
 // noise is that of value · EXPOSURE electrons. GAIN: e⁻ per ADU of OUT. OUT holds
 // (value · EXPOSURE + noise) / GAIN ADU, sky not subtracted. Its header: a north-up TAN WCS,
 // GAIN, EXPTIME, SATURATE and MAGZPT, the AB zero point of one ADU. IN's own noise is binned
-// too, but is far below the sky's.
+// too, but is far below the sky's. FULL_WELL (ADU): pixels above it read it, as a saturated
+// CCD's do, and SATURATE is that level (without: the 16-bit range's top, which nothing reaches).
 #include "shapesim/app/run_main.hpp"
 #include "shapesim/error.hpp"
 #include "shapesim/fits_io.hpp"
@@ -67,9 +68,9 @@ void check(int status, const std::string& path) {
 }
 
 int run(int argc, const char* const argv[]) {
-    if (argc < 10 || argc > 11) {
+    if (argc < 10 || argc > 12) {
         std::cerr << "usage: ground IN.fits OUT.fits PIXEL_SCALE ZERO_POINT SEEING BIN SKY "
-                     "EXPOSURE GAIN [SEED]\n";
+                     "EXPOSURE GAIN [SEED [FULL_WELL]]\n";
         return 2;
     }
     const std::string in_path = argv[1], out_path = argv[2];
@@ -77,7 +78,10 @@ int run(int argc, const char* const argv[]) {
     const double seeing = std::atof(argv[5]);
     const int bin = std::atoi(argv[6]);
     const double sky = std::atof(argv[7]), exposure = std::atof(argv[8]), gain = std::atof(argv[9]);
-    shapesim::testing::SplitMix noise{argc == 11 ? std::strtoull(argv[10], nullptr, 10) : 1};
+    shapesim::testing::SplitMix noise{argc >= 11 ? std::strtoull(argv[10], nullptr, 10) : 1};
+    // A full well, ADU: pixels above it read it (saturated), and SATURATE says so.
+    const double full_well = argc == 12 ? std::atof(argv[11]) : 0.0;
+    if (argc == 12 && !(full_well > 0)) throw Error("FULL_WELL must be > 0 ADU");
     if (!(scale > 0 && seeing > 0 && bin >= 1 && sky >= 0 && exposure > 0 && gain > 0))
         throw Error("PIXEL_SCALE, SEEING, EXPOSURE and GAIN must be > 0, BIN >= 1, SKY >= 0");
 
@@ -93,7 +97,8 @@ int run(int argc, const char* const argv[]) {
         for (int i = 0; i < nx; ++i) {
             const double value = blurred.block(j * bin, i * bin, bin, bin).sum() + sky;
             const double electrons = std::max(value, 0.0) * exposure;
-            const double a = (value * exposure + std::sqrt(electrons) * noise.normal()) / gain;
+            double a = (value * exposure + std::sqrt(electrons) * noise.normal()) / gain;
+            if (full_well > 0) a = std::min(a, full_well);
             adu[std::size_t(j) * std::size_t(nx) + std::size_t(i)] = a;
             lowest = std::min(lowest, a);
             highest = std::max(highest, a);
@@ -111,7 +116,10 @@ int run(int argc, const char* const argv[]) {
     fits_write_key(f, TDOUBLE, "BSCALE", &bscale, nullptr, &status);
     fits_write_key(f, TDOUBLE, "BZERO", &bzero, nullptr, &status);
     fits_set_bscale(f, bscale, bzero, &status);
-    double exptime = exposure, gain_key = gain, saturate = bzero + 32000 * bscale;
+    // A 16-bit read-out saturates at the top of its range, which the scaled data stay below;
+    // a full well, at its level (less half a step of the scaling: the stored value rounds).
+    double exptime = exposure, gain_key = gain;
+    double saturate = full_well > 0 ? full_well - 0.5 * bscale : bzero + 32767 * bscale;
     fits_write_key(f, TDOUBLE, "EXPTIME", &exptime, "s", &status);
     fits_write_key(f, TDOUBLE, "GAIN", &gain_key, "e-/ADU", &status);
     fits_write_key(f, TDOUBLE, "SATURATE", &saturate, "ADU", &status);

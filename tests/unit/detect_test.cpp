@@ -1494,3 +1494,30 @@ TEST(DetectSourceRecord, FieldNoiseFromTheRecords) {
         EXPECT_EQ(e.field(), "noise_rms");
     }
 }
+
+// Saturation (SATUR_LEVEL): on a sky of 1000 with unit noise, a bright star clipped at 1000 +
+// 5000 (its pixels as a full well reads them) and a faint galaxy: the star alone is flagged
+// "saturated", at the level or below it (a clipped pixel equals the level); no level, no flag;
+// the level must be > 0.
+TEST(DetectSaturation, ObjectsReachingTheLevelAreFlagged) {
+    ImageArray image = blobs_image(160, 120, {{40.0, 60.0, 2.0e5, 1.5}, {110.0, 60.0, 800.0, 3.0}});
+    image += white_noise(160, 120, 1.0, 5);
+    image += 1000.0;
+    const double level = 6000.0;
+    image = image.min(level);
+    DetectionOptions o;
+    o.saturation = level;
+    const DetectionResult r = detect_sources(image, nullptr, o);
+    const Match star = nearest(r.objects, 40.0, 60.0), galaxy = nearest(r.objects, 110.0, 60.0);
+    ASSERT_LT(star.distance, 1.0);
+    ASSERT_LT(galaxy.distance, 1.0);
+    EXPECT_TRUE(has_flag(r.objects[std::size_t(star.index)], "saturated"));
+    EXPECT_FALSE(has_flag(r.objects[std::size_t(galaxy.index)], "saturated"));
+    int saturated = 0;
+    for (const Detection& d : r.objects) saturated += has_flag(d, "saturated");
+    EXPECT_EQ(saturated, 1);
+    const DetectionResult none = detect_sources(image, nullptr, DetectionOptions{});
+    for (const Detection& d : none.objects) EXPECT_FALSE(has_flag(d, "saturated"));
+    o.saturation = 0.0;
+    EXPECT_THROW(o.validate(), Error);
+}

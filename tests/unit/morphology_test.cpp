@@ -1244,3 +1244,40 @@ TEST(MorphologyMixture, OptionsAndTheDrawsItLeavesAlone) {
         EXPECT_TRUE(g.parents.empty());
     }
 }
+
+// Several bands: a mixture's colour is its shape parent's (each band scaled to the parent's
+// flux ratio, with the colour kernel off), not the weighted mean of its parents' colours.
+TEST(MorphologyMixture, ColoursAreTheShapeParents) {
+    std::vector<ShapeletRecord> records;
+    for (int i = 0; records.size() < 12; ++i) {
+        ShapeletModel m = test::random_model(2 + i % 3, 2.0, 0.0, 0.0, 300 + i, true, 0.2);
+        m.coeffs[0] = 3.0;
+        if (flux(m) <= 0.0) continue;
+        ShapeletRecord r = record_of(m, "p" + std::to_string(i), 22.0 + 0.3 * i);
+        for (const auto& [name, scale] : {std::pair{"ref", 1.0}, std::pair{"u", 0.2 + 0.15 * i}}) {
+            BandCoefficients b;
+            b.band = name;
+            for (const Complex& c : m.coeffs) b.coeffs.push_back(c * scale);
+            b.flux = flux(m) * scale;
+            b.extra["zero_point"] = 25.0;
+            r.bands.push_back(b);
+        }
+        records.push_back(r);
+    }
+    SmoothOptions options;
+    options.colour = 0.0;
+    const Morphology morph = build_morphology(records, options);
+    ASSERT_EQ(morph.bands.size(), 2u);
+    const std::vector<double> parents = parent_table(morph, 99.0);
+    const DrawOptions draw = mixture_options(morph, 6, 3);
+    int mixed = 0;
+    for (int i = 0; i < 200; ++i) {
+        RandomStream stream(24, std::uint64_t(i), "galaxy");
+        const DrawnGalaxy g = draw_galaxy(morph, parents, stream, 0.04, 25.0, 99.0, draw);
+        ASSERT_EQ(g.band_models.size(), 2u);
+        const double ratio = flux(g.band_models[1]) / flux(g.band_models[0]);
+        EXPECT_NEAR(ratio, flux_ratio(morph.points[g.parent], 1), 1e-12) << i;
+        mixed += g.parents.size() == 3;
+    }
+    EXPECT_GT(mixed, 150);
+}

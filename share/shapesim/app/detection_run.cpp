@@ -8,6 +8,7 @@
 
 #include <cmath>
 #include <memory>
+#include <optional>
 #include <sstream>
 
 namespace shapesim::app {
@@ -59,7 +60,11 @@ void DetectionSettings::declare(ProgramOptions& options, bool image_required) {
          "use the weight map as given (default: scale it to the measured rms)")
         ("gain", po::value(&d.gain)->default_value(0.0)
              ->notifier(in_range("gain", 0.0, 1e30)),
-         "GAIN, e- per image unit, for Poisson errors and the stamps' weights (0: none)");
+         "GAIN, e- per image unit, for Poisson errors and the stamps' weights (0: none)")
+        ("saturation", po::value(&s.saturation)->value_name("LEVEL")
+             ->notifier(in_range("saturation", 0.0, 1e300)),
+         "SATUR_LEVEL, image units as read: objects reaching it are flagged 'saturated' and set "
+         "aside with the stars (default: the header's SATURATE; 0: none)");
     options.group("Stars").add_options()
         ("psf-fwhm", po::value(&s.psf_fwhm)->value_name("ARCSEC")->default_value(0.15)
              ->notifier(in_range("psf-fwhm", 1e-6, 3600.0)),
@@ -192,6 +197,10 @@ DetectionRun DetectionSettings::run(const ProgramOptions& options, const Log& lo
     r.context.image = image;
     r.context.star_threshold = star_threshold;
     read_geometry(*this, options, log, fits, r.image, r.context);
+    // The saturation level: given, else the header's SATURATE (SExtractor's SATUR_KEY).
+    const std::optional<double> level =
+        options.given("saturation") ? std::optional(saturation) : fits.optional_double("SATURATE");
+    if (level && *level > 0.0) detection.saturation = *level;
     const std::unique_ptr<ImageArray> inverse_variance = read_inverse_variance(*this, r.image);
     point_source_locus(*this, options, r.context.pixel_scale, r);
     const PointSourceLocus& locus = r.locus;

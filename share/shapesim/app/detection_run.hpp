@@ -32,6 +32,7 @@ struct DetectionSettings {
     std::string psf_image, psf_model;
     double pixel_scale = 0.0, ra = 0.0, dec = 0.0, zero_point = 0.0;
     double psf_fwhm = 0.15, psf_pixel_scale = 0.0, star_threshold = 0.97;
+    double saturation = 0.0;  ///< --saturation (0: none; not given: the header's SATURATE)
     std::vector<double> psf_box;
     bool no_clean = false, no_rescale = false;
     DetectionOptions detection;

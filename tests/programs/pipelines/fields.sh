@@ -58,7 +58,7 @@ field ground "$TMPDIR/ground.fits" '[14:45,80:111]'
 # 5.2, is flagged bad_fit, and smooth leaves it out (issue 14).
 python3 - <<'PY' || fail "the δ simulations do not give the fields back"
 import json, math
-rejected = {"edge", "bright_star", "noise", "bad_fit", "holes", "unsupported"}
+rejected = {"edge", "bright_star", "saturated", "noise", "bad_fit", "holes", "unsupported"}
 def mags(path):
     return sorted(r["mag"] for r in map(json.loads, open(path))
                   if r.get("mag") is not None and r["stellarity"] <= 0.9)

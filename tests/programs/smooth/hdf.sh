@@ -23,7 +23,7 @@ python3 - <<'PY' || fail "the morphology documents break the checks"
 import json, math
 records = [json.loads(l) for l in open("shapelets.jsonl")]
 want = [r["id"] for r in records
-        if not {"edge", "bright_star", "noise", "bad_fit", "holes", "unsupported"} & set(r["flags"])
+        if not {"edge", "bright_star", "saturated", "noise", "bad_fit", "holes", "unsupported"} & set(r["flags"])
         and r.get("mag") is not None
         and r["coeffs"][0][0] > 0]
 m = json.load(open("morph.json"))
