@@ -63,10 +63,10 @@ $(OUT)/psf.jsonl: $(PSF_IMAGE) $(IMAGE) $(call prog,decompose)
 	mv $(tmp) $@
 
 $(OUT)/morphology.json: $(OUT)/shapelets.jsonl $(IMAGE) $(call prog,smooth)
-	$(call prog,smooth) --like $(IMAGE) < $< > $(tmp)
+	$(call prog,smooth) --weight-left-out --like $(IMAGE) < $< > $(tmp)
 	mv $(tmp) $@
 $(OUT)/delta.json: $(OUT)/shapelets.jsonl $(IMAGE) $(call prog,smooth)
-	$(call prog,smooth) --delta --like $(IMAGE) < $< > $(tmp)
+	$(call prog,smooth) --weight-left-out --delta --like $(IMAGE) < $< > $(tmp)
 	mv $(tmp) $@
 
 # --- the simulations: like the HDF cut (δ-function and full PDF), and AREA arcmin² ---------
@@ -185,7 +185,7 @@ $(OUT)/stamps/%.jsonl: $(OUT)/stamps/%.psf.jsonl $$(stamp_file_$$*) $(call prog,
 
 $(OUT)/merged.json: $(OUT)/intrinsic.jsonl $(OUT)/xdf/intrinsic.jsonl $(STAMPS:%=$(OUT)/stamps/%.jsonl) $(call prog,smooth)
 	cat $(OUT)/intrinsic.jsonl $(OUT)/xdf/intrinsic.jsonl $(STAMPS:%=$(OUT)/stamps/%.jsonl) | \
-	  $(call prog,smooth) -v --field $(IMAGE)=$(HDF_AREA) --field $(XDF_IMAGE)=$(XDF_AREA) \
+	  $(call prog,smooth) -v --weight-left-out --field $(IMAGE)=$(HDF_AREA) --field $(XDF_IMAGE)=$(XDF_AREA) \
 	  $(foreach s,$(STAMPS),--field '$(call stamp_image,$(s))=shapes') > $(tmp)
 	mv $(tmp) $@
 MERGED_SAMPLE = $(call prog,sample) $(OUT)/merged.json $(LARGE_FIELD) --zero-point $(ZERO_POINT) \
@@ -211,7 +211,7 @@ $(OUT)/merged6.fits $(OUT)/merged6.truth.jsonl &: $(OUT)/merged6.objects.jsonl $
 # cutout as the HDF is.
 XDF_FIELD := --size 0.5 --pixel-scale $(XDF_SCALE)
 $(OUT)/xdf/delta.json: $(OUT)/xdf/intrinsic.jsonl $(call prog,smooth)
-	$(call prog,smooth) --delta --area $(XDF_AREA) < $< > $(tmp)
+	$(call prog,smooth) --weight-left-out --delta --area $(XDF_AREA) < $< > $(tmp)
 	mv $(tmp) $@
 $(OUT)/xdf/delta.objects.jsonl: $(OUT)/xdf/delta.json $(OUT)/params/seed $(call prog,sample)
 	$(call prog,sample) $< $(XDF_FIELD) --seed $(SEED) > $(tmp)

@@ -41,6 +41,7 @@ struct Settings {
                 weight_field;
     double beta = 0.0, mag = 0.0, modulus = 0.0, mag_limit = 0.0, area = 0.0, pixel_scale = 0.0;
     SmoothOptions smooth;  // k, lambda-phase, lambda-colour, delta, keep-colour-noise
+    bool weight_left_out = false;
     std::vector<std::string> fields;
 };
 
@@ -98,6 +99,10 @@ int run(int argc, const char* const argv[]) {
         ("keep-negative", po::bool_switch(&s.smooth.keep_negative),
          "keep each shape as fitted, light below zero and all (by default each is moved to the "
          "nearest shape whose light is nowhere negative; --delta keeps them always)")
+        ("weight-left-out", po::bool_switch(&s.weight_left_out),
+         "with a field (--like, --area, --field): each kept galaxy also stands for the field's "
+         "galaxies left out in its 0.5-mag bin, so the paper's draw gives the field's magnitudes "
+         "(fewer parents carry more of the draws)")
         ("keep-colour-noise", po::bool_switch(&s.smooth.keep_colour_noise),
          "several bands: keep each parent's flux ratios as measured, noise and all (by default "
          "they are deconvolved from it, so a simulation does not carry its noise twice)");
@@ -128,7 +133,8 @@ int run(int argc, const char* const argv[]) {
     Morphology morphology = build_morphology(selected.kept, smooth);
     fields.complete();
     weight_by_counted_area(fields.counted, selected.kept, selected.field, selected.weights);
-    weight_by_kept_fraction(fields.counted, selected.kept, selected.field, selected.weights);
+    if (s.weight_left_out)
+        weight_by_kept_fraction(fields.counted, selected.kept, selected.field, selected.weights);
     const long shape_only =
         mark_point_fields(morphology, selected, selection, fields.counted.size());
     if (shape_only > 0 && shape_only == long(selected.kept.size()))

@@ -104,23 +104,25 @@ expect_error "$rc" 2 'give one of --like, --area and --field'
 # image no --field names, or a malformed --field, are refused.
 "$BIN/$prog" -q --area 0.115643 <shapelets.jsonl >area.json || fail "--area failed"
 "$BIN/$prog" -q --field "$HDF_IMAGE=0.115643" <shapelets.jsonl >field.json || fail "--field failed"
+"$BIN/$prog" -q --area 0.115643 --weight-left-out <shapelets.jsonl >left.json || fail "--weight-left-out failed"
 python3 -c 'import json
 a, f = json.load(open("area.json")), json.load(open("field.json"))
 [one] = f["source_fields"]
 assert one["area_arcmin2"] == a["source_field"]["area_arcmin2"] and one["mags"] == a["source_field"]["mags"]
 assert one["completeness"] > 28, one["completeness"]  # the turnover of the HDF counts
 w = lambda m: [p.get("weight", 1) for p in m["points"]]
-assert w(f) == w(a), "one --field weighs its parents as --area does"
-# A kept galaxy stands for the field galaxies left out in its 0.5-mag bin (noise detections,
-# edges): weights of at least 1, above 1 where galaxies were left out.
+assert w(f) == w(a) == [1] * len(a["points"]), "one --field weighs its parents as --area does"
+# --weight-left-out: a kept galaxy stands for the field galaxies left out in its 0.5-mag bin
+# (noise detections, edges): weights of at least 1, above 1 where galaxies were left out.
 import collections
-mags = a["source_field"]["mags"]
+left = json.load(open("left.json"))
+mags = left["source_field"]["mags"]
 all_bins = collections.Counter(int(m // 0.5) for m in mags)
-kept_bins = collections.Counter(int(p["mag"] // 0.5) for p in a["points"])
-for p, weight in zip(a["points"], w(a)):
+kept_bins = collections.Counter(int(p["mag"] // 0.5) for p in left["points"])
+for p, weight in zip(left["points"], w(left)):
     b = int(p["mag"] // 0.5)
     assert abs(weight - max(1, all_bins[b] / kept_bins[b])) < 1e-12, (p["id"], weight)
-assert max(w(a)) > 1' ||
+assert max(w(left)) > 1' ||
   fail "--field does not record the field as --area does"
 rc=0; "$BIN/$prog" --field other.fits=1 <shapelets.jsonl >out 2>err || rc=$?
 expect_error "$rc" 1 'none of the --field images'
