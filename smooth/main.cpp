@@ -37,11 +37,11 @@ struct Settings {
     // flattened at the noise, the cap, the stamp), unless χ²_r says it misses real structure
     // ("bad_fit"), rings ("holes") or lies off its data ("unsupported"). The paper's
     // `converged|n_max_cap` is one --require away.
-    std::string input = "-", require, reject = "edge,bright_star,saturated,noise,bad_fit,holes,unsupported",
-                weight_field;
+    std::string input = "-", require,
+                reject = "edge,bright_star,saturated,noise,bad_fit,holes,unsupported", weight_field;
     double beta = 0.0, mag = 0.0, modulus = 0.0, mag_limit = 0.0, area = 0.0, pixel_scale = 0.0;
     SmoothOptions smooth;  // k, lambda-phase, lambda-colour, delta, keep-colour-noise
-    bool weight_left_out = false;
+    bool weight_left_out = false;  // RecordSelection::weight_left_out
     std::vector<std::string> fields;
 };
 
@@ -118,7 +118,7 @@ int run(int argc, const char* const argv[]) {
     if (options.given("lambda-modulus")) smooth.modulus = s.modulus;
     smooth.validate();
     RecordSelection selection{app::split_list(s.require), app::split_list(s.reject), {}, {},
-                              s.weight_field};
+                              s.weight_field, s.weight_left_out};
     if (options.given("mag-limit")) selection.mag_limit = s.mag_limit;
 
     app::SourceFields fields = app::read_source_fields(
@@ -133,7 +133,7 @@ int run(int argc, const char* const argv[]) {
     Morphology morphology = build_morphology(selected.kept, smooth);
     fields.complete();
     weight_by_counted_area(fields.counted, selected.kept, selected.field, selected.weights);
-    if (s.weight_left_out)
+    if (selection.weight_left_out)
         weight_by_kept_fraction(fields.counted, selected.kept, selected.field, selected.weights);
     const long shape_only =
         mark_point_fields(morphology, selected, selection, fields.counted.size());

@@ -314,14 +314,16 @@ void make_positive(MorphologyPoint& p) {
     for (std::size_t b = 0; b < p.band_shapes.size(); ++b) {
         std::vector<Complex>& band = p.band_shapes[b];
         const double ratio = even_sum(band) / sum_before;
-        const PositiveModel nearest_band = nearest(band);
-        const double band_sum = even_sum(nearest_band.model.coeffs);
-        if (ratio > 0.0 && band_sum > 0.0) {
-            for (std::size_t k = 0; k < band.size(); ++k)
-                band[k] = nearest_band.model.coeffs[k] * (ratio * sum / band_sum);
-        } else {  // no light to keep positive (a noisy band's flux ≤ 0): its ratio kept
-            for (Complex& c : band) c *= sum / sum_before;
+        if (ratio > 0.0) {
+            const PositiveModel nearest_band = nearest(band);
+            const double band_sum = even_sum(nearest_band.model.coeffs);
+            if (band_sum > 0.0) {
+                for (std::size_t k = 0; k < band.size(); ++k)
+                    band[k] = nearest_band.model.coeffs[k] * (ratio * sum / band_sum);
+                continue;
+            }
         }
+        for (Complex& c : band) c *= sum / sum_before;  // no light to keep positive: ratio kept
     }
 }
 
@@ -430,7 +432,8 @@ void Morphology::prepare() {
         p.hole = hole_depth(m);
         const RawMoments raw = raw_moments(m);
         const double size2 = raw.flux > 0.0 ? raw.r2 / raw.flux : 0.0;
-        p.size2 = size2 > 0.0 && std::isfinite(size2) ? size2 : std::numeric_limits<double>::quiet_NaN();
+        p.size2 = size2 > 0.0 && std::isfinite(size2) ? size2
+                                                       : std::numeric_limits<double>::quiet_NaN();
     }
     std::vector<double> counted;
     for (const MorphologyPoint& p : points)
@@ -1165,7 +1168,8 @@ struct Mixture {
 
 // ln of a point's rms radius (arcsec) moved to magnitude `mag` by the size–luminosity slope.
 double log_radius(const MorphologyPoint& p, double mag, double size_slope) {
-    return std::log(p.beta * std::sqrt(p.size2)) - 0.4 * std::log(10.0) * size_slope * (mag - p.mag);
+    return std::log(p.beta * std::sqrt(p.size2)) -
+           0.4 * std::log(10.0) * size_slope * (mag - p.mag);
 }
 
 // The image inner product ∫ f g of two shapes at one β (orthonormality: a_{n,−m} = conj a_{n,m}
@@ -1279,15 +1283,14 @@ DrawnGalaxy draw_mixture(const Morphology& morphology, const std::vector<double>
     } else {
         const MorphologyPoint& p = morphology.points[mag_parent];
         const double spread = conditional_mag_spread(p, morphology.lambda.mag, draw);
-        for (g.mag = mag_limit + 1.0; g.mag > mag_limit; ++g.redraws)
-            g.mag = g.redraws < 1000 ? p.mag + spread * stream.epanechnikov() : p.mag;
-        --g.redraws;
+        // Redrawn while fainter than the limit; after 1000 tries, the parent's own magnitude.
+        g.mag = p.mag + spread * stream.epanechnikov();
+        while (g.mag > mag_limit)
+            g.mag = ++g.redraws < 1000 ? p.mag + spread * stream.epanechnikov() : p.mag;
     }
     const std::size_t first = near_in_magnitude(morphology, draw, g.mag, stream.uniform());
     Mixture mixture = mix_parents(morphology, draw, first, g.mag, stream);
-    const std::size_t heaviest = std::size_t(
-        std::max_element(mixture.weights.begin(), mixture.weights.end()) - mixture.weights.begin());
-    g.parent = mixture.parents[heaviest];
+    g.parent = first;  // the shape parent, whose weight is the largest
     g.mag_parent = draw.counts ? g.parent : mag_parent;
     g.parents = mixture.parents;
     g.weights = mixture.weights;
@@ -1300,7 +1303,7 @@ DrawnGalaxy draw_mixture(const Morphology& morphology, const std::vector<double>
     g.reflected = stream.coin();
     g.model = placed_model(drawn.shape, mixture.point.n_max, beta_pix, a00, g.rotation,
                            g.reflected);
-    // How far the mixture is from its heaviest parent: ‖c − c_p‖/‖c_p‖ (both with c_{0,0} = 1).
+    // How far the mixture is from its shape parent: ‖c − c_p‖/‖c_p‖ (both with c_{0,0} = 1).
     const std::vector<Complex>& own = morphology.points[g.parent].shape;
     double change = 0.0, norm = 0.0;
     for (std::size_t k = 0; k < drawn.shape.size(); ++k) {
@@ -1559,6 +1562,7 @@ Json smooth_provenance(const std::string& input, const SelectedRecords& selected
               {"keep_colour_noise", options.keep_colour_noise},
               {"keep_negative", options.keep_negative},
               {"lambda_colour", options.colour},
+              {"weight_left_out", selection.weight_left_out},
               {"require", selection.required},
               {"reject", selection.rejected}}}};
 }

@@ -298,6 +298,9 @@ struct RecordSelection {
     /// "image" not read).
     std::vector<std::string> images;
     std::string weight_field;  ///< numeric record field of the parent-selection weight (empty: 1)
+    /// Weight each kept galaxy of a field by the field's galaxies left out near its magnitude
+    /// as well (weight_by_kept_fraction()).
+    bool weight_left_out = false;
 };
 /// Why a record is left out, the first reason in this order: "not <required>", "<rejected
 /// flag>", "no magnitude", "fainter than --mag-limit", "a_00 <= 0"; empty when it is kept.
@@ -372,7 +375,7 @@ struct DrawnGalaxy {
     /// the reference band's units: band b's flux over `flux` is the drawn colour's ratio.
     std::vector<ShapeletModel> band_models;
     /// A mixture (DrawOptions::mix): every parent (indices into Morphology::points) and its
-    /// weight, `parent` the heaviest; empty for a perturbed draw.
+    /// weight, `parent` (the shape parent) first and the heaviest; empty for a perturbed draw.
     std::vector<std::size_t> parents;
     std::vector<double> weights;
 };
