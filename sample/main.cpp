@@ -128,6 +128,7 @@ int run(int argc, const char* const argv[]) {
         throw po::error("--counts takes 'fit' or 'parents', not '" + s.counts + "'");
     // The real field's density at this magnitude limit, when smooth recorded it (--like): the
     // fitted counts' with them.
+    if (!options.given("mix")) o.draw.mix = std::min(o.draw.mix, o.draw.neighbours);
     apply_model_counts(o, morphology, s.counts == "fit", options.given("density"), s.model);
     if (const std::optional<CountModel>& counts = o.draw.counts)
         log.info("galaxy counts: d log10 N / dm = ", counts->slope, ", ", counts->density(),
@@ -140,7 +141,6 @@ int run(int argc, const char* const argv[]) {
     if (!s.star_histogram.empty()) o.stars.bins = read_star_histogram(s.star_histogram);
     o.margin = s.margin / field.pixel_scale;
 
-    if (!options.given("mix")) o.draw.mix = std::min(o.draw.mix, o.draw.neighbours);
     const long shape_only = count_shape_only(morphology);
     if (shape_only > 0 && o.draw.neighbours == 0)
         log.info(shape_only, " shape-only models unused: only --neighbours draws take their shapes");

@@ -125,6 +125,8 @@ void write_tile_grid(std::ostream& out, const std::string& name, long field_nx, 
 
 void apply_model_counts(SampleOptions& options, const Morphology& morphology, bool fit_counts,
                         bool density_given, const std::string& model_path) {
+    // Refused before anything is fitted or said.
+    options.draw.validate();
     if (options.faint_limit && !(*options.faint_limit > options.mag_limit))
         throw Error("must be fainter than the magnitude limit", "", 0, "faint_limit");
     if (fit_counts) {

@@ -101,6 +101,8 @@ void write_tile_grid(std::ostream& out, const std::string& name, long field_nx, 
 /// counts fitted to its real fields (conditional_counts; when they cannot be, an Error naming
 /// `model_path` points to --counts parents). Unless `density_given`, `options.density` becomes
 /// the real fields' own, when the model recorded any: the fitted counts', else field_density().
+/// With `options.faint_limit`, `options.faint_counts` are those counts (or ones fitted for them)
+/// extrapolated past the limit. The draw options and the faint limit are checked first (Error).
 void apply_model_counts(SampleOptions& options, const Morphology& morphology, bool fit_counts,
                         bool density_given, const std::string& model_path);
 

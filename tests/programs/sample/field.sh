@@ -209,6 +209,9 @@ assert [r for r in faint if not r["id"].startswith("u")] == mix
 assert len(below) > len(mix) / 2, (len(below), len(mix))
 assert all(r["below_limit"] and 29 < r["mag"] <= 31 for r in below)
 PY
+rc=0; "$BIN/$prog" dense.json --area 1 --mix 5 --neighbours 3 >out 2>err || rc=$?
+expect_error "$rc" 1 'mix: a mixture of 5 parents needs neighbours ≥ 5'
+[ ! -s out ] || fail "a refused mixture wrote objects"
 rc=0; "$BIN/$prog" dense.json --area 1 --faint-limit 28 >out 2>err || rc=$?
 expect_error "$rc" 1 'faint_limit: must be fainter than the magnitude limit'
 rc=0; "$BIN/$prog" morph.json --area 1 --faint-limit 31 >out 2>err || rc=$?
