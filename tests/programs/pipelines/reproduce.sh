@@ -87,6 +87,12 @@ for field in hdf xdf; do
     fail "seeds.md lacks the FWHM median row"
 done
 grep -q '^| hdf: statistic | seed 7' "$out/report.md" || fail "report.md lacks the seeds table"
+# The light the renderer clipped, per simulation; mixtures of non-negative parents lose < 1%.
+for sim in sim sim6 merged6; do
+  grep -q "^| $sim | 0 of [0-9]* (0.0%); at most " "$out/report.md" ||
+    fail "report.md: $sim's galaxies lose 1% of their light to the clip: $(grep "^| $sim |" "$out/report.md")"
+done
+grep -q '^| delta (the real fits) | [0-9]* of [0-9]* ' "$out/report.md" || fail "report.md lacks the δ's clipped light"
 grep -q 'Poisson maximum likelihood: slope 0\.[0-9]* dex/mag, [0-9]* per arcmin² over I = [0-9.]*–29, fitted to [0-9]* galaxies)' \
   "$out/report.md" || fail "report.md lacks the fitted counts: $(grep -a 'galaxy counts' "$out/pipeline.log")"
 
