@@ -66,7 +66,7 @@ bench: $(BENCH_BIN) all
 
 # The bad- and odd-input corpus (issue 15). `make corpus` rewrites tests/corpus/cases/ with
 # the generator (cfitsio only; the files are committed); `make corpus-matrix` reruns every
-# program on every case and rewrites tests/corpus/matrix.md and the README's copy of its
+# program on every case and rewrites tests/corpus/matrix.md and docs/corpus.md's copy of its
 # table; the program test tests/programs/corpus/matrix.sh checks both are current, and CI runs
 # the matrix once more on the programs built with SAN=1.
 CORPUS_GEN := $(BUILD)/tests/make-corpus
@@ -84,7 +84,7 @@ corpus: $(CORPUS_GEN)
 corpus-matrix: all
 	tests/corpus/matrix.sh $(BIN) >tests/corpus/matrix.md.tmp
 	mv tests/corpus/matrix.md.tmp tests/corpus/matrix.md
-	tests/corpus/readme-table.sh tests/corpus/matrix.md README.md
+	tests/corpus/readme-table.sh tests/corpus/matrix.md docs/corpus.md
 
 # The matrix of the programs in $(BIN) (SAN=1: build-san/bin) equals the committed one.
 corpus-check: all
