@@ -12,7 +12,9 @@
 #include "shapesim/fits_io.hpp"
 #include "shapesim/jsonl.hpp"
 #include "shapesim/parallel.hpp"
+#include "shapesim/polar.hpp"
 #include "shapesim/psf.hpp"
+#include "shapesim/real_galaxy_catalog.hpp"
 
 #include <algorithm>
 #include <memory>
@@ -31,6 +33,9 @@ const char* const description =
     "would, capped at 15; converged when chi2_r <= 1). Reads shapesim.source/1\n"
     "records (stdin or FILE) and the stamps shapesim-detect wrote; writes shapesim.shapelet/1.\n"
     "\n"
+    "Catalogue mode: with --real-galaxy-catalog, fit every galaxy of a GalSim\n"
+    "RealGalaxyCatalog (e.g. the COSMOS training samples) through its own PSF image.\n"
+    "\n"
     "PSF mode: with --psf-image, model an (oversampled) PSF image at the pixel scale of\n"
     "--like (or --pixel-scale) and write one shapesim.shapelet/1 record of unit flux.\n"
     "\n"
@@ -41,7 +46,9 @@ const char* const description =
     "Examples (after shapesim-detect ... --stamps stamps.fits > sources.jsonl):\n"
     "  shapesim-decompose --stamps stamps.fits -j 2 < sources.jsonl > shapelets.jsonl\n"
     "  shapesim-decompose --psf-image wfpc2_f814w_tinytim_psf.fits --like hdf.fits \\\n"
-    "      --psf-box 0.0996 0.05 > psf.jsonl";
+    "      --psf-box 0.0996 0.05 > psf.jsonl\n"
+    "  shapesim-decompose --real-galaxy-catalog real_galaxy_catalog_25.2.fits -j 2 \\\n"
+    "      > cosmos.jsonl";
 
 // PSF mode: one record of the PSF image's shapelet model at the target pixel scale.
 int run_psf(const app::DecomposeSettings& s, const app::ProgramOptions& options,
@@ -75,6 +82,85 @@ int run_psf(const app::DecomposeSettings& s, const app::ProgramOptions& options,
     return 0;
 }
 
+// Catalogue mode: every galaxy of a RealGalaxyCatalog fitted through its own PSF image,
+// `--batch` galaxies read at a time (stamps and PSF images on this thread, the PSF and galaxy
+// fits in parallel) and written in the catalogue's order: memory stays bounded by the batch,
+// and the output does not depend on the thread count or the batch.
+int run_catalogue(const app::DecomposeSettings& s, const app::ProgramOptions& options,
+                  const app::Log& log, AtomicTextFile& file) {
+    const std::string& catalogue = s.real_galaxy_catalog;
+    const std::vector<RealGalaxy> galaxies =
+        read_real_galaxy_catalog(catalogue, s.real_galaxy_folder);
+    log.info(galaxies.size(), " galaxies in ", catalogue, " (", log.elapsed(), " s)");
+    const int side = s.psf_stamp % 2 == 1 ? s.psf_stamp : s.psf_stamp + 1;
+    std::unique_ptr<FitsWriter> models;
+    if (!s.models.empty())
+        models = std::make_unique<FitsWriter>(s.models, "shapesim-decompose",
+                                              app::provenance_keywords(options, {"models"}));
+    const std::vector<std::string> listed = app::split_list(s.ids);
+    JsonlWriter out(file.stream(), file.name());
+    app::Progress progress(log, "fitted", "galaxies", galaxies.size());
+    long converged = 0, failed = 0, psf_missed = 0;
+    for (std::size_t start = 0; start < galaxies.size(); start += std::size_t(s.batch)) {
+        const std::size_t n = std::min(std::size_t(s.batch), galaxies.size() - start);
+        std::vector<DecomposeJob> jobs;
+        std::vector<PsfImage> psf_images;
+        for (std::size_t k = 0; k < n; ++k) {
+            const RealGalaxy& g = galaxies[start + k];
+            DecomposeJob job = real_galaxy_job(g, catalogue, s.gain);
+            if (options.given("noise-correlation")) job.noise_correlation = s.noise_correlation;
+            else if (s.ignore_correlation) job.noise_correlation = 1.0;
+            jobs.push_back(std::move(job));
+            psf_images.push_back(read_real_galaxy_psf(g, catalogue));
+        }
+        std::vector<std::optional<PsfModel>> psfs(n);
+        std::vector<DecomposeOutcome> outcomes(n);
+        parallel_for(n, options.common().threads, [&](std::size_t k, int) {
+            try {
+                psfs[k] = real_galaxy_psf(psf_images[k], jobs[k].pixel_scale, side, s.psf_fit());
+                jobs[k].psf = to_cartesian(psfs[k]->model);
+                outcomes[k] = decompose_job(jobs[k], s.fit, {});
+            } catch (const Error& e) {  // the PSF image's: the galaxy cannot be fitted
+                outcomes[k].error = "its PSF " + galaxies[start + k].psf + ": " + e.message();
+            }
+            progress.done_one();
+        });
+        for (std::size_t k = 0; k < n; ++k) {
+            const RealGalaxy& g = galaxies[start + k];
+            DecomposeOutcome& o = outcomes[k];
+            if (!o.record) {
+                ++failed;
+                log.warn("galaxy ", g.ident, " (", catalogue, ": row ", g.row, "): ", o.error);
+                continue;
+            }
+            ShapeletRecord& r = *o.record;
+            r.mag = g.mag;  // the catalogue's: what its sample was selected on
+            r.extra["psf_n_max"] = psfs[k]->n_max;
+            r.extra["psf_residual"] = psfs[k]->max_residual_fraction;
+            if (!psfs[k]->reached_target) {
+                ++psf_missed;
+                r.flags.push_back("psf_residual_above_target");
+            }
+            if (std::find(r.flags.begin(), r.flags.end(), "converged") != r.flags.end())
+                ++converged;
+            out.write(r.to_json());
+            log.verbose("galaxy ", g.ident, ": n_max ", r.n_max, " chi2r ", *r.chi2r, " (",
+                        o.decomposition->stop, "); PSF n_max ", psfs[k]->n_max);
+            if (models && (listed.empty() || std::count(listed.begin(), listed.end(), g.ident)))
+                write_fit_images(*models, jobs[k], o.decomposition->fit);
+        }
+    }
+    if (models) models->commit();
+    file.commit();
+    if (psf_missed > 0)
+        log.warn(psf_missed, " PSF models miss --psf-residual ", s.psf_residual,
+                 " (flagged psf_residual_above_target)");
+    log.info(out.count(), " models (", converged, " converged: chi2_r <= ", s.fit.chi2_target,
+             " within ", s.fit.chi2_sigmas, " sigma), ", failed, " galaxies not fitted, in ",
+             log.elapsed(), " s");
+    return 0;
+}
+
 int run(int argc, const char* const argv[]) {
     app::ProgramOptions options("shapesim-decompose", "[OPTION]... [FILE]", description,
                                 app::Common::output | app::Common::quiet | app::Common::verbose |
@@ -87,6 +173,7 @@ int run(int argc, const char* const argv[]) {
     s.check();
     AtomicTextFile file(options.common().output_or_stdout());
     if (!s.psf_image.empty()) return run_psf(s, options, log, file);
+    if (!s.real_galaxy_catalog.empty()) return run_catalogue(s, options, log, file);
 
     std::vector<SourceRecord> stars;
     if (!s.stars.empty()) {

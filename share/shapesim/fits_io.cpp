@@ -269,6 +269,112 @@ ImageArray FitsReader::read_image() {
     return image;
 }
 
+// ------------------------------------------------------------------------------- tables
+
+long FitsReader::table_rows() {
+    int status = 0, type = 0;
+    fits_get_hdu_type(impl_->f, &type, &status);
+    check(status, impl_->place);
+    if (type != BINARY_TBL && type != ASCII_TBL)
+        throw Error("not a table (an image HDU)", impl_->place);
+    LONGLONG rows = 0, header_start = 0, data_start = 0, data_end = 0;
+    long row_bytes = 0;
+    fits_get_num_rowsll(impl_->f, &rows, &status);
+    fits_read_key(impl_->f, TLONG, "NAXIS1", &row_bytes, nullptr, &status);
+    fits_get_hduaddrll(impl_->f, &header_start, &data_start, &data_end, &status);
+    check(status, impl_->place);
+    // As read_image(): a mangled NAXIS2 must not make a reader allocate its declared rows.
+    const LONGLONG file_size = impl_->f->Fptr->logfilesize;
+    if (rows < 0 || row_bytes < 0 ||
+        (row_bytes > 0 && rows > (file_size - data_start) / row_bytes))
+        throw Error("truncated: the header declares " + std::to_string(rows) + " rows of " +
+                        std::to_string(row_bytes) + " bytes, the file holds " +
+                        std::to_string(std::max<LONGLONG>(0, file_size - data_start)),
+                    impl_->place);
+    return long(rows);
+}
+
+namespace {
+
+// The column number of `name` in f's current table (case-insensitive, no wildcards matter in
+// the names we ask for), and its type code and repeat count; Error naming the column.
+int column_of(fitsfile* f, const std::string& name, const std::string& place, int& type,
+              long& repeat) {
+    int status = 0, number = 0;
+    long width = 0;
+    fits_get_colnum(f, CASEINSEN, const_cast<char*>(name.c_str()), &number, &status);
+    if (status == COL_NOT_FOUND) {
+        fits_clear_errmsg();
+        throw Error("no column " + name + " in the table", place, 0, name);
+    }
+    if (status == COL_NOT_UNIQUE) {
+        fits_clear_errmsg();
+        throw Error("more than one column named " + name, place, 0, name);
+    }
+    fits_get_coltype(f, number, &type, &repeat, &width, &status);
+    check(status, place, name);
+    return number;
+}
+
+}  // namespace
+
+bool FitsReader::has_column(const std::string& name) {
+    int status = 0, number = 0;
+    fits_get_colnum(impl_->f, CASEINSEN, const_cast<char*>(name.c_str()), &number, &status);
+    fits_clear_errmsg();
+    return status == 0;
+}
+
+bool FitsReader::column_is_text(const std::string& name) {
+    int type = 0;
+    long repeat = 0;
+    column_of(impl_->f, name, impl_->place, type, repeat);
+    return type == TSTRING;
+}
+
+std::vector<double> FitsReader::read_column(const std::string& name) {
+    const long rows = table_rows();
+    int type = 0;
+    long repeat = 0;
+    const int number = column_of(impl_->f, name, impl_->place, type, repeat);
+    if (type == TSTRING || type == TLOGICAL || type == TBIT)
+        throw Error("column " + name + " is not numeric", impl_->place, 0, name);
+    if (repeat != 1)
+        throw Error("column " + name + " holds " + std::to_string(repeat) +
+                        " values per row, not one",
+                    impl_->place, 0, name);
+    std::vector<double> values(std::size_t(rows), 0.0);
+    double null_value = std::numeric_limits<double>::quiet_NaN();
+    int any_null = 0, status = 0;
+    if (rows > 0)
+        fits_read_col(impl_->f, TDOUBLE, number, 1, 1, rows, &null_value, values.data(),
+                      &any_null, &status);
+    check(status, impl_->place, name);
+    return values;
+}
+
+std::vector<std::string> FitsReader::read_text_column(const std::string& name) {
+    const long rows = table_rows();
+    int type = 0;
+    long repeat = 0;
+    const int number = column_of(impl_->f, name, impl_->place, type, repeat);
+    if (type != TSTRING)
+        throw Error("column " + name + " is not text", impl_->place, 0, name);
+    // One row at a time into one buffer of the column's width: bounded by the widest entry.
+    std::vector<char> buffer(std::size_t(std::max(repeat, 1L)) + 1, '\0');
+    std::vector<std::string> values;
+    values.reserve(std::size_t(rows));
+    for (long row = 1; row <= rows; ++row) {
+        char* cell = buffer.data();
+        char null_text[] = "";
+        int any_null = 0, status = 0;
+        fits_read_col_str(impl_->f, number, row, 1, 1, null_text, &cell, &any_null, &status);
+        check(status, impl_->place, name);
+        values.push_back(trim_right(cell));
+    }
+    return values;
+}
+
 bool FitsReader::has_key(const std::string& key) {
     char card[FLEN_CARD];
     int status = 0;

@@ -93,6 +93,21 @@ public:
     /// The current HDU's image as doubles (see the file comment for the index convention).
     ImageArray read_image();
 
+    /// Rows of the current HDU's table (binary or ASCII); Error unless it is a table, or when
+    /// the header declares more rows than the file holds.
+    long table_rows();
+    /// True when the current table has a column `name` (case-insensitive).
+    bool has_column(const std::string& name);
+    /// True when column `name` of the current table holds text; Error when it is absent.
+    bool column_is_text(const std::string& name);
+    /// Numeric column `name` of the current table, one value per row (integers converted,
+    /// undefined values NaN); Error naming the place and column when it is absent, text, or
+    /// holds more than one value per row.
+    std::vector<double> read_column(const std::string& name);
+    /// Text column `name` of the current table, trailing blanks removed; Error naming the place
+    /// and column when it is absent or not text.
+    std::vector<std::string> read_text_column(const std::string& name);
+
     /// True when the current header has keyword `key`.
     bool has_key(const std::string& key);
     /// A numeric keyword; nullopt when absent or undefined, Error when not a finite number.

@@ -117,6 +117,8 @@ std::optional<double> middle_sigma(const ImageArray& weight) {
     return *middle;
 }
 
+}  // namespace
+
 // Source photon noise (see the header), from the 3×3 mean about each pixel.
 void add_source_noise(Stamp& stamp, double gain) {
     const int w = int(stamp.image.cols()), h = int(stamp.image.rows());
@@ -138,6 +140,8 @@ void add_source_noise(Stamp& stamp, double gain) {
             stamp.weight(j, i) = 1.0 / (1.0 / sky_weight(j, i) + source / gain);
         }
 }
+
+namespace {
 
 // The stamp of pixels [i0, i1] × [j0, j1] (0-based), its weights renormalised locally and the
 // source's photon noise added (see the header); `out` carries what the box choice found.

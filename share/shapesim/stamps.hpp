@@ -65,6 +65,10 @@ struct CutStamp {
     bool border_not_sky = false;///< still not sky at `max_side` (or the image's size)
 };
 
+/// Add the source's photon noise at `gain` e⁻ per image unit to a stamp's sky weights (see the
+/// file comment; its pixels' own 3×3 means, masked and zero-weight pixels included as they are).
+void add_source_noise(Stamp& stamp, double gain);
+
 /// The paper's side in pixels, size_factor·a + size_offset rounded up to odd (≥ 3).
 int stamp_side(const Detection& object, const StampOptions& options);
 

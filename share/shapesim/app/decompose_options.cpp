@@ -26,7 +26,21 @@ void DecomposeSettings::declare(ProgramOptions& options) {
         ("psf", po::value(&s.psf)->value_name("FILE"),
          "fit each galaxy's intrinsic model through this PSF (a record of the PSF mode below; "
          "forward modelling): the records are marked \"frame\": \"intrinsic\" and "
-         "shapesim-render convolves them with its --psf");
+         "shapesim-render convolves them with its --psf")
+        ("real-galaxy-catalog", po::value(&s.real_galaxy_catalog)->value_name("FILE"),
+         "fit every galaxy of this GalSim RealGalaxyCatalog (the COSMOS training samples' "
+         "FITS table) through its own PSF image instead of reading sources; intrinsic models, "
+         "the catalogue's MAG their magnitude and the catalogue their \"image\"")
+        ("real-galaxy-folder", po::value(&s.real_galaxy_folder)->value_name("DIR"),
+         "folder of the catalogue's galaxy and PSF files (default: the catalogue's)")
+        ("gain", po::value(&s.gain)->value_name("E_PER_UNIT")
+             ->notifier(in_range("gain", 0.0, 1e30)),
+         "with --real-galaxy-catalog: electrons per image unit of its stamps (their exposure "
+         "for e-/s images), for each galaxy's own photon noise (default 0: the catalogue's "
+         "NOISE_VARIANCE only)")
+        ("batch", po::value(&s.batch)->default_value(256)
+             ->notifier(in_range("batch", 1, 1000000)),
+         "with --real-galaxy-catalog: galaxies read and fitted at a time (memory bound)");
     options.group("Bands").add_options()
         ("reference-band", po::value(&s.reference_band)->value_name("NAME"),
          "the band whose model is the record's own (default: the record's first band)")
@@ -117,6 +131,13 @@ void DecomposeSettings::check() {
     if (ignore_correlation && (!noise_model.empty() || !band_noise_models.empty()))
         throw po::error("--white-noise and a noise model exclude each other");
     if (!models.empty()) check_writable(models);
+    if (!real_galaxy_catalog.empty() && !psf_image.empty())
+        throw po::error("--real-galaxy-catalog and --psf-image exclude each other");
+    if (!real_galaxy_catalog.empty() && (!psf.empty() || !stamps.empty()))
+        throw po::error("--real-galaxy-catalog names each galaxy's stamp and PSF: no --psf or "
+                        "--stamps with it");
+    if ((!real_galaxy_folder.empty() || gain > 0.0) && real_galaxy_catalog.empty())
+        throw po::error("--real-galaxy-folder and --gain need --real-galaxy-catalog");
 }
 
 JobReader DecomposeSettings::job_reader(const ProgramOptions& options) {

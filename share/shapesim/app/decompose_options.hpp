@@ -15,6 +15,9 @@ namespace shapesim::app {
 struct DecomposeSettings {
     std::string stamps, models, ids, stars;
     std::string psf_image, psf, reference_band;
+    std::string real_galaxy_catalog, real_galaxy_folder;
+    int batch = 256;
+    double gain = 0.0;
     std::vector<std::string> band_psfs, band_noise_models;
     std::string noise_model;
     bool no_bands = false;
