@@ -139,6 +139,15 @@ int run(int argc, const char* const argv[]) {
     if (options.given("star-count")) o.star_count = s.star_count;
     if (!options.given("star-mag-max")) o.stars.mag_max = o.mag_limit;
     if (!s.star_histogram.empty()) o.stars.bins = read_star_histogram(s.star_histogram);
+    // The real fields' stars (smooth --stars) unless the stars are given here.
+    const bool stars_given = options.given("star-density") || options.given("star-count") ||
+                             !s.star_histogram.empty();
+    if (const auto field_stars = field_star_counts(morphology.source_fields, o.mag_limit);
+        field_stars && !stars_given) {
+        o.stars = *field_stars;
+        log.info("stars: ", o.stars.density, " per arcmin^2 to magnitude ", o.mag_limit,
+                 ", the model's fields' counts (--star-density 0: none)");
+    }
     o.margin = s.margin / field.pixel_scale;
 
     const long shape_only = count_shape_only(morphology);

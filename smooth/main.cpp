@@ -42,7 +42,7 @@ struct Settings {
     double beta = 0.0, mag = 0.0, modulus = 0.0, mag_limit = 0.0, area = 0.0, pixel_scale = 0.0;
     SmoothOptions smooth;  // k, lambda-phase, lambda-colour, delta, keep-colour-noise
     bool weight_left_out = false;  // RecordSelection::weight_left_out
-    std::vector<std::string> fields;
+    std::vector<std::string> fields, stars;
 };
 
 int run(int argc, const char* const argv[]) {
@@ -77,6 +77,9 @@ int run(int argc, const char* const argv[]) {
          "weighted so the drawn magnitudes follow them; IMAGE=shapes: a shape-only field "
          "(isolated-galaxy cutouts): its galaxies join the PDF and shape the draws near "
          "their magnitude (shapesim-sample --neighbours) but add nothing to the counts")
+        ("stars", po::value(&s.stars)->value_name("[IMAGE=]FILE")->composing(),
+         "the field's stars (shapesim-detect --stars records; IMAGE= names a --field): their "
+         "counts go into the model, and shapesim-sample draws them by default")
         ("weight-field", po::value(&s.weight_field)->value_name("NAME"),
          "parent-selection weight from this numeric record field (default: all 1)");
     options.group("Smoothing").add_options()
@@ -124,6 +127,7 @@ int run(int argc, const char* const argv[]) {
     app::SourceFields fields = app::read_source_fields(
         options.common().like, options.given("area") ? std::optional(s.area) : std::nullopt,
         options.given("pixel-scale") ? std::optional(s.pixel_scale) : std::nullopt, s.fields);
+    app::add_field_stars(fields, s.stars);
     if (!s.fields.empty()) selection.images = fields.images();
     JsonlReader reader(s.input, {ShapeletRecord::schema});
     SelectedRecords selected = select_records(reader, selection, fields.counted);
@@ -145,6 +149,10 @@ int run(int argc, const char* const argv[]) {
                     fields.counted[k].completeness);
     if (!fields.shape_images.empty())
         log.verbose(shape_only, " shape-only models from ", fields.shape_images.size(), " field(s)");
+    for (const SourceField& f : fields.counted)
+        if (f.star_mags)
+            log.info(f.star_mags->size(), " stars in ", f.image.empty() ? "the field" : f.image,
+                     " (", f.area_arcmin2, " arcmin^2): shapesim-sample draws their counts");
     morphology.source_fields = std::move(fields.counted);
     morphology.shape_fields = fields.shape_images;
     morphology.provenance = smooth_provenance(reader.name(), selected, selection, smooth);

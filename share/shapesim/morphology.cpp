@@ -654,6 +654,7 @@ Json Morphology::to_json() const {
             Json j = {{"area_arcmin2", f.area_arcmin2}, {"mags", f.mags}};
             if (!f.image.empty()) j["image"] = f.image;
             if (std::isfinite(f.completeness)) j["completeness"] = f.completeness;
+            if (f.star_mags) j["star_mags"] = *f.star_mags;
             fields.push_back(std::move(j));
         }
         // One plain field keeps the first version's form.
@@ -833,6 +834,18 @@ SourceField read_source_field(const Json& f, const std::string& where) {
         field.image = f.at("image").get<std::string>();
     }
     if (f.contains("completeness")) field.completeness = number(f, "completeness", where + ".");
+    if (f.contains("star_mags")) {
+        if (!f.at("star_mags").is_array())
+            throw Error("must be an array of numbers", "", 0, where + ".star_mags");
+        std::vector<double> stars;
+        for (const Json& v : f.at("star_mags")) {
+            if (!v.is_number() || !std::isfinite(v.get<double>()))
+                throw Error("must be finite numbers", "", 0, where + ".star_mags");
+            stars.push_back(v.get<double>());
+        }
+        std::sort(stars.begin(), stars.end());
+        field.star_mags = std::move(stars);
+    }
     return field;
 }
 

@@ -190,6 +190,10 @@ struct SourceField {
     std::vector<double> mags;    ///< sorted
     /// Its counts are complete to this magnitude (∞: to every one, the single-field case).
     double completeness = std::numeric_limits<double>::infinity();
+    /// Its stars' magnitudes, sorted, when smooth was given them (--stars): shapesim-sample
+    /// draws the field's star counts by default (sample.hpp field_star_counts). Empty: counted,
+    /// none found; none: not counted.
+    std::optional<std::vector<double>> star_mags;
     /// Galaxies per arcmin² with mag ≤ `mag_limit`.
     double density(double mag_limit) const;
 };

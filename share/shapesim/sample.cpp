@@ -41,6 +41,33 @@ void StarCounts::validate() const {
         throw Error("the histogram holds no stars", "", 0, "star_histogram");
 }
 
+std::optional<StarCounts> field_star_counts(const std::vector<SourceField>& fields,
+                                            double mag_limit) {
+    std::vector<double> mags;
+    double area = 0.0;
+    for (const SourceField& f : fields) {
+        if (!f.star_mags) continue;
+        area += f.area_arcmin2;
+        for (const double m : *f.star_mags)
+            if (m <= mag_limit) mags.push_back(m);
+    }
+    if (!(area > 0.0)) return std::nullopt;
+    StarCounts counts;
+    counts.density = double(mags.size()) / area;
+    if (mags.empty()) return counts;
+    std::sort(mags.begin(), mags.end());
+    const double bin = 0.5;
+    const double first = std::floor(mags.front() / bin) * bin;
+    for (double lo = first; lo <= mags.back(); lo += bin) {
+        const auto n = std::count_if(mags.begin(), mags.end(),
+                                     [&](double m) { return m >= lo && m < lo + bin; });
+        counts.bins.push_back({lo, std::min(lo + bin, std::max(mag_limit, lo + 1e-9)), double(n)});
+    }
+    counts.mag_min = counts.bins.front().lo;
+    counts.mag_max = counts.bins.back().hi;
+    return counts;
+}
+
 std::vector<StarCounts::Bin> read_star_histogram(const std::string& path) {
     std::ifstream in(path);
     if (!in) throw Error("cannot open", path);

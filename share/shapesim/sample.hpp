@@ -50,6 +50,13 @@ struct StarCounts {
     void validate() const;
 };
 
+/// The star counts of the model's real fields (SourceField::star_mags, smooth --stars): their
+/// stars brighter than `mag_limit` per arcmin² of the fields that counted them, in 0.5-mag
+/// bins from the brightest (flat within a bin, as a --star-histogram); density 0 when those
+/// fields hold none. None when no field counted its stars.
+std::optional<StarCounts> field_star_counts(const std::vector<SourceField>& fields,
+                                            double mag_limit);
+
 /// Read a star-count histogram: lines "mag_lo mag_hi count" ('#' comments, blank lines
 /// allowed); throws Error naming file and line.
 std::vector<StarCounts::Bin> read_star_histogram(const std::string& path);

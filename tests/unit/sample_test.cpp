@@ -478,3 +478,38 @@ TEST(Sample, GalaxiesBelowTheLimitFollowTheExtrapolatedCounts) {
     refused.faint_counts = counts;
     EXPECT_THROW(refused.validate(), Error);
 }
+
+// The real fields' star counts (smooth --stars): stars brighter than the limit over the area
+// of the fields that counted them, in 0.5-mag bins from the brightest; none when no field
+// counted, density 0 when the counting fields hold none.
+TEST(FieldStarCounts, TheCountingFieldsStarsPerArcmin2InHalfMagnitudeBins) {
+    SourceField counted, uncounted;
+    counted.area_arcmin2 = 2.0;
+    counted.star_mags = std::vector<double>{20.1, 20.2, 21.7, 30.0};
+    uncounted.area_arcmin2 = 5.0;
+    EXPECT_FALSE(field_star_counts({uncounted}, 29.0));
+    const std::optional<StarCounts> s = field_star_counts({counted, uncounted}, 29.0);
+    ASSERT_TRUE(s);
+    EXPECT_DOUBLE_EQ(s->density, 1.5);  // 3 stars brighter than 29 over 2 arcmin²
+    ASSERT_EQ(s->bins.size(), 4u);
+    EXPECT_DOUBLE_EQ(s->bins[0].lo, 20.0);
+    EXPECT_DOUBLE_EQ(s->bins[0].count, 2.0);
+    EXPECT_DOUBLE_EQ(s->bins[1].count, 0.0);
+    EXPECT_DOUBLE_EQ(s->bins[3].lo, 21.5);
+    EXPECT_DOUBLE_EQ(s->bins[3].count, 1.0);
+    EXPECT_DOUBLE_EQ(s->mag_min, 20.0);
+    EXPECT_DOUBLE_EQ(s->mag_max, 22.0);
+    EXPECT_NO_THROW(s->validate());
+    // Every drawn magnitude lies in a bin holding a star.
+    for (double u = 0.0; u < 1.0; u += 0.01) {
+        const double m = s->magnitude(u);
+        EXPECT_TRUE((m >= 20.0 && m < 20.5) || (m >= 21.5 && m <= 22.0)) << m;
+    }
+    // A limit inside the last bin closes it there; none brighter: density 0.
+    const auto cut = field_star_counts({counted}, 21.8);
+    EXPECT_DOUBLE_EQ(cut->bins.back().hi, 21.8);
+    EXPECT_DOUBLE_EQ(field_star_counts({counted}, 19.0)->density, 0.0);
+    SourceField empty = uncounted;
+    empty.star_mags = std::vector<double>{};
+    EXPECT_DOUBLE_EQ(field_star_counts({empty}, 29.0)->density, 0.0);
+}

@@ -2,6 +2,8 @@
 
 #include "shapesim/app/options.hpp"
 #include "shapesim/geometry.hpp"
+#include "shapesim/jsonl.hpp"
+#include "shapesim/records.hpp"
 
 #include <algorithm>
 #include <cmath>
@@ -89,6 +91,39 @@ SourceFields read_source_fields(const std::string& like, std::optional<double> a
         throw po::error(
             "--field: at least one field must give its area (only shape-only fields given)");
     return out;
+}
+
+void add_field_stars(SourceFields& fields, const std::vector<std::string>& specs) {
+    for (const std::string& spec : specs) {
+        if (fields.counted.empty())
+            throw po::error("--stars needs the field they were counted in: --like, --area or "
+                            "--field IMAGE=ARCMIN2");
+        const std::size_t eq = spec.find('=');
+        SourceField* field = nullptr;
+        std::string file = spec;
+        if (eq == std::string::npos) {
+            if (fields.counted.size() > 1)
+                throw po::error("--stars " + spec + ": several fields; give --stars IMAGE=FILE");
+            field = &fields.counted.front();
+        } else {
+            const std::string image = spec.substr(0, eq);
+            file = spec.substr(eq + 1);
+            for (SourceField& f : fields.counted)
+                if (f.image == image) field = &f;
+            if (!field)
+                throw po::error("--stars " + spec + ": '" + image +
+                                "' is none of the counted --field images");
+        }
+        if (field->star_mags)
+            throw po::error("--stars " + spec + ": that field's stars were given already");
+        std::vector<double> mags;
+        JsonlReader reader(file, {SourceRecord::schema});
+        SourceRecord star;
+        while (reader.next_record(star))
+            if (star.mag) mags.push_back(*star.mag);
+        std::sort(mags.begin(), mags.end());
+        field->star_mags = std::move(mags);
+    }
 }
 
 }  // namespace shapesim::app

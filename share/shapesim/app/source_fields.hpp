@@ -29,4 +29,11 @@ SourceFields read_source_fields(const std::string& like, std::optional<double> a
                                 std::optional<double> pixel_scale,
                                 const std::vector<std::string>& specs);
 
+/// --stars [IMAGE=]FILE, repeated: each file's star records (shapesim-detect --stars) counted in
+/// the field IMAGE, or in the one counted field when IMAGE= is left out (SourceField::star_mags;
+/// stars without a magnitude are skipped). po::error when there is no counted field, IMAGE is
+/// none of them, IMAGE= is left out with several, or a field is given twice; Error naming
+/// the file and line on a bad record.
+void add_field_stars(SourceFields& fields, const std::vector<std::string>& specs);
+
 }  // namespace shapesim::app
