@@ -47,7 +47,10 @@ int run(int argc, const char* const argv[]) {
          "the PSF the galaxy models already hold (e.g. models of real galaxies): galaxies are "
          "convolved with the difference kernel psf / galaxy-psf, or not at all when equal")
         ("difference-order", po::value(&s.difference_order)->value_name("N"),
-         "order of the difference kernel (default: the PSF's)");
+         "order of the difference kernel (default: the PSF's)")
+        ("place-by-sky", po::bool_switch(&s.place_by_sky),
+         "place objects by their ra, dec alone, even when their x, y say they were drawn for "
+         "another field (by default that is an error: give render the field sample had)");
     s.field.declare(options, "Field (default: --like)",
                     "render only these field pixels (FITS, inclusive); the WCS follows");
     options.group("Accuracy").add_options()
@@ -115,8 +118,12 @@ int run(int argc, const char* const argv[]) {
     // Read, prepare, paint, add noise; the image and the truth of the objects centred in it.
     using clock = std::chrono::steady_clock;
     const auto t_read = clock::now();
+    ObjectPlacement placement;
+    placement.have_psf = kernels.star.has_value();
+    placement.galaxy_psf_known = !s.galaxy_psf.empty();
+    placement.by_sky = s.place_by_sky;
     const std::vector<ObjectRecord> records =
-        read_objects(s.input, field.wcs, s.band, kernels.star.has_value(), o.threads);
+        read_objects(s.input, field.wcs, s.band, placement, o.threads);
     const auto t_prepare = clock::now();
     RenderedScene scene = prepare_field(records, field, kernels, o, window, s.input);
     s.draw_and_write(options, scene, records, kernels);

@@ -373,7 +373,7 @@ ObjectRecord galaxy_record(const Morphology& morphology, const DrawnGalaxy& g, s
     o.extra["rotation"] = g.rotation / degree;
     o.extra["reflected"] = g.reflected;
     o.extra["perturbation"] = g.perturbation;
-    if (morphology.frame != "observed") o.extra["frame"] = morphology.frame;
+    o.extra["frame"] = morphology.frame;  // render refuses to convolve an observed one twice
     if (morphology.points[g.parent].psf_beta > 0.0)
         o.extra["psf_beta"] = morphology.points[g.parent].psf_beta;
     if (g.mag_parent != g.parent) o.extra["mag_parent"] = morphology.points[g.mag_parent].id;

@@ -191,7 +191,8 @@ ImageArray read_noise_scale(const std::string& path, long field_nx, long field_n
 }
 
 std::vector<ObjectRecord> read_objects(const std::string& path, const Wcs& wcs,
-                                       const std::string& band, bool have_psf, int threads) {
+                                       const std::string& band, const ObjectPlacement& placement,
+                                       int threads) {
     JsonlReader reader(path, {ObjectRecord::schema});
     std::vector<long> lines;
     std::vector<ObjectRecord> records = reader.read_all<ObjectRecord>(threads, &lines);
@@ -205,11 +206,26 @@ std::vector<ObjectRecord> read_objects(const std::string& path, const Wcs& wcs,
             }
         }
         const PixelPosition p = wcs.sky_to_pixel(r.ra, r.dec);
+        if (!placement.by_sky && r.x && r.y &&
+            !(std::hypot(p.x - *r.x, p.y - *r.y) <= placement.max_shift)) {
+            std::ostringstream why;
+            why << "object " << r.id << " was drawn for another field: its x, y (" << *r.x
+                << ", " << *r.y << ") are (" << p.x << ", " << p.y
+                << ") here; give render the field shapesim-sample had (--like, or --area/--size "
+                   "with --pixel-scale, --ra, --dec), or --place-by-sky";
+            throw Error(why.str(), reader.name(), lines[k], "x");
+        }
         r.x = p.x;
         r.y = p.y;
-        if (!r.has_shape() && !have_psf)
+        if (!r.has_shape() && !placement.have_psf)
             throw Error("object " + r.id + " is a point source: give --psf", reader.name(),
                         lines[k], "kind");
+        if (r.has_shape() && placement.have_psf && !placement.galaxy_psf_known &&
+            r.extra.contains("frame") && r.extra.at("frame") == "observed")
+            throw Error("object " + r.id + " is an observed-frame model: it already holds its "
+                        "field's PSF; give --galaxy-psf that PSF (it is then convolved with the "
+                        "difference only), or draw from an intrinsic model",
+                        reader.name(), lines[k], "frame");
     }
     return records;
 }

@@ -151,12 +151,26 @@ constexpr int max_noise_kernel_radius = int(WhiteNoise::margin);
 /// value at its centre (one pixel's worth) when the image is noise-free or noiseless.
 double truncation_threshold(const CartesianModel& model, const SceneOptions& options);
 
+/// How read_objects() places and checks the objects.
+struct ObjectPlacement {
+    bool have_psf = false;        ///< --psf given (a point source is drawn as the PSF)
+    bool galaxy_psf_known = false;///< --galaxy-psf given: what observed-frame models hold
+    /// false: an object whose own x, y (the field shapesim-sample drew it for) differ from
+    /// its ra, dec through `wcs` by more than `max_shift` pixels is an error (the field was
+    /// given differently); true: placed by ra, dec alone.
+    bool by_sky = false;
+    double max_shift = 0.01;
+};
+
 /// The object records at `path` (JSON lines; "-": stdin), read on `threads` threads and placed
 /// on the field: each as it is in band `band` (empty: as written), x, y from its ra, dec
-/// through `wcs`. Error at the file, line and field of the first bad record, or of the first
-/// star when `have_psf` is false (a point source is drawn as the PSF).
+/// through `wcs`. Error at the file, line and field of the first bad record; of the first
+/// star without a PSF; of the first object drawn for another field (ObjectPlacement); of the
+/// first observed-frame galaxy ("frame": "observed": it holds its field's PSF) given a PSF
+/// without --galaxy-psf, which would convolve it twice.
 std::vector<ObjectRecord> read_objects(const std::string& path, const Wcs& wcs,
-                                       const std::string& band, bool have_psf, int threads);
+                                       const std::string& band, const ObjectPlacement& placement,
+                                       int threads);
 
 /// Prepare one object record (x, y in field FITS pixels required).
 PreparedObject prepare_object(const ObjectRecord& record, double field_pixel_scale,

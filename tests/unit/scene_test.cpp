@@ -656,7 +656,10 @@ TEST(Scene, ReadObjectsPlacesThemThroughTheWcs) {
     star.flux = 4.0;
     const std::string path = temp_file("scene-objects.jsonl", g.to_json().dump() + "\n\n" +
                                                                   star.to_json().dump() + "\n");
-    const std::vector<ObjectRecord> records = read_objects(path, wcs, "", true, 2);
+    ObjectPlacement with_psf;
+    with_psf.have_psf = true;
+    const ObjectPlacement without_psf;
+    const std::vector<ObjectRecord> records = read_objects(path, wcs, "", with_psf, 2);
     ASSERT_EQ(records.size(), 2u);
     const PixelPosition p = wcs.sky_to_pixel(g.ra, g.dec);
     EXPECT_EQ(*records[0].x, p.x);
@@ -668,7 +671,7 @@ TEST(Scene, ReadObjectsPlacesThemThroughTheWcs) {
 
     // Band b: only the galaxy has bands, so the star's line is where it fails.
     try {
-        read_objects(path, wcs, "b", true, 1);
+        read_objects(path, wcs, "b", with_psf, 1);
         ADD_FAILURE() << "no error";
     } catch (const Error& e) {
         EXPECT_EQ(e.file(), path);
@@ -676,17 +679,70 @@ TEST(Scene, ReadObjectsPlacesThemThroughTheWcs) {
         EXPECT_EQ(e.field(), "bands");
     }
     const std::string galaxy_only = temp_file("scene-galaxy.jsonl", g.to_json().dump() + "\n");
-    const ObjectRecord in_b = read_objects(galaxy_only, wcs, "b", false, 1).at(0);
+    const ObjectRecord in_b = read_objects(galaxy_only, wcs, "b", without_psf, 1).at(0);
     EXPECT_EQ(in_b.flux, 0.5 * g.flux);
     EXPECT_EQ(in_b.coeffs, b.coeffs);
     try {
-        read_objects(path, wcs, "", false, 1);
+        read_objects(path, wcs, "", without_psf, 1);
         ADD_FAILURE() << "no error";
     } catch (const Error& e) {
         EXPECT_EQ(e.line(), 3);
         EXPECT_EQ(e.field(), "kind");
         EXPECT_EQ(e.message(), "object s1 is a point source: give --psf");
     }
+}
+
+// The field given once: an object whose own x, y (the field sample drew it for) are not where
+// its ra, dec fall on this WCS is refused at its line, unless placed by the sky; within
+// 0.01 pixel it is the same field. An observed-frame galaxy through a PSF without the PSF it
+// holds (--galaxy-psf) is refused: it would be convolved twice.
+TEST(Scene, ReadObjectsRefusesAnotherFieldAndASecondConvolution) {
+    const Wcs wcs = tan_wcs(189.2, 62.2, 0.04, 50.5, 40.5, 15.0);
+    ShapeletModel m(0.0, 0.0, 2.0, 2);
+    m.coeffs[0] = 3.0;
+    ObjectRecord g = galaxy_record(m, 0.0, 0.0, "g1");
+    const SkyPosition sky = wcs.pixel_to_sky(12.25, 30.5);
+    g.ra = sky.ra;
+    g.dec = sky.dec;
+    g.x = 12.25 + 0.004;
+    g.y = 30.5;
+    ObjectRecord shifted = g;
+    shifted.id = "g2";
+    shifted.x = 22.25;  // drawn for a field 10 pixels along
+    const std::string same = temp_file("scene-same.jsonl", g.to_json().dump() + "\n");
+    const std::string other = temp_file("scene-other.jsonl", g.to_json().dump() + "\n" +
+                                                                 shifted.to_json().dump() + "\n");
+    const ObjectPlacement plain;
+    EXPECT_NEAR(*read_objects(same, wcs, "", plain, 1).at(0).x, 12.25, 1e-9);
+    try {
+        read_objects(other, wcs, "", plain, 1);
+        ADD_FAILURE() << "no error";
+    } catch (const Error& e) {
+        EXPECT_EQ(e.line(), 2);
+        EXPECT_EQ(e.field(), "x");
+        EXPECT_NE(e.message().find("object g2 was drawn for another field"), std::string::npos)
+            << e.message();
+    }
+    ObjectPlacement by_sky;
+    by_sky.by_sky = true;
+    EXPECT_NEAR(*read_objects(other, wcs, "", by_sky, 1).at(1).x, 12.25, 1e-9);
+
+    ObjectRecord observed = g;
+    observed.extra["frame"] = "observed";
+    const std::string path = temp_file("scene-observed.jsonl", observed.to_json().dump() + "\n");
+    ObjectPlacement psf_only;
+    psf_only.have_psf = true;
+    try {
+        read_objects(path, wcs, "", psf_only, 1);
+        ADD_FAILURE() << "no error";
+    } catch (const Error& e) {
+        EXPECT_EQ(e.field(), "frame");
+        EXPECT_NE(e.message().find("observed-frame model"), std::string::npos) << e.message();
+    }
+    ObjectPlacement both = psf_only;
+    both.galaxy_psf_known = true;
+    EXPECT_EQ(read_objects(path, wcs, "", both, 1).size(), 1u);
+    EXPECT_EQ(read_objects(path, wcs, "", plain, 1).size(), 1u);  // no PSF: drawn as it is
 }
 
 // Drawn in strips, a window gives render_field's image bit for bit, with photon noise and a

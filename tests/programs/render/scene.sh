@@ -26,7 +26,8 @@ for t in "1 1 256 256" "257 1 512 256" "1 257 256 512" "257 257 512 512"; do
   "$BIN/$prog" "${common[@]}" -q --tile $t -o "tile_${t// /_}.fits" <objects.jsonl ||
     fail "--tile $t failed"
 done
-"$BIN/$prog" --psf psf.jsonl --like "$hdf" --noise-free -q -o clean.fits --truth clean.jsonl \
+"$BIN/$prog" --psf psf.jsonl --galaxy-psf psf.jsonl --like "$hdf" --noise-free -q -o clean.fits \
+  --truth clean.jsonl \
   <objects.jsonl || fail "--noise-free failed"
 
 python3 - "$tools" <<'PY' || fail "the images break the checks"
@@ -76,4 +77,16 @@ rc=0; "$BIN/$prog" --like "$hdf" --psf psf.jsonl --tile 1 1 600 10 -o bad.fits <
 expect_error "$rc" 2 'tile'
 rc=0; "$BIN/$prog" --like "$hdf" --psf psf.jsonl --shear 0.9 0.9 -o bad.fits <objects.jsonl >out 2>err || rc=$?
 expect_error "$rc" 2 'shear'
+# No silent wrong image: observed-frame models through a PSF without the PSF they hold would be
+# convolved twice; a field other than sample's would leave objects out.
+rc=0; "$BIN/$prog" --like "$hdf" --psf psf.jsonl -o bad.fits <objects.jsonl >out 2>err || rc=$?
+expect_error "$rc" 1 'frame: object g0 is an observed-frame model: it already holds its field.s PSF; give --galaxy-psf'
+[ ! -e bad.fits ] || fail "an image was left after a refused frame"
+rc=0; "$BIN/$prog" --psf psf.jsonl --galaxy-psf psf.jsonl --area 0.1156 --pixel-scale 0.03985 \
+  --ra 189.2 --dec 62.2 -o bad.fits <objects.jsonl >out 2>err || rc=$?
+expect_error "$rc" 1 ':1: x: object g0 was drawn for another field'
+[ ! -e bad.fits ] || fail "an image was left for another field"
+"$BIN/$prog" --psf psf.jsonl --galaxy-psf psf.jsonl --area 0.1156 --pixel-scale 0.03985 \
+  --ra 189.2 --dec 62.2 --place-by-sky -q -o sky.fits <objects.jsonl ||
+  fail "--place-by-sky failed"
 exit 0
