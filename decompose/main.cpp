@@ -2,6 +2,7 @@
 // with optimised centre, β and n_max (paper §2.2; DESIGN §1–3). The work is in the library:
 // decompose_job.hpp (each source's job), decompose.hpp (the optimiser and the record), lsq.hpp
 // (the linear fit), psf.hpp (PSF mode); the options in app/decompose_options.hpp.
+#include "shapesim/analytic_psf.hpp"
 #include "shapesim/app/decompose_options.hpp"
 #include "shapesim/app/options.hpp"
 #include "shapesim/app/progress.hpp"
@@ -37,7 +38,8 @@ const char* const description =
     "RealGalaxyCatalog (e.g. the COSMOS training samples) through its own PSF image.\n"
     "\n"
     "PSF mode: with --psf-image, model an (oversampled) PSF image at the pixel scale of\n"
-    "--like (or --pixel-scale) and write one shapesim.shapelet/1 record of unit flux.\n"
+    "--like (or --pixel-scale) and write one shapesim.shapelet/1 record of unit flux;\n"
+    "with --psf-analytic, a Gaussian, Moffat or Airy PSF given by its numbers.\n"
     "\n"
     "Several bands: records of shapesim-detect --bands are fitted in every band at once\n"
     "(one centre, beta and n_max; each band its coefficients), the first band (or\n"
@@ -47,10 +49,43 @@ const char* const description =
     "  shapesim-decompose --stamps stamps.fits -j 2 < sources.jsonl > shapelets.jsonl\n"
     "  shapesim-decompose --psf-image wfpc2_f814w_tinytim_psf.fits --like hdf.fits \\\n"
     "      --psf-box 0.0996 0.05 > psf.jsonl\n"
+    "  shapesim-decompose --psf-analytic moffat:0.7,3.5 --pixel-scale 0.2 > seeing.jsonl\n"
     "  shapesim-decompose --real-galaxy-catalog real_galaxy_catalog_25.2.fits -j 2 \\\n"
     "      > cosmos.jsonl";
 
 // PSF mode: one record of the PSF image's shapelet model at the target pixel scale.
+// PSF mode, analytic: the profile's shapelet model at the target pixel scale, its FWHM and
+// encircled energies checked against the profile (analytic_psf.hpp).
+int run_analytic_psf(const app::DecomposeSettings& s, const app::ProgramOptions& options,
+                     const app::Log& log, AtomicTextFile& file) {
+    const double target = s.psf_target_scale(options);
+    const AnalyticPsf profile = parse_analytic_psf(s.psf_analytic);
+    PsfFitOptions fit = analytic_psf_fit();
+    if (options.given("psf-residual")) fit.residual_target = s.psf_residual;
+    if (options.given("psf-n-max-cap")) fit.n_max_cap = s.psf_n_max_cap;
+    const AnalyticPsfModel m = analytic_psf_model(profile, target, fit, s.psf_tolerance);
+    ShapeletRecord r = psf_record(m.psf, target, "psf");
+    r.extra["analytic"] = profile.describe();
+    r.extra["psf_fwhm"] = m.fwhm;
+    r.extra["psf_fwhm_error"] = m.fwhm_error;
+    r.extra["psf_ee_error"] = Json::array({m.ee_error_1, m.ee_error_2});
+    r.extra["psf_profile_flux_outside"] = m.flux_outside;
+    if (m.worst_error() > s.psf_tolerance) r.flags.push_back("above_tolerance");
+    JsonlWriter(file.stream(), file.name()).write(r.to_json());
+    file.commit();
+    log.info("PSF ", profile.describe(), " at ", target, "\"/px: n_max ", m.psf.n_max, ", beta ",
+             m.psf.model.beta_pix * target, "\"; FWHM ", m.fwhm, "\" (model ",
+             100 * m.fwhm_error, "%), encircled energy within 1 and 2 FWHM off by ",
+             100 * m.ee_error_1, "% and ", 100 * m.ee_error_2, "% of the flux; ",
+             100 * m.flux_outside, "% of the profile's light beyond the ", m.stamp,
+             "-pixel stamp (", log.elapsed(), " s)");
+    if (m.worst_error() > s.psf_tolerance)
+        log.warn("the PSF model misses --psf-tolerance ", s.psf_tolerance, " (worst error ",
+                 m.worst_error(), " at n_max ", m.psf.n_max,
+                 "); the record is flagged above_tolerance");
+    return 0;
+}
+
 int run_psf(const app::DecomposeSettings& s, const app::ProgramOptions& options,
             const app::Log& log, AtomicTextFile& file) {
     const double target = s.psf_target_scale(options);
@@ -173,6 +208,7 @@ int run(int argc, const char* const argv[]) {
     s.check();
     AtomicTextFile file(options.common().output_or_stdout());
     if (!s.psf_image.empty()) return run_psf(s, options, log, file);
+    if (!s.psf_analytic.empty()) return run_analytic_psf(s, options, log, file);
     if (!s.real_galaxy_catalog.empty()) return run_catalogue(s, options, log, file);
 
     std::vector<SourceRecord> stars;

@@ -1,5 +1,8 @@
 #include "shapesim/app/decompose_options.hpp"
 
+#include "shapesim/analytic_psf.hpp"
+#include "shapesim/error.hpp"
+
 #include "shapesim/atomic_file.hpp"
 #include "shapesim/geometry.hpp"
 #include "shapesim/noise.hpp"
@@ -98,6 +101,14 @@ void DecomposeSettings::declare(ProgramOptions& options) {
     options.group("PSF mode").add_options()
         ("psf-image", po::value(&s.psf_image)->value_name("FILE"),
          "model this PSF image instead of reading sources")
+        ("psf-analytic", po::value(&s.psf_analytic)->value_name("SPEC"),
+         "model this analytic PSF instead: gaussian:FWHM, moffat:FWHM[,BETA] (beta 3.5) or "
+         "airy:LAMBDA_OVER_D[,OBSCURATION], arcsec, optionally ;jitter=SIGMA; its FWHM and "
+         "encircled energies within --psf-tolerance")
+        ("psf-tolerance", po::value(&s.psf_tolerance)->default_value(0.01)
+             ->notifier(in_range("psf-tolerance", 1e-6, 1.0)),
+         "--psf-analytic: the largest error of the model's FWHM (relative) and encircled "
+         "energy within 1 and 2 FWHM (fraction of the flux)")
         ("psf-pixel-scale", po::value(&s.psf_pixel_scale)->value_name("ARCSEC")
              ->notifier(in_range("psf-pixel-scale", 1e-6, 3600.0)),
          "pixel scale of --psf-image (default: its PIXSCALE keyword, else its WCS)")
@@ -131,6 +142,15 @@ void DecomposeSettings::check() {
     if (ignore_correlation && (!noise_model.empty() || !band_noise_models.empty()))
         throw po::error("--white-noise and a noise model exclude each other");
     if (!models.empty()) check_writable(models);
+    if (!psf_analytic.empty()) {
+        try {
+            parse_analytic_psf(psf_analytic);
+        } catch (const Error& e) {
+            throw po::error("--psf-analytic: " + e.message());
+        }
+    }
+    if (!psf_analytic.empty() && !psf_image.empty())
+        throw po::error("--psf-analytic and --psf-image exclude each other");
     if (!real_galaxy_catalog.empty() && !psf_image.empty())
         throw po::error("--real-galaxy-catalog and --psf-image exclude each other");
     if (!real_galaxy_catalog.empty() && (!psf.empty() || !stamps.empty()))

@@ -15,7 +15,8 @@ namespace shapesim::app {
 struct DecomposeSettings {
     std::string stamps, models, ids, stars;
     std::string psf_image, psf, reference_band;
-    std::string real_galaxy_catalog, real_galaxy_folder;
+    std::string real_galaxy_catalog, real_galaxy_folder, psf_analytic;
+    double psf_tolerance = 0.01;
     int batch = 256;
     double gain = 0.0;
     std::vector<std::string> band_psfs, band_noise_models;

@@ -1,5 +1,8 @@
 #include "shapesim/app/render_settings.hpp"
 
+#include "shapesim/analytic_psf.hpp"
+#include "shapesim/error.hpp"
+
 #include "shapesim/app/provenance.hpp"
 #include "shapesim/atomic_file.hpp"
 #include "shapesim/fits_io.hpp"
@@ -17,7 +20,17 @@ void RenderSettings::check(const ProgramOptions& options) {
     if (bitpix != -32 && bitpix != -64) throw po::error("--bitpix: -32 or -64");
     check_writable(output);
     if (!truth.empty()) check_writable(truth);
-    if (!galaxy_psf.empty() && psf.empty()) throw po::error("--galaxy-psf needs --psf");
+    if (!galaxy_psf.empty() && psf.empty() && psf_analytic.empty())
+        throw po::error("--galaxy-psf needs --psf or --psf-analytic");
+    if (!psf.empty() && !psf_analytic.empty())
+        throw po::error("--psf and --psf-analytic exclude each other");
+    if (!psf_analytic.empty()) {
+        try {
+            parse_analytic_psf(psf_analytic);
+        } catch (const Error& e) {
+            throw po::error("--psf-analytic: " + e.message());
+        }
+    }
     const bool rms_given = options.given("noise-rms") || options.given("noise-correlation");
     if (options.given("noise-like") && rms_given)
         throw po::error("--noise-like sets --noise-rms and --noise-correlation");
@@ -52,7 +65,8 @@ void RenderSettings::finish_scene(const ProgramOptions& options, const FieldGeom
 }
 
 SceneLabels RenderSettings::labels(const ProgramOptions& options) const {
-    return SceneLabels{options.common().seed, psf.empty() ? "none" : psf,
+    return SceneLabels{options.common().seed,
+                       !psf_analytic.empty() ? psf_analytic : psf.empty() ? "none" : psf,
                        noise_label(noise_model, !noise_weight.empty()), band};
 }
 
