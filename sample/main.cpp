@@ -68,6 +68,11 @@ int run(int argc, const char* const argv[]) {
         ("density", po::value(&o.density)->default_value(700.0)
              ->notifier(in_range("density", 0.0, 1e8)), "galaxies per arcmin^2 (Poisson; default: the model's real field, else 700)")
         ("count", po::value(&s.count), "exactly this many galaxies instead")
+        ("ring", po::value(&o.ring)->value_name("N")->default_value(1)
+             ->notifier(in_range("ring", 1, 1000)),
+         "shape-noise cancellation: galaxies in rings of N copies of one draw, copy m turned by "
+         "m x 180/N degrees (2: rotated pairs), each at its own position; their ellipticities "
+         "sum to zero (with --count: a multiple of N)")
         ("mag-limit", po::value(&o.mag_limit)->default_value(29.0)
              ->notifier(in_range("mag-limit", -100.0, 100.0)), "nothing fainter")
         ("faint-limit", po::value<double>()->notifier([&o](double m) { o.faint_limit = m; })

@@ -4,6 +4,7 @@
 #include "shapesim/error.hpp"
 #include "shapesim/moments.hpp"
 #include "shapesim/rng.hpp"
+#include "shapesim/transform.hpp"
 
 #include <algorithm>
 #include <cmath>
@@ -98,6 +99,11 @@ void SampleOptions::validate() const {
     if (!std::isfinite(zero_point)) throw Error("must be finite", "", 0, "zero_point");
     if (!(margin >= 0.0 && std::isfinite(margin))) throw Error("must be ≥ 0", "", 0, "margin");
     if (cell < 1) throw Error("must be ≥ 1 pixel", "", 0, "cell");
+    if (ring < 1 || ring > 1000) throw Error("must be in [1, 1000]", "", 0, "ring");
+    if (count && *count % std::uint64_t(ring) != 0)
+        throw Error("the galaxy count " + std::to_string(*count) + " is no multiple of the ring's " +
+                        std::to_string(ring),
+                    "", 0, "ring");
     if (faint_limit && !(std::isfinite(*faint_limit) && *faint_limit > mag_limit))
         throw Error("must be fainter than the magnitude limit", "", 0, "faint_limit");
     if (faint_limit && !faint_counts)
@@ -485,21 +491,38 @@ SampleSummary sample_field(const Morphology& morphology, const FieldGeometry& fi
     DrawOptions draw = options.draw;
     draw.by_magnitude = magnitude_order(morphology, options.mag_limit);
     const Cells cells(field, options.cell);
-    const std::vector<std::uint64_t> galaxies =
-        cell_counts(cells, options.seed, options.density, options.count, "galaxy count");
+    // Rings: whole rings per cell, the copies of one draw keyed by the ring's first object.
+    const std::uint64_t ring = std::uint64_t(options.ring);
+    std::vector<std::uint64_t> galaxies = cell_counts(
+        cells, options.seed, options.density / double(ring),
+        options.count ? std::optional(*options.count / ring) : std::nullopt, "galaxy count");
+    for (std::uint64_t& n : galaxies) n *= ring;
     for (const std::uint64_t n : galaxies) summary.galaxies += n;
     const double reach_bound = galaxy_reach_bound(morphology, draw, options, scale);
     summary.cells = cells.count();
     summary.cells_read = for_each_placed(
         cells, galaxies, options.seed, "galaxy position", tile, reach_bound,
         [&](std::uint64_t cell, std::uint64_t j, std::uint64_t k, const PixelPosition& p) {
-            RandomStream stream(options.seed, k, "galaxy");
-            const DrawnGalaxy g = draw_galaxy(morphology, parents, stream, scale,
-                                              options.zero_point, options.mag_limit, draw);
+            const std::uint64_t member = j % ring;
+            RandomStream stream(options.seed, ring > 1 ? object_key(cell, j - member) : k,
+                                "galaxy");
+            DrawnGalaxy g = draw_galaxy(morphology, parents, stream, scale, options.zero_point,
+                                        options.mag_limit, draw);
             const double reach = model_reach(g.model.beta_pix, g.model.n_max) + options.margin;
             if (tile && !tile->reaches(p.x, p.y, reach)) return;
-            summary.redraws += std::uint64_t(g.redraws);
-            emit(galaxy_record(morphology, g, cell, j, p, field, options, reach));
+            if (member > 0) {  // turned by member·π/ring: its ellipticity by 2π member/ring
+                const double turn = pi * double(member) / double(ring);
+                g.model = rotate(g.model, turn);
+                for (ShapeletModel& b : g.band_models) b = rotate(b, turn);
+                g.rotation += turn;
+            }
+            summary.redraws += member == 0 ? std::uint64_t(g.redraws) : 0;
+            ObjectRecord o = galaxy_record(morphology, g, cell, j, p, field, options, reach);
+            if (ring > 1)
+                o.extra["ring"] = {{"first", object_id("g", cell, j - member)},
+                                   {"member", member},
+                                   {"of", ring}};
+            emit(o);
             ++summary.galaxies_out;
         });
     sample_faint(morphology, field, options, tile, cells, draw, reach_bound, emit, summary);

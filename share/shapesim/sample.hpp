@@ -65,6 +65,11 @@ struct SampleOptions {
     std::uint64_t seed = 0;
     double density = 700.0;            ///< galaxies per arcmin² (brighter than mag_limit)
     std::optional<std::uint64_t> count;///< exact number of galaxies instead
+    /// Shape-noise cancellation (GREAT08, STEP2): galaxies in rings of `ring` copies of one
+    /// draw, copy m turned by m·180°/ring (2: rotated pairs, 90° apart), each at its own
+    /// position; the ellipticities of a ring sum to zero. Each cell draws whole rings (a
+    /// Poisson number of density/ring; `count` must be a multiple). 1: every galaxy its own.
+    int ring = 1;
     double mag_limit = 29.0;           ///< nothing fainter
     double zero_point = 0.0;           ///< of the output fluxes
     double margin = 0.0;               ///< pixels added to every reach (PSF, …)
