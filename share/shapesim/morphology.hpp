@@ -193,7 +193,7 @@ struct SourceField {
     /// Its stars' magnitudes, sorted, when smooth was given them (--stars): shapesim-sample
     /// draws the field's star counts by default (sample.hpp field_star_counts). Empty: counted,
     /// none found; none: not counted.
-    std::optional<std::vector<double>> star_mags;
+    std::optional<std::vector<double>> star_mags = std::nullopt;
     /// Galaxies per arcmin² with mag ≤ `mag_limit`.
     double density(double mag_limit) const;
 };
