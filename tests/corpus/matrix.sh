@@ -121,8 +121,8 @@ for f in good bitpix8 bitpix16 bitpix32 bitpix-64 fpack extension no-wcs blank-c
   cells+=("$cell")
   run sample "$c" sample base/model.json --like "$c" "${scale[@]}" --seed 1
   cells+=("$cell")
-  run render "$c" render -i base/objects.jsonl --psf base/psf.jsonl --like "$c" "${scale[@]}" \
-    --seed 1 -o out/sim.fits
+  run render "$c" render -i base/objects.jsonl --psf base/psf.jsonl --galaxy-psf base/psf.jsonl \
+    --place-by-sky --like "$c" "${scale[@]}" --seed 1 -o out/sim.fits
   cells+=("$cell" "—")
   run measure "$c" measure "$c" "${scale[@]}"
   cells+=("$cell")
@@ -154,9 +154,11 @@ json_row() {
   cells+=("$cell")
   run sample "$label" sample "$model" --like good.fits --seed 1
   cells+=("$cell")
-  run render "$label" render -i "$objects" --psf base/psf.jsonl --like good.fits -o out/sim.fits
+  run render "$label" render -i "$objects" --psf base/psf.jsonl --galaxy-psf base/psf.jsonl \
+    --like good.fits -o out/sim.fits
   cells+=("$cell")
-  run render-psf "$label" render -i base/objects.jsonl --psf "$psf" --like good.fits -o out/sim.fits
+  run render-psf "$label" render -i base/objects.jsonl --psf "$psf" --galaxy-psf base/psf.jsonl \
+    --like good.fits -o out/sim.fits
   cells+=("$cell")
   run measure "$label" measure --compare "a=$morph" b=base/morph.jsonl -o out/compare
   cells+=("$cell")
