@@ -54,6 +54,19 @@ const char* const description =
     "      > cosmos.jsonl";
 
 // PSF mode: one record of the PSF image's shapelet model at the target pixel scale.
+// The --models file of the fits' images (none without --models).
+std::unique_ptr<FitsWriter> models_file(const app::DecomposeSettings& s,
+                                        const app::ProgramOptions& options) {
+    if (s.models.empty()) return nullptr;
+    return std::make_unique<FitsWriter>(s.models, "shapesim-decompose",
+                                        app::provenance_keywords(options, {"models"}));
+}
+
+// The PSF stamp's side: --psf-stamp, made odd.
+int odd_psf_stamp(const app::DecomposeSettings& s) {
+    return s.psf_stamp % 2 == 1 ? s.psf_stamp : s.psf_stamp + 1;
+}
+
 // PSF mode, analytic: the profile's shapelet model at the target pixel scale, its FWHM and
 // encircled energies checked against the profile (analytic_psf.hpp).
 int run_analytic_psf(const app::DecomposeSettings& s, const app::ProgramOptions& options,
@@ -92,7 +105,7 @@ int run_psf(const app::DecomposeSettings& s, const app::ProgramOptions& options,
     const PsfImage image = read_psf_image(
         s.psf_image,
         options.given("psf-pixel-scale") ? std::optional(s.psf_pixel_scale) : std::nullopt);
-    const int side = s.psf_stamp % 2 == 1 ? s.psf_stamp : s.psf_stamp + 1;
+    const int side = odd_psf_stamp(s);
     const PsfModel psf =
         psf_from_oversampled(image.pixels, image.pixel_scale, target, s.psf_box, side, s.psf_fit());
     JsonlWriter(file.stream(), file.name()).write(psf_record(psf, target, "psf").to_json());
@@ -127,11 +140,8 @@ int run_catalogue(const app::DecomposeSettings& s, const app::ProgramOptions& op
     const std::vector<RealGalaxy> galaxies =
         read_real_galaxy_catalog(catalogue, s.real_galaxy_folder);
     log.info(galaxies.size(), " galaxies in ", catalogue, " (", log.elapsed(), " s)");
-    const int side = s.psf_stamp % 2 == 1 ? s.psf_stamp : s.psf_stamp + 1;
-    std::unique_ptr<FitsWriter> models;
-    if (!s.models.empty())
-        models = std::make_unique<FitsWriter>(s.models, "shapesim-decompose",
-                                              app::provenance_keywords(options, {"models"}));
+    const int side = odd_psf_stamp(s);
+    const std::unique_ptr<FitsWriter> models = models_file(s, options);
     const std::vector<std::string> listed = app::split_list(s.ids);
     JsonlWriter out(file.stream(), file.name());
     app::Progress progress(log, "fitted", "galaxies", galaxies.size());
@@ -235,10 +245,7 @@ int run(int argc, const char* const argv[]) {
         progress.done_one();
     });
 
-    std::unique_ptr<FitsWriter> models;
-    if (!s.models.empty())
-        models = std::make_unique<FitsWriter>(s.models, "shapesim-decompose",
-                                              app::provenance_keywords(options, {"models"}));
+    const std::unique_ptr<FitsWriter> models = models_file(s, options);
     const std::vector<std::string> listed = app::split_list(s.ids);
     JsonlWriter out(file.stream(), file.name());
     long converged = 0, failed = 0;
