@@ -92,7 +92,10 @@ int run(int argc, const char* const argv[]) {
          "electrons per image unit (x --exposure) for photon noise; 0: none")
         ("exposure", po::value(&s.exposure)->default_value(1.0)
              ->notifier(in_range("exposure", 1e-9, 1e12)),
-         "seconds, for images in units per second")
+         "seconds, for images in units per second (written as EXPTIME when given)")
+        ("exptime", po::value(&s.exptime)->notifier(in_range("exptime", 0.0, 1e12)),
+         "the exposure time written as EXPTIME, seconds, for images in counts over the exposure "
+         "(no effect on the noise; default: --exposure when given)")
         ("sky", po::value(&o.sky)->default_value(0.0)->notifier(in_range("sky", -1e30, 1e30)),
          "sky level added, image units")
         ("noise-free", po::bool_switch(&o.noise_free), "no noise");
@@ -105,6 +108,8 @@ int run(int argc, const char* const argv[]) {
         ("output,o", po::value<std::string>()->value_name("IMAGE"),
          "the FITS image to write (required); written as IMAGE.tmp.<pid> and renamed when "
          "complete")
+        ("bunit", po::value(&s.bunit)->value_name("UNIT"),
+         "the image's unit, written as BUNIT (e.g. electron/s, adu; default: a --like image's)")
         ("truth", po::value(&s.truth)->value_name("FILE"),
          "write what was drawn, for the objects centred in the image or --tile (JSON lines:\n"
          "position, true flux and shape, stamp)")

@@ -673,7 +673,8 @@ FitsImageSpec scene_image_spec(const RenderedScene& scene, const std::vector<Obj
     FitsImageSpec spec;
     spec.extname = "SCI";
     spec.bitpix = bitpix;
-    spec.bunit = scene.field.bunit;  // a field made --like an image keeps its units
+    // A field made --like an image keeps its units, unless the caller names them.
+    spec.bunit = labels.bunit.empty() ? scene.field.bunit : labels.bunit;
     spec.wcs = scene.field.wcs.cutout(scene.window.x0, scene.window.y0);
     const Tile& w = scene.window;
     spec.keywords = {
@@ -684,7 +685,7 @@ FitsImageSpec scene_image_spec(const RenderedScene& scene, const std::vector<Obj
         FitsKeyword("NOISECOR", o.noise_correlation, "correlated-noise factor F (4x4 blocks)"),
         FitsKeyword("NOISEMOD", labels.noise, "background noise correlation"),
         FitsKeyword("GAIN", o.noise_free ? 0.0 : o.gain, "electrons per image unit (photon noise)"),
-        FitsKeyword("SKY", o.sky, "sky level added"),
+        FitsKeyword("SKY", o.noise_free ? 0.0 : o.sky, "sky level added"),
         FitsKeyword("NOISEFRE", o.noise_free, "noise-free image"),
         FitsKeyword("G1", o.lensing ? o.lensing->g1 : 0.0, "reduced shear applied"),
         FitsKeyword("G2", o.lensing ? o.lensing->g2 : 0.0, "reduced shear applied"),
@@ -698,9 +699,13 @@ FitsImageSpec scene_image_spec(const RenderedScene& scene, const std::vector<Obj
         FitsKeyword("FIELDNY", (long long)scene.field.ny, "field height, pixels"),
     };
     if (!labels.band.empty()) spec.keywords.emplace_back("BAND", labels.band, "band of the objects drawn");
-    if (const std::optional<double> zero_point = objects_zero_point(records))
-        spec.keywords.emplace_back("MAGZERO", std::round(*zero_point * 1e6) / 1e6,
-                                   "AB zero point: mag = MAGZERO - 2.5 log10(value)");
+    if (labels.exposure_time > 0.0)
+        spec.keywords.emplace_back("EXPTIME", labels.exposure_time, "exposure time, seconds");
+    if (const std::optional<double> zero_point = objects_zero_point(records)) {
+        const double zp = std::round(*zero_point * 1e6) / 1e6;
+        spec.keywords.emplace_back("MAGZERO", zp, "AB zero point: mag = MAGZERO - 2.5 log10(value)");
+        spec.keywords.emplace_back("PHOTZP", zp, "AB zero point (as MAGZERO)");
+    }
     return spec;
 }
 

@@ -294,6 +294,8 @@ std::string render_summary(const RenderedScene& scene, std::size_t records, cons
 struct SceneLabels {
     std::uint64_t seed = 0;
     std::string psf = "none", noise, band;
+    double exposure_time = 0.0;  ///< EXPTIME, seconds (0: not written)
+    std::string bunit;           ///< BUNIT (empty: the field's)
 };
 
 /// SceneLabels::noise: the background's correlation in words — the measured noise record at
@@ -304,7 +306,8 @@ std::string noise_label(const std::string& noise_model, bool weighted);
 /// The image HDU of a rendered scene: EXTNAME SCI, `bitpix`, the field's BUNIT and its WCS moved
 /// to the window, and cards saying how it was made (seed, truncation, noise, gain, sky,
 /// lensing, PSF, galaxy kernel, window, field size, band, objects drawn) and, when they agree
-/// (objects_zero_point()), the objects' zero point MAGZERO to 1e-6.
+/// (objects_zero_point()), the objects' zero point MAGZERO (and PHOTZP, its other common
+/// name) to 1e-6; EXPTIME and BUNIT from `labels` when set.
 FitsImageSpec scene_image_spec(const RenderedScene& scene, const std::vector<ObjectRecord>& records,
                                const SceneOptions& options, const SceneKernels& kernels,
                                const SceneLabels& labels, int bitpix);

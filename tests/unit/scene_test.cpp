@@ -932,7 +932,7 @@ TEST(Scene, ImageSpecCarriesTheWindowsWcsAndTheRunsCards) {
     std::vector<ObjectRecord> records(1);
     records[0].flux = 10.0;
     records[0].mag = 25.12345678 - 2.5;
-    const FitsImageSpec spec = scene_image_spec(scene, records, o, k, {7, "psf.jsonl", "white", "f814w"}, -64);
+    const FitsImageSpec spec = scene_image_spec(scene, records, o, k, {7, "psf.jsonl", "white", "f814w", 0.0, ""}, -64);
     EXPECT_EQ(spec.extname, "SCI");
     EXPECT_EQ(spec.bitpix, -64);
     EXPECT_EQ(spec.bunit, "ELECTRONS/S");
@@ -951,7 +951,7 @@ TEST(Scene, ImageSpecCarriesTheWindowsWcsAndTheRunsCards) {
     EXPECT_EQ(std::get<double>(cards.at("MAGZERO").value), 25.123457);
     EXPECT_EQ(spec.keywords.back().name, "MAGZERO");
     records[0].mag.reset();
-    const FitsImageSpec plain = scene_image_spec(scene, records, o, k, {7, "none", "white", ""}, -32);
+    const FitsImageSpec plain = scene_image_spec(scene, records, o, k, {7, "none", "white", "", 0.0, ""}, -32);
     for (const FitsKeyword& c : plain.keywords) {
         EXPECT_NE(c.name, "BAND");
         EXPECT_NE(c.name, "MAGZERO");

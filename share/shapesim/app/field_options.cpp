@@ -11,9 +11,11 @@ void FieldOptions::declare(ProgramOptions& options, const std::string& title,
          "a square field of this area")
         ("size", po::value(&size)->value_name("ARCMIN")->multitoken(),
          "a field W H arcmin (one value: square)")
+        ("pixels", po::value(&pixels)->value_name("NX")->multitoken(),
+         "a field NX NY pixels of --pixel-scale (one value: square)")
         ("pixel-scale", po::value(&pixel_scale)->default_value(0.0398)
              ->notifier(in_range("pixel-scale", 1e-6, 3600.0)),
-         "arcsec per pixel with --area/--size (the HDF's by default), or of a --like image "
+         "arcsec per pixel with --area/--size/--pixels (the HDF's by default), or of a --like image "
          "whose header has no WCS")
         ("ra", po::value(&ra)->default_value(0.0)->notifier(in_range("ra", -360.0, 360.0)),
          "field centre RA, degrees, with --area/--size (or a --like image without a WCS)")
@@ -24,14 +26,23 @@ void FieldOptions::declare(ProgramOptions& options, const std::string& title,
 
 FieldGeometry FieldOptions::field(const ProgramOptions& options) const {
     const int kinds = int(!options.common().like.empty()) + int(options.given("area")) +
-                      int(options.given("size"));
-    if (kinds != 1) throw po::error("give exactly one of --like, --area, --size");
+                      int(options.given("size")) + int(options.given("pixels"));
+    if (kinds != 1) throw po::error("give exactly one of --like, --area, --size, --pixels");
     // --like an image without a WCS takes --pixel-scale (and --ra/--dec), as detect does.
     if (!options.common().like.empty())
         return read_field_geometry(options.common().like,
                                    options.given("pixel-scale") ? std::optional(pixel_scale) : std::nullopt,
                                    ra, dec);
     if (options.given("area")) return make_field(std::sqrt(area), std::sqrt(area), pixel_scale, ra, dec);
+    if (options.given("pixels")) {
+        if (pixels.empty() || pixels.size() > 2) throw po::error("--pixels takes NX [NY]");
+        const long nx = pixels[0], ny = pixels.size() == 2 ? pixels[1] : pixels[0];
+        if (nx < 1 || ny < 1 || nx > 1000000000L || ny > 1000000000L)
+            throw po::error("--pixels: 1 to 10^9 pixels a side");
+        // make_field rounds W·60/scale back to whole pixels: NX·scale/60 returns NX exactly.
+        return make_field(double(nx) * pixel_scale / 60.0, double(ny) * pixel_scale / 60.0,
+                          pixel_scale, ra, dec);
+    }
     if (size.empty() || size.size() > 2) throw po::error("--size takes W [H] arcmin");
     const double w = size[0], h = size.size() == 2 ? size[1] : size[0];
     if (!(w > 0.0 && h > 0.0 && w < 1e5 && h < 1e5)) throw po::error("--size: must be > 0 arcmin");

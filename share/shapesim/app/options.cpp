@@ -55,6 +55,11 @@ std::vector<std::string> value_texts(const boost::any& v) {
         for (int i : *vi) out.push_back(std::to_string(i));
         return out;
     }
+    if (const auto* vl = any_cast<std::vector<long>>(&v)) {
+        std::vector<std::string> out;
+        for (long l : *vl) out.push_back(std::to_string(l));
+        return out;
+    }
     throw Error("--print-params: an option has a type it cannot print");
 }
 

@@ -67,7 +67,11 @@ void RenderSettings::finish_scene(const ProgramOptions& options, const FieldGeom
 SceneLabels RenderSettings::labels(const ProgramOptions& options) const {
     return SceneLabels{options.common().seed,
                        !psf_analytic.empty() ? psf_analytic : psf.empty() ? "none" : psf,
-                       noise_label(noise_model, !noise_weight.empty()), band};
+                       noise_label(noise_model, !noise_weight.empty()), band,
+                       options.given("exptime")    ? exptime
+                       : options.given("exposure") ? exposure
+                                                   : 0.0,
+                       bunit};
 }
 
 void RenderSettings::draw_and_write(const ProgramOptions& options, RenderedScene& rendered,

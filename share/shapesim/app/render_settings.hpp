@@ -20,6 +20,8 @@ struct RenderSettings {
     FieldOptions field;
     std::vector<double> shear;
     double kappa = 0.0, exposure = 1.0;
+    double exptime = 0.0;  ///< --exptime (EXPTIME; 0: --exposure when given, else none)
+    std::string bunit;     ///< --bunit (BUNIT; empty: the field's)
     int bitpix = -32, difference_order = -1;
     bool keep_negative = false;
     SceneOptions scene;

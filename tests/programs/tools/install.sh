@@ -1,6 +1,7 @@
 #!/usr/bin/env bash
 # make install into a staging root (DESTDIR, PREFIX=/usr), then used from another directory:
-# every installed program answers --version, every man page names its program, no app/ header
+# every installed program answers --version, every man page names its program, every shipped
+# survey runs by name from the prefix alone, no app/ header
 # is installed, and a program compiled with `pkg-config --cflags --libs shapesim` alone renders
 # a shapelet model whose summed pixels equal the closed form 2√π β (a_00 + a_20) to 1e-6.
 source "$(dirname "${BASH_SOURCE[0]}")/../lib.sh"
@@ -18,7 +19,7 @@ env -u MAKEFLAGS -u MAKELEVEL -u MFLAGS make -C "$root" --no-print-directory $sa
 usr=$stage/usr
 
 mkdir "$TMPDIR/elsewhere" && cd "$TMPDIR/elsewhere"
-programs=(detect decompose smooth sample render measure)
+programs=(detect decompose smooth sample render measure survey)
 for p in "${programs[@]}"; do
   prog=shapesim-$p
   BIN=$usr/bin check_version "$prog"
@@ -34,6 +35,18 @@ for p in "${programs[@]}"; do
 done
 [ "$(ls "$usr/bin")" = "$(printf 'shapesim-%s\n' "${programs[@]}" | sort)" ] ||
   fail "installed programs: $(ls "$usr/bin")"
+
+# Every shipped survey, by name, from the prefix alone (its models, its programs): an image and
+# its truth in one command (a small corner of each field).
+for survey in "$usr"/share/shapesim/surveys/*.survey; do
+  name=$(basename "$survey" .survey)
+  "$usr/bin/shapesim-survey" "$name" --pixels 96 -q -o "sim-$name" ||
+    fail "shapesim-survey $name failed from the installed prefix"
+  [ -s "sim-$name/image.fits" ] && [ -s "sim-$name/truth.jsonl" ] && [ -s "sim-$name/commands.sh" ] ||
+    fail "shapesim-survey $name: missing outputs"
+  grep -q "$usr/share/shapesim/models/" "sim-$name/commands.sh" || fail "$name: not the installed model"
+done
+[ "$(ls "$usr"/share/shapesim/surveys/*.survey | wc -l)" -ge 3 ] || fail "fewer than 3 shipped surveys"
 
 # The public headers, without app/ (program plumbing), and none of them reaching into it.
 [ -s "$usr/include/shapesim/render.hpp" ] && [ -s "$usr/lib/libshapesim.a" ] || fail "no library"

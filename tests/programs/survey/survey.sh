@@ -1,0 +1,94 @@
+#!/usr/bin/env bash
+# shapesim-survey (issue 37): a shipped survey by name gives an image, its objects, its truth
+# and the commands it ran; the header carries BUNIT, EXPTIME, GAIN, MAGZERO/PHOTZP; the same
+# seed gives the same bits. On the Rubin-like ground survey (Moffat 0.7″ at 0.2″/px, sky 20.46
+# mag/arcsec², read noise 9 e-, gain 1.6): the sky's rms (image − its noise-free twin, which
+# holds no sky, where the sources add < 1% of the sky) is within 1% of √(sky e- + read²)/gain, and stars measured
+# in 5″ apertures with the header's MAGZERO alone are within 0.01 mag of the truth. A survey
+# without a zero point, a bad PSF spec and an unknown model are one line each.
+source "$(dirname "${BASH_SOURCE[0]}")/../lib.sh"
+tools=$(cd ../tools && pwd)
+check_help shapesim-survey
+check_version shapesim-survey
+cd "$TMPDIR"
+
+# The two commands, run from bin/ beside it, on the shipped model.
+"$BIN/shapesim-survey" rubin-i --dry-run >cmds || fail "--dry-run failed"
+[ "$(wc -l <cmds)" -eq 2 ] || fail "--dry-run: $(cat cmds)"
+grep -q "^$BIN/shapesim-sample .*/models/merged.json .*--pixels 1200 " cmds || fail "sample: $(head -1 cmds)"
+grep -q "^$BIN/shapesim-render .*--psf-analytic moffat:0.7,3.5 .*--gain 1.6 --exptime 30 " cmds ||
+  fail "render: $(tail -1 cmds)"
+
+stars=(--pixels 400 --mag-limit 21 --star-density 20 --star-mag-min 17 --star-mag-max 19 --seed 4 -q)
+"$BIN/shapesim-survey" rubin-i "${stars[@]}" -o a || fail "shapesim-survey rubin-i failed"
+"$BIN/shapesim-survey" rubin-i "${stars[@]}" -o b -j 2 || fail "second run failed"
+"$BIN/shapesim-survey" rubin-i "${stars[@]}" --noise-free -o clean || fail "--noise-free failed"
+for f in image.fits objects.jsonl truth.jsonl commands.sh; do [ -s "a/$f" ] || fail "no $f"; done
+cmp a/objects.jsonl b/objects.jsonl && cmp a/truth.jsonl b/truth.jsonl || fail "not deterministic"
+cmp <(tail -c +20000 a/image.fits) <(tail -c +20000 b/image.fits) || fail "pixels not deterministic"
+cmp a/objects.jsonl clean/objects.jsonl || fail "--noise-free drew other objects"
+sh -n a/commands.sh || fail "commands.sh is not a shell script"
+
+python3 - "$tools" <<'PY' || fail "the ground survey is off"
+import json, math, sys
+sys.path.insert(0, sys.argv[1])
+from fitsdata import read
+def header(path):
+    raw = open(path, "rb").read(2880 * 8).decode("ascii", "replace")
+    cards = [raw[i:i + 80] for i in range(0, len(raw), 80)]
+    h = {}
+    for c in cards:
+        if c[8:10] == "= " and c[:8].strip() not in h:
+            v = c[10:].split("/")[0].strip()
+            h[c[:8].strip()] = v.strip("'").strip()
+    return h
+h = header("a/image.fits")
+assert h["BUNIT"] == "adu", h["BUNIT"]
+assert float(h["EXPTIME"]) == 30.0 and float(h["GAIN"]) == 1.6, (h["EXPTIME"], h["GAIN"])
+zp = 28.36 + 2.5 * math.log10(30 / 1.6)
+assert abs(float(h["MAGZERO"]) - zp) < 1e-6 and h["PHOTZP"] == h["MAGZERO"], h["MAGZERO"]
+sky_e = 10 ** (-0.4 * (20.46 - 28.36)) * 0.2 ** 2 * 30
+assert abs(float(h["SKY"]) - sky_e / 1.6) < 1e-6, h["SKY"]
+
+_, nx, ny, img = read("a/image.fits")
+_, _, _, clean = read("clean/image.fits")
+sky = sky_e / 1.6
+d = [img[j][i] - clean[j][i] for j in range(ny) for i in range(nx) if clean[j][i] < 0.01 * sky]
+mean = sum(d) / len(d)
+rms = math.sqrt(sum((v - mean) ** 2 for v in d) / (len(d) - 1))
+want = math.sqrt(sky_e + 9 ** 2) / 1.6
+print(f"sky rms {rms:.4f} ADU over {len(d)} pixels, predicted {want:.4f} ({rms / want - 1:+.4f})")
+assert abs(rms / want - 1) < 0.01, (rms, want)
+
+truth = [json.loads(l) for l in open("a/truth.jsonl")]
+r = 25  # pixels: 5″, 7 FWHM (the Moffat's light beyond it: 3e-5)
+checked = 0
+for t in truth:
+    if t["kind"] != "star": continue
+    x, y = t["x"], t["y"]
+    if not (r < x < nx - r and r < y < ny - r): continue
+    if any(o is not t and math.hypot(o["x"] - x, o["y"] - y) < r + 10 and o["mag"] < t["mag"] + 5
+           for o in truth):
+        continue
+    s = 0.0
+    for j in range(int(y - r), int(y + r) + 2):
+        for i in range(int(x - r), int(x + r) + 2):
+            if (i - x) ** 2 + (j - y) ** 2 <= r * r:
+                s += clean[j - 1][i - 1]  # the noise-free image: no sky
+    mag = float(h["MAGZERO"]) - 2.5 * math.log10(s)
+    print(f"star {t['id']}: {mag:.4f} against {t['mag']:.4f}")
+    assert abs(mag - t["mag"]) < 0.01, (t["id"], mag, t["mag"])
+    checked += 1
+assert checked >= 3, checked
+PY
+
+# Bad surveys: one line, exit 2, nothing written.
+printf 'pixels = 64\npsf = moffat:0.7\nexposure = 30\n' >nozp.survey
+rc=0; "$BIN/shapesim-survey" nozp.survey -o x >out 2>err || rc=$?
+expect_error "$rc" 2 "needs zero-point"
+rc=0; "$BIN/shapesim-survey" rubin-i --psf moffat:0.7,0.5 -o x >out 2>err || rc=$?
+expect_error "$rc" 2 "psf"
+rc=0; "$BIN/shapesim-survey" rubin-i --model no-such-model -o x >out 2>err || rc=$?
+expect_error "$rc" 2 "model 'no-such-model': no such file and not a shipped one (hdf, merged)"
+[ ! -e x ] || fail "a refused survey left a directory"
+exit 0
