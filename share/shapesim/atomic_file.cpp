@@ -26,6 +26,11 @@ void check_writable(const std::string& path) {
     struct stat st;
     if (stat(path.c_str(), &st) == 0 && S_ISDIR(st.st_mode))
         throw Error("cannot write: is a directory", path);
+    // A device or a pipe (/dev/null, a FIFO) is written in place: it must be writable itself.
+    if (stat(path.c_str(), &st) == 0 && !S_ISREG(st.st_mode)) {
+        if (access(path.c_str(), W_OK) != 0) throw Error("cannot write: " + errno_text(errno), path);
+        return;
+    }
     // The temporary is created, and renamed, in the target's directory: that is what must be
     // writable (a read-only existing target can still be replaced, as with `mv`).
     const std::string dir = directory_of(path);
@@ -36,8 +41,18 @@ void check_writable(const std::string& path) {
         throw Error("cannot write: directory " + dir + ": " + errno_text(errno), path);
 }
 
+namespace {
+// An existing target that is not a regular file (a character device such as /dev/null, a
+// FIFO): renaming a temporary onto it would replace the device with a file.
+bool is_special(const std::string& path) {
+    struct stat st;
+    return stat(path.c_str(), &st) == 0 && !S_ISREG(st.st_mode) && !S_ISDIR(st.st_mode);
+}
+}  // namespace
+
 AtomicFile::AtomicFile(std::string target)
-    : target_(std::move(target)), temp_(target_ + ".tmp." + std::to_string(getpid())) {}
+    : target_(std::move(target)), direct_(is_special(target_)),
+      temp_(direct_ ? target_ : target_ + ".tmp." + std::to_string(getpid())) {}
 
 AtomicFile::~AtomicFile() {
     if (!committed_) discard();
@@ -45,6 +60,10 @@ AtomicFile::~AtomicFile() {
 
 void AtomicFile::commit() {
     if (committed_) return;
+    if (direct_) {
+        committed_ = true;
+        return;
+    }
     if (std::rename(temp_.c_str(), target_.c_str()) != 0) {
         const int err = errno;
         discard();
@@ -53,7 +72,9 @@ void AtomicFile::commit() {
     committed_ = true;
 }
 
-void AtomicFile::discard() noexcept { std::remove(temp_.c_str()); }
+void AtomicFile::discard() noexcept {
+    if (!direct_) std::remove(temp_.c_str());
+}
 
 AtomicTextFile::AtomicTextFile(const std::string& target) : name_(target) {
     if (target == "-") return;

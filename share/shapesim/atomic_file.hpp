@@ -6,6 +6,9 @@
 // the target is either absent/untouched or complete. (A process killed by a signal can still
 // leave `*.tmp.<pid>` behind; .gitignore and `make clean` know the pattern.)
 //
+// A target that exists and is not a regular file (/dev/null, a FIFO) is written in place:
+// renaming onto it would replace the device with a file.
+//
 // `check_writable` lets a program refuse an unwritable output before doing any work.
 #pragma once
 
@@ -35,6 +38,9 @@ public:
     const std::string& target() const { return target_; }
     const std::string& temp_path() const { return temp_; }
     bool committed() const { return committed_; }
+    /// The target is a device or a pipe (/dev/null, a FIFO): written in place, never renamed
+    /// onto or removed (temp_path() is the target).
+    bool direct() const { return direct_; }
 
     /// Rename the temporary onto the target; throws Error (naming the target) on failure.
     void commit();
@@ -42,7 +48,9 @@ public:
     void discard() noexcept;
 
 private:
-    std::string target_, temp_;
+    std::string target_;
+    bool direct_ = false;
+    std::string temp_;
     bool committed_ = false;
 };
 

@@ -551,6 +551,9 @@ FitsWriter::FitsWriter(const std::string& path, const std::string& program,
         throw Error("compressed (.gz) output is not supported", path);
     check_writable(path);
     impl_ = std::make_unique<Impl>(path);
+    // cfitsio's "!" would remove a device to create a file in its place.
+    if (impl_->file.direct())
+        throw Error("cannot write a FITS file to a device or a pipe; give a file name", path);
     // "!" lets cfitsio replace a stale temporary of a crashed run with the same pid.
     int status = 0;
     fits_create_file(&impl_->f, ("!" + impl_->file.temp_path()).c_str(), &status);

@@ -1,12 +1,15 @@
 // atomic_file: outputs appear whole or not at all; unwritable outputs fail before work.
 #include "shapesim/atomic_file.hpp"
 #include "shapesim/error.hpp"
+#include "shapesim/fits_io.hpp"
 
 #include <gtest/gtest.h>
 
 #include <filesystem>
 #include <fstream>
 #include <sstream>
+#include <sys/stat.h>
+#include <thread>
 #include <unistd.h>
 
 using namespace shapesim;
@@ -114,4 +117,34 @@ TEST_F(AtomicFileTest, CheckWritable) {
         EXPECT_THROW(check_writable(path("new.fits")), Error);
         fs::permissions(dir_, fs::perms::owner_all);
     }
+}
+
+// A pipe or device target (here a FIFO; /dev/null alike) is written in place: renaming a
+// temporary onto it would have replaced the device with a regular file (as `-o /dev/null` did
+// to a root machine's /dev/null). FITS outputs refuse such a target.
+TEST_F(AtomicFileTest, PipeTargetIsWrittenInPlaceNotReplaced) {
+    const std::string fifo = path("pipe");
+    ASSERT_EQ(mkfifo(fifo.c_str(), 0600), 0);
+    std::string got;
+    std::thread reader([&] { got = slurp(fifo); });
+    {
+        check_writable(fifo);
+        AtomicTextFile out(fifo);
+        out.stream() << "records\n";
+        out.commit();
+    }
+    reader.join();
+    EXPECT_EQ(got, "records\n");
+    struct stat st;
+    ASSERT_EQ(stat(fifo.c_str(), &st), 0);
+    EXPECT_TRUE(S_ISFIFO(st.st_mode));
+    EXPECT_FALSE(fs::exists(fifo + ".tmp." + std::to_string(getpid())));
+    try {
+        FitsWriter fits(fifo, "test");
+        FAIL() << "a FITS file written to a pipe";
+    } catch (const Error& e) {
+        EXPECT_NE(e.message().find("device or a pipe"), std::string::npos) << e.message();
+    }
+    ASSERT_EQ(stat(fifo.c_str(), &st), 0);
+    EXPECT_TRUE(S_ISFIFO(st.st_mode));
 }

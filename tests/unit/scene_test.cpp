@@ -932,10 +932,19 @@ TEST(Scene, ImageSpecCarriesTheWindowsWcsAndTheRunsCards) {
     std::vector<ObjectRecord> records(1);
     records[0].flux = 10.0;
     records[0].mag = 25.12345678 - 2.5;
-    const FitsImageSpec spec = scene_image_spec(scene, records, o, k, {7, "psf.jsonl", "white", "f814w", 0.0, ""}, -64);
+    const FitsImageSpec spec =
+        scene_image_spec(scene, records, o, k, {7, "psf.jsonl", "white", "f814w", 0.0, ""}, -64);
     EXPECT_EQ(spec.extname, "SCI");
     EXPECT_EQ(spec.bitpix, -64);
     EXPECT_EQ(spec.bunit, "ELECTRONS/S");
+    // An exposure time and a unit named by the caller (render --exposure/--exptime, --bunit).
+    const FitsImageSpec named =
+        scene_image_spec(scene, records, o, k, {7, "psf.jsonl", "white", "", 30.0, "adu"}, -32);
+    EXPECT_EQ(named.bunit, "adu");
+    bool exptime = false;
+    for (const FitsKeyword& c : named.keywords)
+        if (c.name == "EXPTIME") exptime = std::get<double>(c.value) == 30.0;
+    EXPECT_TRUE(exptime);
     ASSERT_TRUE(spec.wcs);
     EXPECT_EQ(spec.wcs->crpix1, scene.field.wcs.crpix1 - 100.0);
     EXPECT_EQ(spec.wcs->crpix2, scene.field.wcs.crpix2 - 50.0);
@@ -949,12 +958,15 @@ TEST(Scene, ImageSpecCarriesTheWindowsWcsAndTheRunsCards) {
     EXPECT_EQ(std::get<long long>(cards.at("FIELDNX").value), scene.field.nx);
     EXPECT_EQ(std::get<std::string>(cards.at("BAND").value), "f814w");
     EXPECT_EQ(std::get<double>(cards.at("MAGZERO").value), 25.123457);
-    EXPECT_EQ(spec.keywords.back().name, "MAGZERO");
+    EXPECT_EQ(std::get<double>(cards.at("PHOTZP").value), 25.123457);
+    EXPECT_EQ(cards.count("EXPTIME"), 0u);
+    EXPECT_EQ(spec.keywords.back().name, "PHOTZP");
     records[0].mag.reset();
     const FitsImageSpec plain = scene_image_spec(scene, records, o, k, {7, "none", "white", "", 0.0, ""}, -32);
     for (const FitsKeyword& c : plain.keywords) {
         EXPECT_NE(c.name, "BAND");
         EXPECT_NE(c.name, "MAGZERO");
+        EXPECT_NE(c.name, "PHOTZP");
     }
 }
 

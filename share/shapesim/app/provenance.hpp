@@ -13,8 +13,8 @@
 
 namespace shapesim::app {
 
-/// The options as keywords, without -j/-q/-v and the options naming `outputs` (the program's
-/// output files, e.g. {"output", "truth"}).
+/// The options as keywords (one per option, its values space-separated), without -j/-q/-v and
+/// the options naming `outputs` (the program's output files, e.g. {"output", "truth"}).
 std::vector<FitsKeyword> provenance_keywords(const ProgramOptions& options,
                                              const std::vector<std::string>& outputs);
 

@@ -22,6 +22,8 @@ with open("commands.sh", "w") as f:
         f.write(c.replace("bin/shapesim-", '"$BIN"/shapesim-') + " --pixels 300 -q || exit 1\n")
 PY
 bash commands.sh || fail "the README's survey commands failed: $(cat commands.sh)"
+# Provenance keeps every value of a two-value option.
+grep -qa "HIERARCH OPTION SHEAR = '0.02 0 *'" mine/image.fits || fail "OPTION SHEAR lost a value"
 for d in rubin mine; do
   [ -s $d/image.fits ] && [ -s $d/truth.jsonl ] || fail "no image or truth in $d/"
 done
