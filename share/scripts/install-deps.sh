@@ -15,10 +15,11 @@ packages=(
   libgtest-dev              # unit tests
   libbenchmark-dev          # make bench
   source-extractor          # SExtractor, the cross-check of shapesim-detect (tests, bench)
+  fitsverify                # HEASARC's FITS checker (the survey test checks every image with it)
   gnuplot-nox               # shapesim-measure --compare figures
   netpbm                    # make reproduce: the figures as PNG (pnmtopng, pnmscale)
   help2man                  # make install: man pages from --help and --version
-  clang libclang-rt-14-dev  # make fuzz: libFuzzer harnesses
+  clang libclang-rt-14-dev  # make SAN=1 (ASan, UBSan) and make fuzz (libFuzzer)
 )
 
 missing=()

@@ -1,11 +1,12 @@
 #!/usr/bin/env bash
 # shapesim-survey (issue 37): a shipped survey by name gives an image, its objects, its truth
 # and the commands it ran; the header carries BUNIT, EXPTIME, GAIN, MAGZERO/PHOTZP; the same
-# seed gives the same bits. On the Rubin-like ground survey (Moffat 0.7″ at 0.2″/px, sky 20.46
-# mag/arcsec², read noise 9 e-, gain 1.6): the sky's rms (image − its noise-free twin, which
-# holds no sky, where the sources add < 1% of the sky) is within 1% of √(sky e- + read²)/gain, and stars measured
-# in 5″ apertures with the header's MAGZERO alone are within 0.01 mag of the truth. A survey
-# without a zero point, a bad PSF spec and an unknown model are one line each.
+# seed gives the same bits; fitsverify finds nothing. On the Rubin-like ground survey (Moffat
+# 0.7″ at 0.2″/px, sky 20.46 mag/arcsec², read noise 9 e-, gain 1.6): the sky's rms (image −
+# its noise-free twin, which holds no sky, where the sources add < 1% of the sky) is within 1%
+# of √(sky e- + read²)/gain, and stars measured in 5″ apertures with the header's MAGZERO
+# alone are within 0.01 mag of the truth. A survey without a zero point, a bad PSF spec and an
+# unknown model are one line each.
 source "$(dirname "${BASH_SOURCE[0]}")/../lib.sh"
 tools=$(cd ../tools && pwd)
 check_help shapesim-survey
@@ -28,6 +29,9 @@ cmp a/objects.jsonl b/objects.jsonl && cmp a/truth.jsonl b/truth.jsonl || fail "
 cmp <(tail -c +20000 a/image.fits) <(tail -c +20000 b/image.fits) || fail "pixels not deterministic"
 cmp a/objects.jsonl clean/objects.jsonl || fail "--noise-free drew other objects"
 sh -n a/commands.sh || fail "commands.sh is not a shell script"
+if command -v fitsverify >/dev/null; then
+  fitsverify -q a/image.fits | grep -q "^verification OK" || fail "fitsverify: $(fitsverify a/image.fits | tail -5)"
+fi
 
 python3 - "$tools" <<'PY' || fail "the ground survey is off"
 import json, math, sys
