@@ -48,9 +48,22 @@ test: unit-test program-test
 
 # GTEST_FILTER=... narrows the unit tests; SHAPESIM_DATA points tests at the shipped data.
 # Under SAN=1, LeakSanitizer skips the leaks documented in tests/lsan.supp (third-party only).
+# The tests run as UNIT_SHARDS processes at once (GoogleTest's sharding: every test in exactly
+# one shard; default: one per core), each shard's output printed whole when it ends.
+UNIT_SHARDS ?= $(shell nproc 2>/dev/null || echo 1)
 unit-test: $(UNIT_BIN)
-	LSAN_OPTIONS=suppressions=$(CURDIR)/tests/lsan.supp $(UNIT_BIN) --gtest_brief=1 \
-	  $(if $(GTEST_FILTER),--gtest_filter=$(GTEST_FILTER))
+	@rc=0; pids=(); \
+	for i in $$(seq 0 $$(($(UNIT_SHARDS) - 1))); do \
+	  GTEST_TOTAL_SHARDS=$(UNIT_SHARDS) GTEST_SHARD_INDEX=$$i \
+	  LSAN_OPTIONS=suppressions=$(CURDIR)/tests/lsan.supp $(UNIT_BIN) --gtest_brief=1 \
+	    $(if $(GTEST_FILTER),--gtest_filter=$(GTEST_FILTER)) >$(BUILD)/unit-shard-$$i.log 2>&1 & \
+	  pids+=($$!); \
+	done; \
+	for i in $${!pids[@]}; do \
+	  wait $${pids[$$i]} || { rc=1; echo "unit tests, shard $$i of $(UNIT_SHARDS): FAILED"; }; \
+	  cat $(BUILD)/unit-shard-$$i.log; \
+	done; \
+	exit $$rc
 
 program-test: all examples
 	BIN=$(abspath $(BIN)) EXAMPLES=$(abspath $(BUILD)/examples) \
