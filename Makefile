@@ -8,7 +8,7 @@
 #   make test            unit tests (GoogleTest) and program tests
 #   make bench           Google Benchmark: run time and the error it buys
 #   make stress          orders past 100, extreme beta, NaN-riddled and 8192² inputs
-#   make fuzz            libFuzzer on the record readers and the FITS path (the SAN=1 build)
+#   make fuzz            libFuzzer on the record readers and the FITS path (clang, build-fuzz/)
 #   make corpus-matrix   every program on the bad-input corpus into tests/corpus/matrix.md
 #   make colour          the multi-colour simulation of the shipped ten-band XDF cutout into
 #                        out/colour/ (pipelines/colour.mk; OUT=, SEED=, AREA=, MAG_LIMIT=)
@@ -16,7 +16,7 @@
 #   make install         programs, libshapesim.a, public headers, shapesim.pc and man pages
 #                        into PREFIX (/usr/local); DESTDIR= stages them
 #   make WERROR=1        warnings are errors (CI)
-#   make test SAN=1      unit tests under AddressSanitizer + UBSan (clang; objects in build-san/)
+#   make test SAN=1      unit tests under AddressSanitizer + UBSan (objects in build-san/)
 #   make V=1             echo commands
 
 SHELL := bash
@@ -26,20 +26,14 @@ SHELL := bash
 .DEFAULT_GOAL := all
 
 PREFIX  ?= /usr/local
-# SAN=1 builds with clang (unless CXX is given): one sanitized build, instrumented for libFuzzer
-# too, serves the sanitized unit tests, the corpus check and the fuzz harnesses.
-ifneq ($(SAN),)
-ifeq ($(origin CXX),default)
-CXX     := clang++
-endif
-endif
+CXX     ?= g++
 # Sanitizer builds at -O1, as sanitizers are usually built: a third less compile time (the
 # sanitized build is CI's longest stage) and the same bits (no -ffast-math, no contraction).
 OPT     ?= $(if $(SAN),-O1,-O2) -march=x86-64-v2
 WARN    := -Wall -Wextra $(if $(WERROR),-Werror)
 comma := ,
 SANFLAGS := $(if $(SAN),-fsanitize=address$(comma)undefined -fno-omit-frame-pointer \
-            -fno-sanitize-recover=all $(if $(findstring clang,$(CXX)),-fsanitize=fuzzer-no-link))
+            -fno-sanitize-recover=all)
 BUILD   := build$(if $(SAN),-san)
 BIN     := $(if $(SAN),$(BUILD)/bin,bin)
 VERSION := $(shell git describe --always --dirty 2>/dev/null || echo unknown)

@@ -105,40 +105,49 @@ corpus-check: all
 	  tests/corpus/matrix.sh $(BIN) >$(BUILD)/matrix.md
 	diff -u tests/corpus/matrix.md $(BUILD)/matrix.md
 
-# Fuzzing (issue 15): libFuzzer harnesses for the record readers and the FITS path, linked
-# against the SAN=1 build (clang, AddressSanitizer, UBSan, coverage for libFuzzer: the whole
-# library instrumented; `make fuzz` builds it), each run for FUZZ_RUNS executions (at most
-# FUZZ_TIME seconds) from the committed seed corpus tests/fuzz/corpus/<target>/; what the run
-# discovers stays in build-san/corpus-<target>/, a crash in build-san/crash-*. The FITS target
-# checks leaks once at exit, not after every input: cfitsio leaks 32 bytes on some failed opens
-# (tests/lsan.supp), and a leak scan per input would take 80% of the run. Its resident memory
-# climbs to ~1.9 GB over 10⁶ runs (ASan's caches), hence a 4 GB RSS limit; one allocation over
-# 2 GB is still a failure.
+# Fuzzing (issue 15): libFuzzer harnesses for the record readers and the FITS path, built with
+# clang, AddressSanitizer and UBSan into build-fuzz/ (the whole library instrumented), each run
+# for FUZZ_RUNS executions (at most FUZZ_TIME seconds) from the committed seed corpus
+# tests/fuzz/corpus/<target>/; what the run discovers stays in build-fuzz/corpus-<target>/, a
+# crash in build-fuzz/crash-*. The FITS target checks leaks once at exit, not after every input:
+# cfitsio leaks 32 bytes on some failed opens (tests/lsan.supp), and a leak scan per input
+# would take 80% of the run. Its resident memory climbs to ~1.9 GB over 10⁶ runs (ASan's
+# caches), hence a 4 GB RSS limit; one allocation over 2 GB is still a failure.
+FUZZ_BUILD := build-fuzz
+FUZZ_CXX   ?= clang++
+FUZZ_FLAGS := -std=c++17 -O1 -g -fno-omit-frame-pointer -fno-sanitize-recover=all \
+              -fsanitize=address,undefined
 FUZZ_RUNS  ?= 1000000
 FUZZ_TIME  ?= 900
 FUZZ_TARGETS := records fits
+FUZZ_LIB   := $(FUZZ_BUILD)/libshapesim.a
+
+$(FUZZ_BUILD)/%.o: %.cpp | deps
+	@mkdir -p $(@D)
+	$(if $(Q),@echo "  FUZZ $<")
+	$(Q)$(FUZZ_CXX) $(CPPFLAGS) -MMD -MP $(FUZZ_FLAGS) -fsanitize=fuzzer-no-link -c $< -o $@.tmp.o
+	$(Q)mv $@.tmp.o $@
+
+$(FUZZ_LIB): $(LIB_SRCS:%.cpp=$(FUZZ_BUILD)/%.o)
+	$(Q)rm -f $@.tmp && ar rcs $@.tmp $^ && mv $@.tmp $@
+
+$(FUZZ_TARGETS:%=$(FUZZ_BUILD)/tests/fuzz/fuzz_%.o):
+$(FUZZ_BUILD)/fuzz_%: $(FUZZ_BUILD)/tests/fuzz/fuzz_%.o $(FUZZ_LIB)
+	$(if $(Q),@echo "  LD   $@")
+	$(Q)$(FUZZ_CXX) $(FUZZ_FLAGS) -fsanitize=fuzzer -pthread $^ $(LDLIBS) -o $@.tmp && mv $@.tmp $@
 
 .PHONY: fuzz
-ifeq ($(SAN),)
-fuzz:
-	$(MAKE) SAN=1 fuzz
-else
-$(FUZZ_TARGETS:%=$(BUILD)/tests/fuzz/fuzz_%.o):
-$(BUILD)/fuzz_%: $(BUILD)/tests/fuzz/fuzz_%.o $(LIB)
-	$(if $(Q),@echo "  LD   $@")
-	$(Q)$(CXX) $(LDFLAGS) -fsanitize=fuzzer $^ $(LDLIBS) -o $@.tmp && mv $@.tmp $@
-
-fuzz: $(FUZZ_TARGETS:%=$(BUILD)/fuzz_%)
+fuzz: $(FUZZ_TARGETS:%=$(FUZZ_BUILD)/fuzz_%)
 	@for t in $(FUZZ_TARGETS); do \
-	  mkdir -p $(BUILD)/corpus-$$t; \
+	  mkdir -p $(FUZZ_BUILD)/corpus-$$t; \
 	  echo "== fuzz $$t: $(FUZZ_RUNS) runs (at most $(FUZZ_TIME) s)"; \
 	  LSAN_OPTIONS=suppressions=$(CURDIR)/tests/lsan.supp:print_suppressions=0 \
-	  $(BUILD)/fuzz_$$t $(BUILD)/corpus-$$t tests/fuzz/corpus/$$t \
+	  $(FUZZ_BUILD)/fuzz_$$t $(FUZZ_BUILD)/corpus-$$t tests/fuzz/corpus/$$t \
 	    -runs=$(FUZZ_RUNS) -max_total_time=$(FUZZ_TIME) -max_len=32768 -rss_limit_mb=4096 -malloc_limit_mb=2048 \
-	    -timeout=20 -print_final_stats=1 -artifact_prefix=$(BUILD)/ \
+	    -timeout=20 -print_final_stats=1 -artifact_prefix=$(FUZZ_BUILD)/ \
 	    $$( [ $$t = fits ] && echo -detect_leaks=0 ) \
-	    2>$(BUILD)/$$t.log || \
-	    { tail -n 40 $(BUILD)/$$t.log; exit 1; }; \
-	  grep -E '^stat::number_of_executed_units|^Done' $(BUILD)/$$t.log; \
+	    2>$(FUZZ_BUILD)/$$t.log || \
+	    { tail -n 40 $(FUZZ_BUILD)/$$t.log; exit 1; }; \
+	  grep -E '^stat::number_of_executed_units|^Done' $(FUZZ_BUILD)/$$t.log; \
 	done
-endif
+-include $(shell find $(FUZZ_BUILD) -name '*.d' 2>/dev/null)
