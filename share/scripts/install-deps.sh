@@ -19,7 +19,7 @@ packages=(
   gnuplot-nox               # shapesim-measure --compare figures
   netpbm                    # make reproduce: the figures as PNG (pnmtopng, pnmscale)
   help2man                  # make install: man pages from --help and --version
-  clang libclang-rt-14-dev  # make SAN=1 (ASan, UBSan) and make fuzz (libFuzzer)
+  clang libclang-rt-14-dev  # make fuzz: libFuzzer harnesses
 )
 
 missing=()
