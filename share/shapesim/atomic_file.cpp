@@ -3,6 +3,7 @@
 #include "shapesim/error.hpp"
 
 #include <cerrno>
+#include <climits>
 #include <cstdio>
 #include <cstring>
 #include <iostream>
@@ -48,11 +49,28 @@ bool is_special(const std::string& path) {
     struct stat st;
     return stat(path.c_str(), &st) == 0 && !S_ISREG(st.st_mode) && !S_ISDIR(st.st_mode);
 }
+
+// The file a path names, through symbolic links: a link's target is replaced, the link kept
+// (as `cp` and shell redirection write through one). A dangling link names where it points.
+std::string through_links(const std::string& path) {
+    std::string p = path;
+    for (int hops = 0; hops < 40; ++hops) {
+        struct stat st;
+        if (lstat(p.c_str(), &st) != 0 || !S_ISLNK(st.st_mode)) return p;
+        std::string to(PATH_MAX, '\0');
+        const ssize_t n = readlink(p.c_str(), to.data(), to.size());
+        if (n <= 0) return p;
+        to.resize(std::size_t(n));
+        p = to[0] == '/' ? to : directory_of(p) + "/" + to;
+    }
+    return p;  // a loop of links: open() will say so
+}
 }  // namespace
 
 AtomicFile::AtomicFile(std::string target)
-    : target_(std::move(target)), direct_(is_special(target_)),
-      temp_(direct_ ? target_ : target_ + ".tmp." + std::to_string(getpid())) {}
+    : target_(std::move(target)), destination_(through_links(target_)),
+      direct_(is_special(destination_)),
+      temp_(direct_ ? destination_ : destination_ + ".tmp." + std::to_string(getpid())) {}
 
 AtomicFile::~AtomicFile() {
     if (!committed_) discard();
@@ -64,7 +82,7 @@ void AtomicFile::commit() {
         committed_ = true;
         return;
     }
-    if (std::rename(temp_.c_str(), target_.c_str()) != 0) {
+    if (std::rename(temp_.c_str(), destination_.c_str()) != 0) {
         const int err = errno;
         discard();
         throw Error("cannot rename " + temp_ + " to the output: " + errno_text(err), target_);

@@ -7,7 +7,8 @@
 // leave `*.tmp.<pid>` behind; .gitignore and `make clean` know the pattern.)
 //
 // A target that exists and is not a regular file (/dev/null, a FIFO) is written in place:
-// renaming onto it would replace the device with a file.
+// renaming onto it would replace the device with a file. A symbolic link is written through:
+// the file it points to is replaced (its temporary beside that file), the link kept.
 //
 // `check_writable` lets a program refuse an unwritable output before doing any work.
 #pragma once
@@ -48,7 +49,7 @@ public:
     void discard() noexcept;
 
 private:
-    std::string target_;
+    std::string target_, destination_;  ///< as named; that file through symbolic links
     bool direct_ = false;
     std::string temp_;
     bool committed_ = false;

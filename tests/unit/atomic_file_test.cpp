@@ -148,3 +148,28 @@ TEST_F(AtomicFileTest, PipeTargetIsWrittenInPlaceNotReplaced) {
     ASSERT_EQ(stat(fifo.c_str(), &st), 0);
     EXPECT_TRUE(S_ISFIFO(st.st_mode));
 }
+
+// A symbolic link is written through: the file it names is replaced, the link stays a link
+// (and a dangling link gets its file made where it points).
+TEST_F(AtomicFileTest, SymlinkTargetIsWrittenThroughTheLink) {
+    const std::string file = path("real.jsonl"), link = path("link.jsonl");
+    std::ofstream(file) << "old\n";
+    fs::create_symlink("real.jsonl", link);  // relative, as `ln -s` makes them
+    {
+        AtomicTextFile out(link);
+        out.stream() << "new\n";
+        out.commit();
+    }
+    EXPECT_TRUE(fs::is_symlink(link));
+    EXPECT_EQ(slurp(file), "new\n");
+    const std::string dangling = path("dangling.jsonl");
+    fs::create_symlink(path("made.jsonl"), dangling);
+    {
+        AtomicTextFile out(dangling);
+        out.stream() << "made\n";
+        out.commit();
+    }
+    EXPECT_TRUE(fs::is_symlink(dangling));
+    EXPECT_EQ(slurp(path("made.jsonl")), "made\n");
+    EXPECT_EQ(std::distance(fs::directory_iterator(dir_), fs::directory_iterator{}), 4);
+}
