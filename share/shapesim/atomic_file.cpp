@@ -2,7 +2,9 @@
 
 #include "shapesim/error.hpp"
 
+#include <atomic>
 #include <cerrno>
+#include <csignal>
 #include <climits>
 #include <cstdio>
 #include <cstring>
@@ -67,10 +69,64 @@ std::string through_links(const std::string& path) {
 }
 }  // namespace
 
+// The temporaries alive in this process, for the signal handler: fixed slots of path text
+// (an async-signal-safe handler may only read them and unlink), claimed with an atomic flag.
+namespace {
+constexpr int temporary_slots = 64;
+struct TemporarySlot {
+    std::atomic<int> state{0};  // 0 free, 1 being written, 2 live
+    char path[PATH_MAX];
+};
+TemporarySlot temporaries[temporary_slots];
+std::string signal_program;  // set once before the handlers are installed
+
+int register_temporary(const std::string& path) {
+    if (path.size() >= PATH_MAX) return -1;
+    for (int k = 0; k < temporary_slots; ++k) {
+        int expected = 0;
+        if (temporaries[k].state.compare_exchange_strong(expected, 1)) {
+            std::memcpy(temporaries[k].path, path.c_str(), path.size() + 1);
+            temporaries[k].state.store(2);
+            return k;
+        }
+    }
+    return -1;  // more than 64 at once: that one is not removed on a signal
+}
+
+void unregister_temporary(int slot) {
+    if (slot >= 0) temporaries[slot].state.store(0);
+}
+
+extern "C" void remove_temporaries_and_die(int signal) {
+    for (TemporarySlot& t : temporaries)
+        if (t.state.load() == 2) unlink(t.path);
+    // One line, then the signal's own death (the exit status shells and Slurm expect).
+    const char* name = signal == SIGINT ? "interrupted" : signal == SIGHUP ? "hung up" : "terminated";
+    const std::string& p = signal_program;
+    if (write(STDERR_FILENO, p.data(), p.size()) < 0 ||
+        write(STDERR_FILENO, ": ", 2) < 0 || write(STDERR_FILENO, name, std::strlen(name)) < 0 ||
+        write(STDERR_FILENO, "; unfinished outputs removed\n", 29) < 0) {
+    }
+    std::signal(signal, SIG_DFL);
+    raise(signal);
+}
+}  // namespace
+
+void remove_temporaries_on_signals(const std::string& program) {
+    signal_program = program;
+    for (int s : {SIGINT, SIGTERM, SIGHUP}) {
+        struct sigaction action {};
+        action.sa_handler = remove_temporaries_and_die;
+        sigemptyset(&action.sa_mask);
+        sigaction(s, &action, nullptr);
+    }
+}
+
 AtomicFile::AtomicFile(std::string target)
     : target_(std::move(target)), destination_(through_links(target_)),
       direct_(is_special(destination_)),
-      temp_(direct_ ? destination_ : destination_ + ".tmp." + std::to_string(getpid())) {}
+      temp_(direct_ ? destination_ : destination_ + ".tmp." + std::to_string(getpid())),
+      slot_(direct_ ? -1 : register_temporary(temp_)) {}
 
 AtomicFile::~AtomicFile() {
     if (!committed_) discard();
@@ -82,6 +138,8 @@ void AtomicFile::commit() {
         committed_ = true;
         return;
     }
+    unregister_temporary(slot_);  // renamed, it is the output: a signal now leaves it
+    slot_ = -1;
     if (std::rename(temp_.c_str(), destination_.c_str()) != 0) {
         const int err = errno;
         discard();
@@ -92,6 +150,8 @@ void AtomicFile::commit() {
 
 void AtomicFile::discard() noexcept {
     if (!direct_) std::remove(temp_.c_str());
+    unregister_temporary(slot_);
+    slot_ = -1;
 }
 
 AtomicTextFile::AtomicTextFile(const std::string& target) : name_(target) {

@@ -25,6 +25,11 @@ namespace shapesim {
 /// `gal_checkset_writable_remove`); creates nothing.
 void check_writable(const std::string& path);
 
+/// On SIGINT, SIGTERM and SIGHUP (Ctrl-C, `timeout`, Slurm's preemption, a closed terminal):
+/// remove every temporary of this process not yet committed, print `program: terminated;
+/// unfinished outputs removed`, and die of the signal (the conventional exit status).
+void remove_temporaries_on_signals(const std::string& program);
+
 /// A temporary name `<target>.tmp.<pid>` that becomes `target` on commit().
 /// The caller (e.g. cfitsio) creates and writes the temporary file itself.
 class AtomicFile {
@@ -52,6 +57,7 @@ private:
     std::string target_, destination_;  ///< as named; that file through symbolic links
     bool direct_ = false;
     std::string temp_;
+    int slot_ = -1;  ///< its place among the temporaries a signal removes
     bool committed_ = false;
 };
 

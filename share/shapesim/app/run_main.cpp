@@ -1,5 +1,7 @@
 #include "shapesim/app/run_main.hpp"
 
+#include "shapesim/atomic_file.hpp"
+
 #include "shapesim/app/options.hpp"
 #include "shapesim/error.hpp"
 
@@ -33,6 +35,7 @@ bool flush_stdout(std::string& why) {
 int run_main(int argc, const char* const argv[], const std::string& program,
              const ProgramBody& body) {
     std::signal(SIGPIPE, SIG_IGN);
+    remove_temporaries_on_signals(program);
     int code = 1;
     try {
         code = body(argc, argv);
