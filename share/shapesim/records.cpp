@@ -4,6 +4,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <limits>
 #include <sstream>
 
 namespace shapesim {
@@ -398,6 +399,12 @@ void ObjectRecord::validate() const {
     check_finite("ra", ra);
     check_dec("dec", dec);
     check_finite("flux", flux);
+    // A magnitude is written with the flux drawn: a flux of 0, −0 or a denormal would turn the
+    // truth's magnitude into ±∞ or NaN after the whole image was painted. Refused at the door.
+    if (mag && !(flux >= std::numeric_limits<double>::min()))
+        throw Error("must be a positive normal number for an object with a magnitude, got " +
+                        number(flux),
+                    {}, 0, "flux");
     if (kind == "galaxy" && !has_shape()) throw Error("a galaxy needs its shape", {}, 0, "coeffs");
     if (has_shape()) check_shape(beta, pixel_scale, n_max, coeffs);
     if (has_shape()) check_bands(beta, pixel_scale, n_max, bands);

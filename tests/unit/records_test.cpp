@@ -546,3 +546,25 @@ TEST(Flags, HasFlagAndAlternatives) {
     EXPECT_FALSE(has_any_flag(flags, "n_max_cap|holes"));
     EXPECT_FALSE(has_any_flag({}, "converged"));
 }
+
+// An object with a magnitude and a flux of 0, -0 or a denormal is refused where it is read,
+// naming the field (render would otherwise paint the image and fail on the truth's NaN
+// magnitude); without a magnitude a zero flux is only an invisible object.
+TEST(ObjectRecord, ZeroOrDenormalFluxWithAMagnitudeIsRefused) {
+    Json star = Json::parse(R"({"schema": "shapesim.object/1", "id": "s1", "kind": "star",
+        "ra": 10.0, "dec": 2.0, "mag": 21.0, "flux": 1.5})");
+    EXPECT_NO_THROW(ObjectRecord::from_json(star));
+    for (double flux : {0.0, -0.0, 5e-324, -2.0}) {
+        star["flux"] = flux;
+        try {
+            ObjectRecord::from_json(star);
+            ADD_FAILURE() << "flux " << flux << " accepted";
+        } catch (const Error& e) {
+            EXPECT_EQ(e.field(), "flux");
+            EXPECT_NE(e.message().find("positive normal number"), std::string::npos) << e.message();
+        }
+    }
+    star.erase("mag");
+    star["flux"] = 0.0;
+    EXPECT_NO_THROW(ObjectRecord::from_json(star));
+}

@@ -89,4 +89,12 @@ expect_error "$rc" 1 ':1: x: object g0 was drawn for another field'
 "$BIN/$prog" --psf psf.jsonl --galaxy-psf psf.jsonl --area 0.1156 --pixel-scale 0.03985 \
   --ra 189.2 --dec 62.2 --place-by-sky -q -o sky.fits <objects.jsonl ||
   fail "--place-by-sky failed"
+# A star with a magnitude but a denormal flux is refused where it is read, naming its line,
+# before anything is painted (issue 39): it used to fail after painting, on the truth's NaN.
+printf '{"schema":"shapesim.object/1","id":"s1","kind":"star","ra":189.2,"dec":62.2,"mag":21,"flux":5e-324}\n' >tiny.jsonl
+rc=0
+"$BIN/$prog" --psf psf.jsonl --area 0.01 --pixel-scale 0.03985 --ra 189.2 --dec 62.2 -q \
+  -o tiny.fits --truth tiny.truth.jsonl tiny.jsonl >out 2>err || rc=$?
+expect_error "$rc" 1 "^$prog: tiny.jsonl:1: flux: must be a positive normal number"
+[ ! -e tiny.fits ] && [ ! -e tiny.truth.jsonl ] || fail "an output was left for a refused record"
 exit 0
