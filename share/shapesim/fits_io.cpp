@@ -13,6 +13,7 @@
 #include <cstdio>
 #include <cstdlib>
 #include <cstring>
+#include <fstream>
 #include <limits>
 #include <sys/stat.h>
 
@@ -97,8 +98,88 @@ struct FitsReader::Impl {
     }
 };
 
+namespace {
+
+// An integer card value (`KEY     =                  123 / …`), or `fallback`.
+long long card_integer(const char* card, long long fallback) {
+    char* end = nullptr;
+    const std::string value(card + 10, 70);
+    const long long v = std::strtoll(value.c_str(), &end, 10);
+    return end == value.c_str() ? fallback : v;
+}
+
+// cfitsio trusts a header's cards to be printable ASCII, as the standard requires: a control or
+// 8-bit byte in a table's or an array's layout keywords can overflow its buffers while the
+// file is opened (a fortify abort in ffgtbp on a TTYPE, a 10^16-byte calloc on a NAXIS2; both
+// found by fuzzing). Every header of a local, uncompressed file is read first, the data units
+// skipped by their declared size, and those cards checked; whatever cannot be followed (short,
+// gzip, a URL, random groups) is left to cfitsio, which reports it.
+void check_header_bytes(const std::string& file) {
+    std::ifstream in(file, std::ios::binary);
+    if (!in) return;
+    in.seekg(0, std::ios::end);
+    const long long size = in.tellg();
+    char block[2880];
+    long long offset = 0;
+    for (int hdu = 0; offset < size && hdu < 100000; ++hdu) {
+        long long bitpix = 8, naxis = 0, pcount = 0, gcount = 1, product = 1;
+        for (bool end = false; !end;) {
+            in.seekg(offset);
+            if (!in.read(block, sizeof block)) return;
+            if (offset == 0 && (unsigned char)block[0] == 0x1f && (unsigned char)block[1] == 0x8b)
+                return;  // gzip: cfitsio inflates it
+            // After the last HDU: whatever follows is not a header (cfitsio ignores it too).
+            if (hdu > 0 && product == 1 && std::strncmp(block, "XTENSION=", 9) != 0) return;
+            offset += long(sizeof block);
+            for (int c = 0; c < 36 && !end; ++c) {
+                const char* card = block + 80 * c;
+                const std::string key(card, 8);
+                // The cards cfitsio lays a table or an array out by (real headers carry stray
+                // control bytes elsewhere, e.g. a newline in TinyTim's CREATED, harmlessly).
+                const bool structural =
+                    key.compare(0, 5, "NAXIS") == 0 || key == "BITPIX  " || key == "PCOUNT  " ||
+                    key == "GCOUNT  " || key == "XTENSION" || key == "TFIELDS " ||
+                    key == "THEAP   " || key.compare(0, 5, "TFORM") == 0 ||
+                    key.compare(0, 5, "TTYPE") == 0 || key.compare(0, 5, "TUNIT") == 0 ||
+                    key.compare(0, 5, "TBCOL") == 0 || key.compare(0, 4, "TDIM") == 0 ||
+                    key.compare(0, 5, "TNULL") == 0 || key.compare(0, 5, "TSCAL") == 0 ||
+                    key.compare(0, 5, "TZERO") == 0 || key.compare(0, 5, "TDISP") == 0;
+                for (int k = 0; k < 80 && structural; ++k) {
+                    const unsigned char b = (unsigned char)card[k];
+                    if (b < 32 || b > 126)
+                        throw Error("not a FITS file: header " + std::to_string(hdu) + ", card " +
+                                        std::to_string(c + 1) + " (" + key.substr(0, key.find(' ')) +
+                                        ") holds byte " + std::to_string(int(b)) +
+                                        ", not printable ASCII",
+                                    file);
+                }
+                if (key == "END     ") end = true;
+                if (card[8] != '=') continue;
+                if (key == "BITPIX  ") bitpix = card_integer(card, 8);
+                else if (key == "NAXIS   ") naxis = card_integer(card, 0);
+                else if (key == "PCOUNT  ") pcount = card_integer(card, 0);
+                else if (key == "GCOUNT  ") gcount = card_integer(card, 1);
+                else if (key.compare(0, 5, "NAXIS") == 0 && key[5] >= '0' && key[5] <= '9') {
+                    const long long n = card_integer(card, -1);
+                    // Random groups (NAXIS1 = 0) and sizes past 2^50 bytes: left to cfitsio.
+                    if (n <= 0 || product > (1LL << 50) / n) return;
+                    product *= n;
+                }
+            }
+        }
+        const long long bytes_per = std::llabs(bitpix) / 8;
+        if (naxis == 0) product = 0;
+        if (pcount < 0 || gcount < 0 || pcount > (1LL << 50) || gcount > (1LL << 20)) return;
+        const long long data = bytes_per * gcount * (pcount + product);
+        offset += (data + 2879) / 2880 * 2880;
+    }
+}
+
+}  // namespace
+
 FitsReader::FitsReader(const std::string& path, FitsStart start) : impl_(std::make_unique<Impl>()) {
     impl_->file = root_name(path);
+    check_header_bytes(impl_->file);
     int status = 0;
     if (start == FitsStart::first_image)
         fits_open_image(&impl_->f, path.c_str(), READONLY, &status);

@@ -551,3 +551,20 @@ TEST_F(FitsTest, StampRoundTrip) {
     EXPECT_EQ(std::string(error_of([&] { read_stamp(fits, "19"); }).what()),
               path("stamps.fits") + ": no HDU named '19.image'");
 }
+
+// A table whose layout cards hold a control or 8-bit byte is refused before cfitsio parses it
+// (cfitsio overflowed a buffer on such a TTYPE, and asked calloc for 10^16 bytes on such a
+// NAXIS2: the fuzz corpus keeps both files); a stray byte in another card is left alone.
+TEST_F(FitsTest, LayoutCardsWithNonAsciiBytesAreRefusedBeforeCfitsio) {
+    const std::string root = SHAPESIM_SOURCE_DIR "/tests/fuzz/corpus/fits/";
+    for (const char* name : {"cfitsio-calloc-naxis2-control-byte", "cfitsio-strcpy-ttype-8bit-byte"}) {
+        try {
+            FitsReader fits(root + name);
+            ADD_FAILURE() << name << " opened";
+        } catch (const Error& e) {
+            EXPECT_NE(e.message().find("not printable ASCII"), std::string::npos) << e.message();
+        }
+    }
+    // The shipped TinyTim PSF carries a newline in its CREATED card, and opens.
+    EXPECT_NO_THROW(FitsReader(SHAPESIM_SOURCE_DIR "/share/data/hdfn/wfpc2_f814w_tinytim_psf.fits"));
+}
