@@ -15,7 +15,6 @@
 
 #include <algorithm>
 #include <cerrno>
-#include <charconv>
 #include <cmath>
 #include <cstdlib>
 #include <cstring>
@@ -106,13 +105,6 @@ std::string find_file(const std::string& name, const fs::path& survey_dir, const
     throw po::error(what + " '" + name + "': no such file" +
                     (shipped.empty() ? std::string(" (no shipped data found)")
                                      : " and not a shipped one (" + shipped + ")"));
-}
-
-// The shortest text that reads back as v (std::to_chars: 30, 0.2, 31.542503180159343).
-std::string number(double v) {
-    char text[64];
-    const auto result = std::to_chars(text, text + sizeof text, v);
-    return std::string(text, result.ptr);
 }
 
 std::string quoted(const std::string& word) {
@@ -293,37 +285,37 @@ int run_survey(int argc_given, const char* const argv_given[]) {
         field = {"--pixels"};
         for (long n : s.field.pixels) field.push_back(std::to_string(n));
     } else if (options.given("area")) {
-        field = {"--area", number(s.field.area)};
+        field = {"--area", app::double_text(s.field.area)};
     } else if (options.given("size")) {
         field = {"--size"};
-        for (double v : s.field.size) field.push_back(number(v));
+        for (double v : s.field.size) field.push_back(app::double_text(v));
     } else {
         throw po::error("the survey needs its field: pixels, area or size");
     }
     for (const std::string& o : std::vector<std::string>{"pixel-scale", "ra", "dec"}) {
         field.push_back("--" + o);
-        field.push_back(number(o == "pixel-scale" ? s.field.pixel_scale
+        field.push_back(app::double_text(o == "pixel-scale" ? s.field.pixel_scale
                                : o == "ra"        ? s.field.ra
                                                   : s.field.dec));
     }
     std::vector<std::string> tile;
     if (options.given("tile")) {
         tile = {"--tile"};
-        for (double v : s.field.tile) tile.push_back(number(v));
+        for (double v : s.field.tile) tile.push_back(app::double_text(v));
     }
     const std::string objects = (dir / "objects.jsonl").string();
     std::vector<std::string> sample = {(bin / "shapesim-sample").string(), model};
     sample.insert(sample.end(), field.begin(), field.end());
-    sample.insert(sample.end(), {"--zero-point", number(zp_image), "--seed", seed});
-    if (options.given("mag-limit")) sample.insert(sample.end(), {"--mag-limit", number(s.mag_limit)});
+    sample.insert(sample.end(), {"--zero-point", app::double_text(zp_image), "--seed", seed});
+    if (options.given("mag-limit")) sample.insert(sample.end(), {"--mag-limit", app::double_text(s.mag_limit)});
     if (options.given("faint-limit"))
-        sample.insert(sample.end(), {"--faint-limit", number(s.faint_limit)});
+        sample.insert(sample.end(), {"--faint-limit", app::double_text(s.faint_limit)});
     if (options.given("star-density"))
-        sample.insert(sample.end(), {"--star-density", number(s.star_density)});
+        sample.insert(sample.end(), {"--star-density", app::double_text(s.star_density)});
     if (options.given("star-mag-min"))
-        sample.insert(sample.end(), {"--star-mag-min", number(s.star_mag_min)});
+        sample.insert(sample.end(), {"--star-mag-min", app::double_text(s.star_mag_min)});
     if (options.given("star-mag-max"))
-        sample.insert(sample.end(), {"--star-mag-max", number(s.star_mag_max)});
+        sample.insert(sample.end(), {"--star-mag-max", app::double_text(s.star_mag_max)});
     sample.insert(sample.end(), tile.begin(), tile.end());
     if (options.common().verbosity == app::Verbosity::quiet) sample.push_back("-q");
     sample.insert(sample.end(), {"-o", objects});
@@ -336,14 +328,14 @@ int run_survey(int argc_given, const char* const argv_given[]) {
     if (s.noise_free) {
         render.push_back("--noise-free");
     } else {
-        render.insert(render.end(), {"--noise-rms", number(read_image), "--gain",
-                                     number(adu ? s.gain : 1.0)});
+        render.insert(render.end(), {"--noise-rms", app::double_text(read_image), "--gain",
+                                     app::double_text(adu ? s.gain : 1.0)});
     }
-    render.insert(render.end(), {adu ? "--exptime" : "--exposure", number(T)});
-    render.insert(render.end(), {"--sky", number(sky_image), "--bunit", adu ? "adu" : "electron/s"});
+    render.insert(render.end(), {adu ? "--exptime" : "--exposure", app::double_text(T)});
+    render.insert(render.end(), {"--sky", app::double_text(sky_image), "--bunit", adu ? "adu" : "electron/s"});
     if (!s.shear.empty())
-        render.insert(render.end(), {"--shear", number(s.shear[0]), number(s.shear[1])});
-    if (options.given("kappa")) render.insert(render.end(), {"--kappa", number(s.kappa)});
+        render.insert(render.end(), {"--shear", app::double_text(s.shear[0]), app::double_text(s.shear[1])});
+    if (options.given("kappa")) render.insert(render.end(), {"--kappa", app::double_text(s.kappa)});
     render.insert(render.end(), {"--seed", seed, "-j", std::to_string(options.common().threads)});
     if (options.common().verbosity == app::Verbosity::quiet) render.push_back("-q");
     render.insert(render.end(), {"-o", (dir / "image.fits").string(), "--truth",

@@ -17,19 +17,18 @@
 
 namespace shapesim::app {
 
+std::string double_text(double v) {
+    char buf[32];
+    const auto end = std::to_chars(buf, buf + sizeof buf, v).ptr;
+    return std::string(buf, end);
+}
+
 namespace {
 
 // Options about the run itself, not settings: never read from --config nor printed by
 // --print-params.
 bool is_meta(const std::string& name) {
     return name == "help" || name == "version" || name == "config" || name == "print-params";
-}
-
-// Shortest text that reads back as the same double.
-std::string double_text(double v) {
-    char buf[32];
-    const auto end = std::to_chars(buf, buf + sizeof buf, v).ptr;
-    return std::string(buf, end);
 }
 
 // A stored option value as config-file text, one entry per value (vectors give several).

@@ -141,6 +141,10 @@ private:
     bool allow_unregistered_ = false;
 };
 
+/// The shortest text that reads back as the same double (30, 0.2, 31.542503180159343), as
+/// --print-params writes values.
+std::string double_text(double v);
+
 /// `help` with every 17-digit double default, e.g. (=0.96999999999999997), printed as the
 /// shortest text that reads back as the same double, (=0.97) (Boost prints the former).
 std::string defaults_as_written(const std::string& help);
