@@ -41,12 +41,13 @@ namespace fs = std::filesystem;
 const char* const description =
     "Simulate a survey described in one file of `name = value` lines (the options below):\n"
     "the telescope's pixel scale and field, its PSF (analytic or a PSF record), zero point,\n"
-    "exposure, gain, read noise and sky, the depth, the shear. Runs shapesim-sample and\n"
-    "shapesim-render (found beside this program) into the directory -o: image.fits (in\n"
-    "electron/s, or adu with units = adu; EXPTIME, GAIN, BUNIT, MAGZERO, WCS in the header),\n"
-    "objects.jsonl (what was drawn), truth.jsonl (what is in the image) and commands.sh (the\n"
-    "two commands, to rerun or change by hand). Options on the command line win over the\n"
-    "file's. Shipped surveys (acs-f814w, euclid-vis, rubin-i, hdf) are found by name.\n"
+    "exposure, gain, read noise and sky, the depth, the shear. Runs shapesim-sample,\n"
+    "shapesim-render and shapesim-table (found beside this program) into the directory -o:\n"
+    "image.fits (in electron/s, or adu with units = adu; EXPTIME, GAIN, BUNIT, MAGZERO, WCS\n"
+    "in the header), objects.jsonl (what was drawn), truth.jsonl and truth.fits (what is in\n"
+    "the image; the FITS table has units) and commands.sh (the commands, to rerun or change\n"
+    "by hand). Options on the command line win over the file's. Shipped surveys (acs-f814w,\n"
+    "euclid-vis, rubin-i, hdf) are found by name.\n"
     "\n"
     "Examples:\n"
     "  shapesim-survey rubin-i -o rubin/\n"
@@ -340,8 +341,14 @@ int run_survey(int argc_given, const char* const argv_given[]) {
     if (options.common().verbosity == app::Verbosity::quiet) render.push_back("-q");
     render.insert(render.end(), {"-o", (dir / "image.fits").string(), "--truth",
                                  (dir / "truth.jsonl").string()});
+    // The truth as a FITS binary table with units, for astropy, TOPCAT and fv.
+    const std::vector<std::string> table = {(bin / "shapesim-table").string(),
+                                            (dir / "truth.jsonl").string(), "--like",
+                                            (dir / "image.fits").string(), "-o",
+                                            (dir / "truth.fits").string()};
     if (s.dry_run) {
-        std::cout << command_line(sample) << '\n' << command_line(render) << '\n';
+        std::cout << command_line(sample) << '\n' << command_line(render) << '\n'
+                  << command_line(table) << '\n';
         return 0;
     }
     std::error_code ec;
@@ -349,16 +356,19 @@ int run_survey(int argc_given, const char* const argv_given[]) {
     if (ec) throw Error("cannot make the directory: " + ec.message(), dir.string());
     AtomicTextFile commands((dir / "commands.sh").string());
     commands.stream() << "#!/bin/sh\n# shapesim-survey " << config << ": the commands it ran\nset -e\n"
-                      << command_line(sample) << '\n' << command_line(render) << '\n';
+                      << command_line(sample) << '\n' << command_line(render) << '\n'
+                      << command_line(table) << '\n';
     log.info("sky ", sky_electrons, " e-/pixel, read noise ", s.read_noise, " e-; image unit ",
              adu ? "adu" : "electron/s", ", zero point ", zp_image);
     log.verbose(command_line(sample));
     run(sample);
     log.verbose(command_line(render));
     run(render);
+    log.verbose(command_line(table));
+    run(table);
     commands.commit();
     log.info("wrote ", (dir / "image.fits").string(), ", ", objects, ", ",
-             (dir / "truth.jsonl").string());
+             (dir / "truth.jsonl").string(), " and ", (dir / "truth.fits").string());
     return 0;
 }
 

@@ -16,6 +16,7 @@ packages=(
   libbenchmark-dev          # make bench
   source-extractor          # SExtractor, the cross-check of shapesim-detect (tests, bench)
   fitsverify                # HEASARC's FITS checker (the survey test checks every image with it)
+  python3-astropy           # tests: the FITS tables, ECSV and WCS read back by astropy
   gnuplot-nox               # shapesim-measure --compare figures
   netpbm                    # make reproduce: the figures as PNG (pnmtopng, pnmscale)
   help2man                  # make install: man pages from --help and --version

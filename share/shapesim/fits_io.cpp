@@ -7,6 +7,7 @@
 #include <fitsio.h>
 #include <strings.h>
 
+#include <algorithm>
 #include <cerrno>
 #include <cmath>
 #include <cstdint>
@@ -805,6 +806,86 @@ void FitsWriter::write_rows(const ImageArray& rows) {
     write_pixels(rows, impl_->next_element, impl_->open_place, impl_->open_bitpix);
     impl_->next_element += LONGLONG(rows.size());
     impl_->open_rows_left -= long(rows.rows());
+}
+
+void FitsWriter::write_table(const CatalogueTable& table, const std::string& extname,
+                             const std::vector<FitsKeyword>& keywords) {
+    require(impl_ && impl_->f, "FitsWriter: a table after commit");
+    require(impl_->open_rows_left == 0, "FitsWriter: the image begun is not finished");
+    const std::string place = path() + "[" + extname + "]";
+    if (table.columns.empty()) throw Error("a table needs at least one column", place);
+    if (table.columns.size() > 999)
+        throw Error("a FITS table holds at most 999 columns, not " +
+                    std::to_string(table.columns.size()), place, 0, "TFIELDS");
+    std::vector<std::string> names, forms, units;
+    for (const CatalogueColumn& c : table.columns) {
+        names.push_back(c.name);
+        units.push_back(c.unit);
+        switch (c.type) {
+        case CatalogueColumn::Type::integer: forms.push_back("1K"); break;
+        case CatalogueColumn::Type::real: forms.push_back("1D"); break;
+        case CatalogueColumn::Type::boolean: forms.push_back("1L"); break;
+        case CatalogueColumn::Type::text: {
+            std::size_t width = 1;
+            for (const std::string& t : c.texts) width = std::max(width, t.size());
+            forms.push_back(std::to_string(width) + "A");
+            break;
+        }
+        }
+    }
+    auto pointers = [](std::vector<std::string>& v) {
+        std::vector<char*> p;
+        for (std::string& s : v) p.push_back(s.data());
+        return p;
+    };
+    std::vector<char*> ttype = pointers(names), tform = pointers(forms), tunit = pointers(units);
+    int status = 0;
+    fits_create_tbl(impl_->f, BINARY_TBL, LONGLONG(table.rows), int(table.columns.size()),
+                    ttype.data(), tform.data(), tunit.data(),
+                    const_cast<char*>(extname.c_str()), &status);
+    check(status, place);
+    write_keyword(impl_->f, {"SCHEMA", table.schema, "shapesim record schema"}, place);
+    for (const auto& key : keywords) write_keyword(impl_->f, key, place);
+    if (table.rows == 0) return;
+    LONGLONG offset = 0;  // the column's first byte in a row
+    for (std::size_t k = 0; k < table.columns.size(); ++k) {
+        const CatalogueColumn& c = table.columns[k];
+        const int column = int(k) + 1;
+        switch (c.type) {
+        case CatalogueColumn::Type::integer: {
+            std::vector<LONGLONG> v(c.numbers.begin(), c.numbers.end());
+            fits_write_col(impl_->f, TLONGLONG, column, 1, 1, LONGLONG(v.size()), v.data(), &status);
+            break;
+        }
+        case CatalogueColumn::Type::real:
+            fits_write_col(impl_->f, TDOUBLE, column, 1, 1, LONGLONG(c.numbers.size()),
+                           const_cast<double*>(c.numbers.data()), &status);
+            break;
+        case CatalogueColumn::Type::boolean: {
+            std::vector<char> v;
+            for (double x : c.numbers) v.push_back(x != 0.0 ? 1 : 0);
+            fits_write_col(impl_->f, TLOGICAL, column, 1, 1, LONGLONG(v.size()), v.data(), &status);
+            break;
+        }
+        case CatalogueColumn::Type::text: {
+            // NUL-padded, as astropy and numpy strip (cfitsio's own writer pads with blanks,
+            // which astropy's Table keeps): each cell's bytes at its place in the row.
+            const std::size_t width = std::size_t(std::stoul(forms[k]));
+            std::vector<unsigned char> cell(width);
+            for (long r = 0; r < table.rows && status == 0; ++r) {
+                std::fill(cell.begin(), cell.end(), 0);
+                std::copy(c.texts[std::size_t(r)].begin(), c.texts[std::size_t(r)].end(),
+                          cell.begin());
+                fits_write_tblbytes(impl_->f, LONGLONG(r) + 1, offset + 1, LONGLONG(width),
+                                    cell.data(), &status);
+            }
+            break;
+        }
+        }
+        check(status, place);
+        offset += LONGLONG(c.type == CatalogueColumn::Type::text ? std::stoul(forms[k])
+                           : c.type == CatalogueColumn::Type::boolean ? 1 : 8);
+    }
 }
 
 void FitsWriter::commit() {

@@ -27,6 +27,7 @@
 #include "shapesim/error.hpp"
 #include "shapesim/geometry.hpp"
 #include "shapesim/image.hpp"
+#include "shapesim/table.hpp"
 
 #include <memory>
 #include <optional>
@@ -192,6 +193,11 @@ public:
     /// The next rows of the image begun. FloatRangeError when BITPIX is −32 and a value is
     /// beyond a float (write the image whole, with write_image, to have it promoted).
     void write_rows(const ImageArray& rows);
+    /// Append `table` as a binary-table HDU named `extname`: TTYPE the column names, TUNIT
+    /// their units, TFORM K (int64), D (float64), L (logical) or nA (text, n its longest
+    /// value); a SCHEMA card names the records' schema; `keywords` follow.
+    void write_table(const CatalogueTable& table, const std::string& extname,
+                     const std::vector<FitsKeyword>& keywords = {});
     /// Close the file and rename it onto `path`. Throws Error; the writer is then finished.
     void commit();
 

@@ -5,6 +5,7 @@
 #include <algorithm>
 #include <cmath>
 #include <limits>
+#include <map>
 #include <sstream>
 
 namespace shapesim {
@@ -206,9 +207,11 @@ void put_bands(Json& j, const std::vector<BandCoefficients>& bands) {
 }
 const Names morph_fields = {"id", "x",       "y", "mag",   "fwhm", "a",    "b",   "theta", "e1",
                             "e2", "r_petro", "c", "a_sym", "s",    "gini", "m20", "flags"};
-const Names truth_fields = {"id",     "kind", "ra",           "dec",  "x",  "y",
-                            "flux",   "mag",  "clipped_flux", "e1",   "e2", "rms_radius",
-                            "lensing_error",  "n_max",        "stamp_radius"};
+const Names truth_fields = {"id",           "kind",         "ra",    "dec",  "x",
+                            "y",            "flux",         "mag",   "clipped_flux",
+                            "e1",           "e2",           "rms_radius",   "lensing_error",
+                            "e1_intrinsic", "e2_intrinsic", "g1",    "g2",   "kappa",
+                            "mu",           "n_max",        "stamp_radius"};
 const Names convolution_fields = {"galaxy_id", "psf", "hdu",  "x",     "y",
                                   "nx",        "ny",  "flux", "result"};
 
@@ -620,7 +623,17 @@ TruthRecord TruthRecord::from_json(const Json& j) {
     // A galaxy's shape always carries its lensing error; e1, e2, rms_radius may be null.
     if (j.contains("lensing_error")) {
         r.shape = Shape{optional_double(j, "e1"), optional_double(j, "e2"),
-                        optional_double(j, "rms_radius"), required_double(j, "lensing_error")};
+                        optional_double(j, "rms_radius"), required_double(j, "lensing_error"),
+                        {}, {}};
+        // Older truth files have neither: unlensed then, unless they say otherwise.
+        r.shape->e1_intrinsic = j.contains("e1_intrinsic") ? optional_double(j, "e1_intrinsic")
+                                                           : r.shape->e1;
+        r.shape->e2_intrinsic = j.contains("e2_intrinsic") ? optional_double(j, "e2_intrinsic")
+                                                           : r.shape->e2;
+        if (auto v = optional_double(j, "g1")) r.shape->g1 = *v;
+        if (auto v = optional_double(j, "g2")) r.shape->g2 = *v;
+        if (auto v = optional_double(j, "kappa")) r.shape->kappa = *v;
+        if (auto v = optional_double(j, "mu")) r.shape->mu = *v;
     }
     r.n_max = read_n_max(j);
     r.stamp_radius = required_double(j, "stamp_radius");
@@ -634,7 +647,11 @@ void TruthRecord::validate() const {
     check_dec("dec", dec);
     check_non_negative("clipped_flux", clipped_flux);
     check_non_negative("stamp_radius", stamp_radius);
-    if (shape) check_non_negative("lensing_error", shape->lensing_error);
+    if (shape) {
+        check_non_negative("lensing_error", shape->lensing_error);
+        if (!(shape->mu > 0.0) || !std::isfinite(shape->mu))
+            throw Error("must be finite and > 0, got " + number(shape->mu), {}, 0, "mu");
+    }
 }
 
 Json TruthRecord::to_json() const {
@@ -655,11 +672,32 @@ Json TruthRecord::to_json() const {
         j["e2"] = or_null(shape->e2);
         j["rms_radius"] = or_null(shape->rms_radius);
         j["lensing_error"] = shape->lensing_error;
+        j["e1_intrinsic"] = or_null(shape->e1_intrinsic);
+        j["e2_intrinsic"] = or_null(shape->e2_intrinsic);
+        j["g1"] = shape->g1;
+        j["g2"] = shape->g2;
+        j["kappa"] = shape->kappa;
+        j["mu"] = shape->mu;
     }
     j["n_max"] = n_max;
     j["stamp_radius"] = stamp_radius;
     put_extra(j, extra, truth_fields);
     return j;
+}
+
+// ---------------------------------------------------------------------------- field units
+
+std::string field_unit(const std::string& field, const std::string& flux_unit) {
+    static const std::map<std::string, std::string> units = {
+        {"ra", "deg"},        {"dec", "deg"},          {"theta", "deg"},   {"rotation", "deg"},
+        {"x", "pix"},         {"y", "pix"},            {"a", "pix"},       {"b", "pix"},
+        {"fwhm", "pix"},      {"r_petro", "pix"},      {"rms_radius", "pix"},
+        {"stamp_radius", "pix"}, {"reach", "pix"},     {"beta", "arcsec"}, {"psf_beta", "arcsec"},
+        {"pixel_scale", "arcsec/pix"}, {"mag", "mag"}, {"zero_point", "mag"}};
+    if (field == "flux" || field == "flux_err" || field == "clipped_flux") return flux_unit;
+    if (const auto it = units.find(field); it != units.end()) return it->second;
+    if (field.rfind("mag_", 0) == 0) return "mag";
+    return {};
 }
 
 // -------------------------------------------------------------- ReferenceConvolutionRecord

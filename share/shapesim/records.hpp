@@ -177,6 +177,9 @@ struct TruthRecord {
     struct Shape {
         std::optional<double> e1, e2, rms_radius;
         double lensing_error = 0.0;  ///< relative truncation of the lensed projection
+        std::optional<double> e1_intrinsic, e2_intrinsic;  ///< before lensing (= e1, e2 unlensed)
+        /// The lensing applied: reduced shear, convergence, magnification (0, 0, 0, 1: none).
+        double g1 = 0.0, g2 = 0.0, kappa = 0.0, mu = 1.0;
     };
     std::optional<Shape> shape;
     int n_max = 0;                 ///< the drawn (convolved) model's order
@@ -210,6 +213,13 @@ struct MorphRecord {
     Json to_json() const;
     void validate() const;
 };
+
+/// The unit of a catalogue field, by its name (the same name means the same quantity in every
+/// schema), as FITS TUNIT and astropy spell it: "deg" (ra, dec, theta, rotation), "pix"
+/// (x, y, a, b, fwhm, r_petro, rms_radius, stamp_radius, reach), "arcsec" (beta, psf_beta),
+/// "arcsec/pix" (pixel_scale), "mag" (mag, mag_*), `flux_unit` (flux, flux_err,
+/// clipped_flux); "" for the dimensionless and the unknown.
+std::string field_unit(const std::string& field, const std::string& flux_unit);
 
 /// A line of tests/data/reference/convolved.jsonl: galaxy ⊗ PSF and the exact result.
 struct ReferenceConvolutionRecord {

@@ -244,6 +244,8 @@ PreparedObject prepare_object(const ObjectRecord& record, double field_pixel_sca
         if (record.pixel_scale != field_pixel_scale)
             m = dilate(m, record.pixel_scale / field_pixel_scale);
         if (options.lensing) {
+            p.unlensed_epsilon = moments(m).epsilon;
+            p.lensing = *options.lensing;
             ProjectionOptions po;
             po.tolerance = options.lensing_tolerance;
             const Projection lensed = lens(m, *options.lensing, po);
@@ -590,8 +592,16 @@ TruthRecord truth_record(const PreparedObject& object, const ObjectRecord& recor
         // Undefined (null) for a model whose second moments are not positive.
         auto defined = [](double v) { return std::isfinite(v) ? std::optional(v) : std::nullopt; };
         const Complex e = object.intrinsic->epsilon;
+        const Complex e0 = object.unlensed_epsilon.value_or(e);
         t.shape = TruthRecord::Shape{defined(e.real()), defined(e.imag()),
-                                     defined(object.intrinsic->rms_radius), object.lensing_error};
+                                     defined(object.intrinsic->rms_radius), object.lensing_error,
+                                     defined(e0.real()), defined(e0.imag())};
+        if (object.lensing) {
+            t.shape->g1 = object.lensing->g1;
+            t.shape->g2 = object.lensing->g2;
+            t.shape->kappa = object.lensing->kappa;
+            t.shape->mu = magnification(*object.lensing);
+        }
     }
     t.n_max = object.model.n_max;
     t.stamp_radius = object.radius;
@@ -643,9 +653,9 @@ std::string clipped_note(const ClippedSummary& c, double noise_rms) {
     std::ostringstream note;
     note << c.galaxies << " galaxies had negative model light, set to zero (at most " << c.largest
          << " of a galaxy's flux; deepest pixel " << c.deepest
-         << (noise_rms > 0.0 ? " = " + std::to_string(c.deepest / noise_rms) + " sigma"
-                             : std::string())
-         << ")";
+;
+    if (noise_rms > 0.0) note << " = " << c.deepest / noise_rms << " sigma";
+    note << ")";
     return note.str();
 }
 

@@ -124,6 +124,8 @@ struct PreparedObject {
     double radius = 0.0;      ///< R, pixels
     double flux = 0.0;        ///< true flux in the image (after lensing)
     std::optional<Moments> intrinsic;  ///< moments of the lensed galaxy before the PSF
+    std::optional<Complex> unlensed_epsilon;  ///< its ellipticity before lensing (NaN: undefined)
+    std::optional<Lensing> lensing;           ///< the lensing applied to it
     double lensing_error = 0.0;        ///< relative truncation of the lensed projection
     bool drawn = true;        ///< false: below the threshold everywhere
     std::size_t index = 0;    ///< the caller's bookkeeping (e.g. the input record's)

@@ -486,20 +486,38 @@ TEST(TruthRecord, WritesRendersKeyOrderAndRoundTrips) {
     t.flux = 0.125;
     t.mag = 24.5;
     t.clipped_flux = 0.0625;
-    t.shape = TruthRecord::Shape{0.25, std::nullopt, 1.5, 1e-9};
+    t.shape = TruthRecord::Shape{0.25, std::nullopt, 1.5, 1e-9, 0.2, std::nullopt};
+    t.shape->g1 = 0.05;
+    t.shape->kappa = 0.01;
+    t.shape->mu = 1.25;
     t.n_max = 12;
     t.stamp_radius = 7.5;
     const Json j = t.to_json();
     EXPECT_EQ(j.dump(),
               R"({"schema":"shapesim.truth/1","id":"g7","kind":"galaxy","ra":189.2,"dec":62.25,)"
               R"("x":10.5,"y":-3.25,"flux":0.125,"mag":24.5,"clipped_flux":0.0625,"e1":0.25,)"
-              R"("e2":null,"rms_radius":1.5,"lensing_error":1e-09,"n_max":12,"stamp_radius":7.5})");
+              R"("e2":null,"rms_radius":1.5,"lensing_error":1e-09,"e1_intrinsic":0.2,)"
+              R"("e2_intrinsic":null,"g1":0.05,"g2":0.0,"kappa":0.01,"mu":1.25,"n_max":12,)"
+              R"("stamp_radius":7.5})");
     const TruthRecord back = TruthRecord::from_json(j);
     EXPECT_EQ(back.to_json().dump(), j.dump());
     ASSERT_TRUE(back.shape);
     EXPECT_EQ(back.shape->e1, 0.25);
     EXPECT_FALSE(back.shape->e2);
     EXPECT_EQ(back.shape->lensing_error, 1e-9);
+    EXPECT_EQ(back.shape->e1_intrinsic, 0.2);
+    EXPECT_FALSE(back.shape->e2_intrinsic);
+    EXPECT_EQ(back.shape->mu, 1.25);
+    // A truth line of before the intrinsic shapes: unlensed, e_intrinsic = e.
+    Json old = j;
+    for (const char* key : {"e1_intrinsic", "e2_intrinsic", "g1", "g2", "kappa", "mu"}) old.erase(key);
+    const TruthRecord before = TruthRecord::from_json(old);
+    EXPECT_EQ(before.shape->e1_intrinsic, 0.25);
+    EXPECT_EQ(before.shape->g1, 0.0);
+    EXPECT_EQ(before.shape->mu, 1.0);
+    Json bad = j;
+    bad["mu"] = -1.0;
+    EXPECT_THROW(TruthRecord::from_json(bad), Error);
 
     // A star: no mag, nothing clipped, no shape; unknown fields carried at the end.
     TruthRecord star;

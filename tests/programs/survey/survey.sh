@@ -5,7 +5,9 @@
 # 0.7″ at 0.2″/px, sky 20.46 mag/arcsec², read noise 9 e-, gain 1.6): the sky's rms (image −
 # its noise-free twin, which holds no sky, where the sources add < 1% of the sky) is within 1%
 # of √(sky e- + read²)/gain, and stars measured in 5″ apertures with the header's MAGZERO
-# alone are within 0.01 mag of the truth. A survey without a zero point, a bad PSF spec and an
+# alone are within 0.01 mag of the truth. truth.fits is a FITS table astropy reads with units, the
+# image's WCS maps the truth's x, y to its ra, dec, and a sheared survey's truth holds g, kappa, mu
+# and the intrinsic beside the lensed ellipticity. A survey without a zero point, a bad PSF spec and an
 # unknown model are one line each.
 source "$(dirname "${BASH_SOURCE[0]}")/../lib.sh"
 tools=$(cd ../tools && pwd)
@@ -15,23 +17,56 @@ cd "$TMPDIR"
 
 # The two commands, run from bin/ beside it, on the shipped model.
 "$BIN/shapesim-survey" rubin-i --dry-run >cmds || fail "--dry-run failed"
-[ "$(wc -l <cmds)" -eq 2 ] || fail "--dry-run: $(cat cmds)"
+[ "$(wc -l <cmds)" -eq 3 ] || fail "--dry-run: $(cat cmds)"
+grep -q "^$BIN/shapesim-table .*truth.jsonl --like .*image.fits -o .*truth.fits$" cmds || fail "table: $(tail -1 cmds)"
 grep -q "^$BIN/shapesim-sample .*/models/merged.json .*--pixels 1200 " cmds || fail "sample: $(head -1 cmds)"
 grep -q "^$BIN/shapesim-render .*--psf-analytic moffat:0.7,3.5 .*--gain 1.6 --exptime 30 " cmds ||
-  fail "render: $(tail -1 cmds)"
+  fail "render: $(sed -n 2p cmds)"
 
 stars=(--pixels 400 --mag-limit 21 --star-density 20 --star-mag-min 17 --star-mag-max 19 --seed 4 -q)
 "$BIN/shapesim-survey" rubin-i "${stars[@]}" -o a || fail "shapesim-survey rubin-i failed"
 "$BIN/shapesim-survey" rubin-i "${stars[@]}" -o b -j 2 || fail "second run failed"
 "$BIN/shapesim-survey" rubin-i "${stars[@]}" --noise-free -o clean || fail "--noise-free failed"
-for f in image.fits objects.jsonl truth.jsonl commands.sh; do [ -s "a/$f" ] || fail "no $f"; done
+for f in image.fits objects.jsonl truth.jsonl truth.fits commands.sh; do [ -s "a/$f" ] || fail "no $f"; done
 cmp a/objects.jsonl b/objects.jsonl && cmp a/truth.jsonl b/truth.jsonl || fail "not deterministic"
 cmp <(tail -c +20000 a/image.fits) <(tail -c +20000 b/image.fits) || fail "pixels not deterministic"
 cmp a/objects.jsonl clean/objects.jsonl || fail "--noise-free drew other objects"
 sh -n a/commands.sh || fail "commands.sh is not a shell script"
 if command -v fitsverify >/dev/null; then
-  fitsverify -q a/image.fits | grep -q "^verification OK" || fail "fitsverify: $(fitsverify a/image.fits | tail -5)"
+  for f in image.fits truth.fits; do
+    fitsverify -q a/$f | grep -q "^verification OK" || fail "fitsverify: $(fitsverify a/$f | tail -5)"
+  done
 fi
+
+# The truth as astropy reads it: a FITS table with units, the same rows as truth.jsonl, the
+# image's WCS without a warning, the intrinsic and the lensed shapes of a sheared survey.
+"$BIN/shapesim-survey" rubin-i --pixels 200 --shear 0.05 0 --seed 2 -q -o sheared || fail "--shear failed"
+/usr/bin/python3 - <<'PY' || fail "astropy read the truth or the WCS otherwise"
+import json, math, warnings
+warnings.simplefilter("error")
+from astropy.table import Table
+from astropy.io import fits
+from astropy.wcs import WCS
+t = Table.read("a/truth.fits")
+rows = [json.loads(l) for l in open("a/truth.jsonl")]
+assert len(t) == len(rows) > 0, (len(t), len(rows))
+assert str(t["flux"].unit) == "adu" and str(t["ra"].unit) == "deg" and str(t["x"].unit) == "pix"
+assert str(t["mag"].unit) == "mag" and str(t["rms_radius"].unit) == "pix"
+for r, row in zip(rows, t):
+    assert row["id"] == r["id"] and row["kind"] == r["kind"] and row["x"] == r["x"] and row["flux"] == r["flux"]
+w = WCS(fits.getheader("a/image.fits", 1))
+ra, dec = w.all_pix2world([[rows[0]["x"], rows[0]["y"]]], 1)[0]
+assert abs(ra - rows[0]["ra"]) < 1e-9 and abs(dec - rows[0]["dec"]) < 1e-9, (ra, dec, rows[0])
+s = [r for r in (json.loads(l) for l in open("sheared/truth.jsonl")) if r["kind"] == "galaxy"]
+assert s and all(r["g1"] == 0.05 and r["g2"] == 0 and r["kappa"] == 0 for r in s)
+assert all(abs(r["mu"] - 1 / (1 - 0.05 ** 2)) < 1e-12 for r in s)
+# Lensing moves every ellipticity: e ≈ e0 + g (1 - |e0|^2) to first order for small e0.
+d = [r["e1"] - r["e1_intrinsic"] for r in s if abs(r["e1_intrinsic"]) < 0.2 and abs(r["e2_intrinsic"]) < 0.2]
+assert d and all(0.03 < v < 0.07 for v in d), d
+u = [r for r in rows if r["kind"] == "galaxy"]
+assert all(r["e1"] == r["e1_intrinsic"] and r["g1"] == 0 and r["mu"] == 1 for r in u)
+print(f"truth.fits: {len(t)} rows with units; sheared e1 - e1_intrinsic {min(d):.4f}..{max(d):.4f} for g1 = 0.05")
+PY
 
 python3 - "$tools" <<'PY' || fail "the ground survey is off"
 import json, math, sys

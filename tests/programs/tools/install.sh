@@ -19,7 +19,7 @@ env -u MAKEFLAGS -u MAKELEVEL -u MFLAGS make -C "$root" --no-print-directory $sa
 usr=$stage/usr
 
 mkdir "$TMPDIR/elsewhere" && cd "$TMPDIR/elsewhere"
-programs=(detect decompose smooth sample render measure survey)
+programs=(detect decompose smooth sample render measure survey table)
 for p in "${programs[@]}"; do
   prog=shapesim-$p
   BIN=$usr/bin check_version "$prog"
@@ -42,7 +42,8 @@ for survey in "$usr"/share/shapesim/surveys/*.survey; do
   name=$(basename "$survey" .survey)
   "$usr/bin/shapesim-survey" "$name" --pixels 96 -q -o "sim-$name" ||
     fail "shapesim-survey $name failed from the installed prefix"
-  [ -s "sim-$name/image.fits" ] && [ -s "sim-$name/truth.jsonl" ] && [ -s "sim-$name/commands.sh" ] ||
+  [ -s "sim-$name/image.fits" ] && [ -s "sim-$name/truth.jsonl" ] && [ -s "sim-$name/truth.fits" ] &&
+    [ -s "sim-$name/commands.sh" ] ||
     fail "shapesim-survey $name: missing outputs"
   grep -q "$usr/share/shapesim/models/" "sim-$name/commands.sh" || fail "$name: not the installed model"
 done
