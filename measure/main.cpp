@@ -45,12 +45,19 @@ int run(int argc, const char* const argv[]) {
     app::DetectionSettings detection;
     MeasureOptions measure;
     app::CompareSettings compare;
-    bool stars = false;
-    double mag_limit = 0.0;
+    bool stars = false, no_star_profile = false;
+    double mag_limit = 0.0, aperture = 0.0;
     detection.declare(options, false);
     using app::in_range;
     options.group("Statistics").add_options()
-        ("with-stars", po::bool_switch(&stars), "also measure the stars (kind \"star\")")
+        ("with-stars", po::bool_switch(&stars),
+         "also measure the stars (kind \"star\"), each with a pixel-integrated Moffat fitted "
+         "(fwhm_moffat, pixels, and beta_moffat: the seeing)")
+        ("no-star-profile", po::bool_switch(&no_star_profile), "no Moffat fit of the stars")
+        ("aperture", po::value(&aperture)->value_name("ARCSEC")
+             ->notifier(in_range("aperture", 0.0, 3600.0)),
+         "also a circular aperture of this diameter about each centroid (SExtractor's "
+         "MAG_APER): flux_aper and mag_aper")
         ("mag-limit", po::value(&mag_limit)->value_name("MAG")->notifier(in_range("mag-limit", -100.0, 100.0)),
          "leave out objects fainter than this Kron magnitude (and those without one)")
         ("min-petrosian", po::value(&measure.min_petrosian)->default_value(2.0)
@@ -94,6 +101,9 @@ int run(int argc, const char* const argv[]) {
 
     const app::DetectionRun detected = detection.run(options, log);
     const DetectionResult& field = detected.field;
+    measure.zero_point = detected.context.zero_point;
+    measure.aperture_radius = aperture / 2.0 / detected.context.pixel_scale;
+    measure.fit_star_profile = !no_star_profile;
     struct Job {
         const Detection* object;
         SourceRecord source;
@@ -139,7 +149,8 @@ int run(int argc, const char* const argv[]) {
     file.commit();
     log.info(out.count(), " objects measured", skipped ? ", " + std::to_string(skipped) + " skipped" : "",
              too_faint ? ", " + std::to_string(too_faint) + " fainter than --mag-limit left out" : "",
-             " in ", log.elapsed(), " s; stars (left out) through ", detected.locus_note);
+             " in ", log.elapsed(), " s; stars (", stars ? "measured" : "left out", ") through ",
+             detected.locus_note);
     return 0;
 }
 

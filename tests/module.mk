@@ -48,22 +48,24 @@ test: unit-test program-test
 
 # GTEST_FILTER=... narrows the unit tests; SHAPESIM_DATA points tests at the shipped data.
 # Under SAN=1, LeakSanitizer skips the leaks documented in tests/lsan.supp (third-party only).
-# The tests run as UNIT_SHARDS processes at once (GoogleTest's sharding: every test in exactly
-# one shard; default: one per core), each shard's output printed whole when it ends.
-UNIT_SHARDS ?= $(shell nproc 2>/dev/null || echo 1)
+# The tests are split into UNIT_SHARDS GoogleTest shards (every test in exactly one; test k in
+# shard k mod UNIT_SHARDS, so the long decomposition tests, which sit together, spread out)
+# run UNIT_JOBS at a time (default: one per core; four shards per core balance the load),
+# each shard's output printed whole once all have ended.
+UNIT_JOBS   ?= $(shell nproc 2>/dev/null || echo 1)
+UNIT_SHARDS ?= $(shell echo $$((4 * $(UNIT_JOBS))))
 unit-test: $(UNIT_BIN)
-	@rc=0; pids=(); \
-	for i in $$(seq 0 $$(($(UNIT_SHARDS) - 1))); do \
-	  GTEST_TOTAL_SHARDS=$(UNIT_SHARDS) GTEST_SHARD_INDEX=$$i \
-	  LSAN_OPTIONS=suppressions=$(CURDIR)/tests/lsan.supp $(UNIT_BIN) --gtest_brief=1 \
-	    $(if $(GTEST_FILTER),--gtest_filter=$(GTEST_FILTER)) >$(BUILD)/unit-shard-$$i.log 2>&1 & \
-	  pids+=($$!); \
-	done; \
-	for i in $${!pids[@]}; do \
-	  wait $${pids[$$i]} || { rc=1; echo "unit tests, shard $$i of $(UNIT_SHARDS): FAILED"; }; \
-	  cat $(BUILD)/unit-shard-$$i.log; \
-	done; \
-	exit $$rc
+	@rm -f $(BUILD)/unit-shard-*.log $(BUILD)/unit-shards.failed; \
+	seq 0 $$(($(UNIT_SHARDS) - 1)) | xargs -P $(UNIT_JOBS) -I{} sh -c \
+	  'GTEST_TOTAL_SHARDS=$(UNIT_SHARDS) GTEST_SHARD_INDEX={} \
+	   LSAN_OPTIONS=suppressions=$(CURDIR)/tests/lsan.supp $(UNIT_BIN) --gtest_brief=1 \
+	     $(if $(GTEST_FILTER),--gtest_filter=$(GTEST_FILTER)) >$(BUILD)/unit-shard-{}.log 2>&1 || \
+	   echo {} >>$(BUILD)/unit-shards.failed'; \
+	for i in $$(seq 0 $$(($(UNIT_SHARDS) - 1))); do cat $(BUILD)/unit-shard-$$i.log; done; \
+	if [ -s $(BUILD)/unit-shards.failed ]; then \
+	  echo "unit tests FAILED in shard(s) $$(sort -n $(BUILD)/unit-shards.failed | tr '\n' ' ')of $(UNIT_SHARDS)"; \
+	  exit 1; \
+	fi
 
 program-test: all examples
 	BIN=$(abspath $(BIN)) EXAMPLES=$(abspath $(BUILD)/examples) \

@@ -32,7 +32,29 @@ struct MeasureOptions {
     double min_petrosian = 2.0;
     double min_snr = 10.0;
     double max_neighbour_fraction = 0.1;
+    /// Circular aperture photometry (SExtractor's MAG_APER) of radius `aperture_radius`
+    /// pixels about the detection's centroid, every pixel weighted by its area inside
+    /// (exact_aperture.hpp): flux_aper and mag_aper (with `zero_point`). 0: none.
+    double aperture_radius = 0.0;
+    double zero_point = 0.0;  ///< AB magnitude of one image unit, for mag_aper
+    /// Stars (kind "star"): a circular Moffat, I ∝ (1 + r²/α²)^−β integrated over each pixel
+    /// (4 × 4-point Gauss–Legendre), fitted with a constant by least squares over a box of
+    /// ±3 FWHM (the object's own and unlabelled good pixels): fwhm_moffat = 2α √(2^{1/β} − 1)
+    /// (pixels) and beta_moffat: the seeing, free of the pixel's width FWHM_IMAGE carries.
+    bool fit_star_profile = true;
 };
+
+/// The Moffat fitted to a star (MeasureOptions::fit_star_profile).
+struct MoffatFit {
+    double x = 0.0, y = 0.0;  ///< centre, 0-based pixel coordinates of `image`
+    double fwhm = 0.0, beta = 0.0, amplitude = 0.0, background = 0.0;
+    bool converged = false;
+};
+
+/// The least-squares pixel-integrated circular Moffat (plus a constant) of the pixels of
+/// `image` where `use` is non-zero, from the start (x, y, fwhm); 0-based coordinates.
+MoffatFit fit_moffat(const ImageArray& image, const MaskArray& use, double x, double y,
+                     double fwhm);
 
 /// The record of `object` of `field`; `source` is its detection record (shapesim-detect's
 /// fields: mag, stellarity, kind, flags). Throws Error when the statistics cannot start (no

@@ -691,10 +691,11 @@ std::string field_unit(const std::string& field, const std::string& flux_unit) {
     static const std::map<std::string, std::string> units = {
         {"ra", "deg"},        {"dec", "deg"},          {"theta", "deg"},   {"rotation", "deg"},
         {"x", "pix"},         {"y", "pix"},            {"a", "pix"},       {"b", "pix"},
-        {"fwhm", "pix"},      {"r_petro", "pix"},      {"rms_radius", "pix"},
+        {"fwhm", "pix"},      {"fwhm_moffat", "pix"},  {"r_petro", "pix"},      {"rms_radius", "pix"},
         {"stamp_radius", "pix"}, {"reach", "pix"},     {"beta", "arcsec"}, {"psf_beta", "arcsec"},
         {"pixel_scale", "arcsec/pix"}, {"mag", "mag"}, {"zero_point", "mag"}};
-    if (field == "flux" || field == "flux_err" || field == "clipped_flux") return flux_unit;
+    if (field == "flux" || field == "flux_err" || field == "clipped_flux" || field == "flux_aper")
+        return flux_unit;
     if (const auto it = units.find(field); it != units.end()) return it->second;
     if (field.rfind("mag_", 0) == 0) return "mag";
     return {};

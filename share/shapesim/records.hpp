@@ -216,9 +216,9 @@ struct MorphRecord {
 
 /// The unit of a catalogue field, by its name (the same name means the same quantity in every
 /// schema), as FITS TUNIT and astropy spell it: "deg" (ra, dec, theta, rotation), "pix"
-/// (x, y, a, b, fwhm, r_petro, rms_radius, stamp_radius, reach), "arcsec" (beta, psf_beta),
-/// "arcsec/pix" (pixel_scale), "mag" (mag, mag_*), `flux_unit` (flux, flux_err,
-/// clipped_flux); "" for the dimensionless and the unknown.
+/// (x, y, a, b, fwhm, fwhm_moffat, r_petro, rms_radius, stamp_radius, reach), "arcsec" (beta,
+/// psf_beta), "arcsec/pix" (pixel_scale), "mag" (mag, mag_*), `flux_unit` (flux, flux_err,
+/// clipped_flux, flux_aper); "" for the dimensionless and the unknown.
 std::string field_unit(const std::string& field, const std::string& flux_unit);
 
 /// A line of tests/data/reference/convolved.jsonl: galaxy ⊗ PSF and the exact result.

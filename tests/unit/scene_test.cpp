@@ -978,7 +978,7 @@ TEST(Scene, ReportTexts) {
               "flux; deepest pixel -0.5)");
     EXPECT_EQ(clipped_note(clipped, 0.25),
               "3 galaxies had negative model light, set to zero (at most 0.25 of a galaxy's "
-              "flux; deepest pixel -0.5 = -2.000000 sigma)");
+              "flux; deepest pixel -0.5 = -2 sigma)");
     EXPECT_EQ(clipped_note(ClippedSummary{}, 1.0), "");
 
     RenderedScene scene;

@@ -3,6 +3,7 @@
 #include "shapesim/error.hpp"
 #include "shapesim/fits_io.hpp"
 #include "shapesim/jsonl.hpp"
+#include "shapesim/analytic_psf.hpp"
 #include "shapesim/psf.hpp"
 #include "shapesim/records.hpp"
 
@@ -68,7 +69,8 @@ void DetectionSettings::declare(ProgramOptions& options, bool image_required) {
     options.group("Stars").add_options()
         ("psf-fwhm", po::value(&s.psf_fwhm)->value_name("ARCSEC")->default_value(0.15)
              ->notifier(in_range("psf-fwhm", 1e-6, 3600.0)),
-         "Gaussian PSF for the stellarity (SEEING_FWHM), unless --psf-image/--psf")
+         "Gaussian PSF for the stellarity (SEEING_FWHM), unless --psf-image, --psf or "
+         "--psf-analytic")
         ("psf-image", po::value(&s.psf_image)->value_name("FILE"),
          "PSF image (finer or equal sampling) for the stellarity")
         ("psf-pixel-scale", po::value(&s.psf_pixel_scale)->value_name("ARCSEC")
@@ -77,6 +79,9 @@ void DetectionSettings::declare(ProgramOptions& options, bool image_required) {
         ("psf-box", po::value(&s.psf_box)->value_name("ARCSEC")->multitoken(),
          "convolve --psf-image with square boxes of these widths first (the detector "
          "pixel, a drizzle drop: a subsampled TinyTim PSF lacks both)")
+        ("psf-analytic", po::value(&s.psf_analytic)->value_name("SPEC"),
+         "analytic PSF for the stellarity: gaussian:FWHM, moffat:FWHM[,BETA], "
+         "airy:LAMBDA_OVER_D[,OBSCURATION], optionally ;jitter=SIGMA (arcsec)")
         ("psf", po::value(&s.psf_model)->value_name("FILE"),
          "PSF as a shapesim.shapelet/1 record (first line of FILE)")
         ("star-threshold", po::value(&s.star_threshold)->default_value(0.97)
@@ -98,8 +103,15 @@ void check_options(DetectionSettings& s, const ProgramOptions& options) {
     if (s.filter != "default") s.detection.filter = read_filter_kernel(s.filter);
     if (options.given("ra") != options.given("dec"))
         throw po::error("--ra and --dec go together");
-    if (!s.psf_image.empty() && !s.psf_model.empty())
-        throw po::error("--psf-image and --psf exclude each other");
+    if (int(!s.psf_image.empty()) + int(!s.psf_model.empty()) + int(!s.psf_analytic.empty()) > 1)
+        throw po::error("--psf-image, --psf and --psf-analytic exclude each other");
+    if (!s.psf_analytic.empty()) {
+        try {
+            parse_analytic_psf(s.psf_analytic);
+        } catch (const Error& e) {
+            throw po::error("--psf-analytic: " + e.message());
+        }
+    }
 }
 
 // The image's geometry (its WCS, else --pixel-scale and --ra/--dec) and zero point (given,
@@ -154,6 +166,15 @@ void point_source_locus(const DetectionSettings& s, const ProgramOptions& option
         locus = image_point_source_locus(convolve_boxes(psf.pixels, psf.pixel_scale, s.psf_box),
                                          psf.pixel_scale, pixel_scale);
         r.locus_note = "the PSF image " + s.psf_image;
+    } else if (!s.psf_analytic.empty()) {
+        // The profile sampled five times finer than the image, out to 8 FWHM (and 4σ of
+        // jitter), integrated over the image's pixels as a PSF image is.
+        const AnalyticPsf psf = parse_analytic_psf(s.psf_analytic);
+        const double fine = pixel_scale / 5.0;
+        const double reach = 8.0 * psf.nominal_fwhm() + 4.0 * psf.jitter;
+        const int side = 2 * int(std::min(std::ceil(reach / fine), 1000.0)) + 1;
+        locus = image_point_source_locus(analytic_psf_image(psf, fine, side), fine, pixel_scale);
+        r.locus_note = "the analytic PSF " + psf.describe();
     } else if (!s.psf_model.empty()) {
         // The stellarity needs the shape in image pixels; the flux is normalised out.
         const ShapeletModel model = read_psf_model(s.psf_model, pixel_scale);

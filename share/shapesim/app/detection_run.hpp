@@ -29,7 +29,7 @@ struct DetectionRun {
 
 struct DetectionSettings {
     std::string image, weight, weight_type = "weight", filter = "default", filter_mode = "conv";
-    std::string psf_image, psf_model;
+    std::string psf_image, psf_model, psf_analytic;
     double pixel_scale = 0.0, ra = 0.0, dec = 0.0, zero_point = 0.0;
     double psf_fwhm = 0.15, psf_pixel_scale = 0.0, star_threshold = 0.97;
     double saturation = 0.0;  ///< --saturation (0: none; not given: the header's SATURATE)

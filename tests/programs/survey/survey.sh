@@ -121,6 +121,55 @@ for t in truth:
 assert checked >= 3, checked
 PY
 
+# The same stars measured by shapesim-measure (a pixel-integrated Moffat fitted to each star:
+# the seeing; a 5″ aperture with the header's zero point) and by SExtractor (MAG_APER in the
+# same aperture, MAG_ZEROPOINT from the header): isolated stars brighter than 18.3 within 1% of
+# 0.7″ and within 0.01 mag of the truth.
+"$BIN/shapesim-measure" a/image.fits --with-stars --aperture 5 --psf-analytic moffat:0.7,3.5 -q \
+  >stars.morph.jsonl || fail "shapesim-measure --with-stars failed"
+sex=""
+if command -v source-extractor >/dev/null; then
+  zp=$(python3 -c "import math; print(28.36 + 2.5 * math.log10(30 / 1.6))")
+  printf 'NUMBER\nX_IMAGE\nY_IMAGE\nMAG_APER\nFWHM_IMAGE\nFLAGS\n' >stars.param
+  source-extractor a/image.fits -c /dev/null -CATALOG_NAME stars.cat -CATALOG_TYPE ASCII_HEAD \
+    -PARAMETERS_NAME stars.param -FILTER N -PHOT_APERTURES 25 -MAG_ZEROPOINT "$zp" \
+    -GAIN 1.6 -PIXEL_SCALE 0 -SEEING_FWHM 0.7 -SATUR_LEVEL 1e9 -VERBOSE_TYPE QUIET \
+    -STARNNW_NAME /usr/share/source-extractor/default.nnw || fail "source-extractor failed"
+  sex=stars.cat
+fi
+python3 - "$sex" <<'PY' || fail "stars measured off the truth"
+import json, math, sys
+truth = [json.loads(l) for l in open("a/truth.jsonl")]
+ours = [json.loads(l) for l in open("stars.morph.jsonl")]
+sex = []
+if sys.argv[1]:
+    cols = {}
+    for line in open(sys.argv[1]):
+        p = line.split()
+        if line.startswith("#"): cols[p[2]] = int(p[1]) - 1
+        else: sex.append({k: float(p[i]) for k, i in cols.items()})
+def isolated(t):
+    return all(o is t or math.hypot(o["x"] - t["x"], o["y"] - t["y"]) > 30 or o["mag"] > t["mag"] + 5
+               for o in truth)
+stars = [t for t in truth if t["kind"] == "star" and t["mag"] < 18.3 and isolated(t)
+         and 15 < t["x"] < 385 and 15 < t["y"] < 385]
+assert len(stars) >= 5, len(stars)
+for t in stars:
+    m = min(ours, key=lambda r: math.hypot(r["x"] - t["x"], r["y"] - t["y"]))
+    assert math.hypot(m["x"] - t["x"], m["y"] - t["y"]) < 1 and m["kind"] == "star", (t["id"], m)
+    fwhm = m["fwhm_moffat"] * 0.2
+    print(f"star {t['id']} {t['mag']:.3f}: Moffat FWHM {fwhm:.4f}\", beta {m['beta_moffat']:.2f}; "
+          f"mag_aper {m['mag_aper'] - t['mag']:+.4f}", end="")
+    assert abs(fwhm / 0.7 - 1) < 0.01, (t["id"], fwhm)
+    assert abs(m["mag_aper"] - t["mag"]) < 0.01, (t["id"], m["mag_aper"], t["mag"])
+    if sex:
+        s = min(sex, key=lambda r: math.hypot(r["X_IMAGE"] - t["x"], r["Y_IMAGE"] - t["y"]))
+        assert math.hypot(s["X_IMAGE"] - t["x"], s["Y_IMAGE"] - t["y"]) < 1, (t["id"], s)
+        print(f"; SExtractor MAG_APER {s['MAG_APER'] - t['mag']:+.4f}", end="")
+        assert abs(s["MAG_APER"] - t["mag"]) < 0.01, (t["id"], s["MAG_APER"], t["mag"])
+    print()
+PY
+
 # Bad surveys: one line, exit 2, nothing written.
 printf 'pixels = 64\npsf = moffat:0.7\nexposure = 30\n' >nozp.survey
 rc=0; "$BIN/shapesim-survey" nozp.survey -o x >out 2>err || rc=$?
@@ -130,4 +179,8 @@ expect_error "$rc" 2 "psf"
 rc=0; "$BIN/shapesim-survey" rubin-i --model no-such-model -o x >out 2>err || rc=$?
 expect_error "$rc" 2 "model 'no-such-model': no such file and not a shipped one (hdf, merged)"
 [ ! -e x ] || fail "a refused survey left a directory"
+rc=0; "$BIN/shapesim-measure" a/image.fits --psf-analytic moffat:0.7,0.5 >out 2>err || rc=$?
+expect_error "$rc" 2 "^shapesim-measure: --psf-analytic: .*beta"
+rc=0; "$BIN/shapesim-detect" a/image.fits --psf-analytic gaussian:0.7 --psf-fwhm 0.7 --psf x.jsonl >out 2>err || rc=$?
+expect_error "$rc" 2 "exclude each other"
 exit 0
