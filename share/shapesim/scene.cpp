@@ -294,11 +294,17 @@ PreparedObject prepare_object(const ObjectRecord& record, double field_pixel_sca
     p.drawn = p.radius > 0.0;
     // Columns whose pixel [i − ½, i + ½] meets (x − R, x + R): i from ⌊x − R − ½⌋ + 1 to
     // ⌈x + R + ½⌉ − 1 (FITS), 0-based from there.
-    const long i0 = long(std::floor(model.x - p.radius - 0.5)) + 1;
-    const long i1 = long(std::ceil(model.x + p.radius + 0.5)) - 1;
-    const long j0 = long(std::floor(model.y - p.radius - 0.5)) + 1;
-    const long j1 = long(std::ceil(model.y + p.radius + 0.5)) - 1;
-    p.window = PixelWindow{int(i0 - 1), int(j0 - 1), int(i1 - i0 + 1), int(j1 - j0 + 1)};
+    const double i0 = std::floor(model.x - p.radius - 0.5) + 1.0;
+    const double i1 = std::ceil(model.x + p.radius + 0.5) - 1.0;
+    const double j0 = std::floor(model.y - p.radius - 0.5) + 1.0;
+    const double j1 = std::ceil(model.y + p.radius + 0.5) - 1.0;
+    // A runaway β (10⁶″) reaches beyond any image: kept within ±2³⁰ pixels here, so the int
+    // window holds it, and within the field by prepare_field.
+    constexpr double reach = double(1L << 30);
+    auto bounded = [&](double v) { return long(std::clamp(v, -reach, reach)); };
+    const long c_lo = bounded(i0 - 1.0), c_hi = bounded(i1);
+    const long r_lo = bounded(j0 - 1.0), r_hi = bounded(j1);
+    p.window = PixelWindow{int(c_lo), int(r_lo), int(c_hi - c_lo), int(r_hi - r_lo)};
     p.model = std::move(model);
     return p;
 }
@@ -489,6 +495,12 @@ RenderedScene prepare_field(const std::vector<ObjectRecord>& records, const Fiel
     } catch (const Error& e) {
         throw e.at(source);
     }
+    // A stamp wider or taller than the field is cut to the field (the same cut in every tile,
+    // so tiles still add up to the whole): a runaway β costs the field's pixels at most, not
+    // its own nominal extent (issue 39). Stamps within the field's size are left whole.
+    for (PreparedObject& p : scene.objects)
+        if (p.window.nx > field.nx || p.window.ny > field.ny)
+            p.window = p.window.clipped_to(field.nx, field.ny);
     scene.clipped.assign(scene.objects.size(), ClippedLight{});
     scene.prepare_seconds = seconds_since(start);
     return scene;
