@@ -1,7 +1,8 @@
 #!/usr/bin/env bash
 # A runaway model (issue 39): a galaxy of β = 10⁶″ (and 100″) on a 300² field is drawn with
 # the field's pixels at most, not its nominal stamp (once 9.7 GB for 10⁶″, 3 GB for 100″): the
-# render's peak memory stays under 200 MiB, and two tiles still add up to the whole image.
+# render's peak memory stays under 200 MiB, and two tiles still add up to the whole image. A
+# line without end (300 MB of NUL bytes) is one error line, not unbounded memory.
 source "$(dirname "${BASH_SOURCE[0]}")/../lib.sh"
 tools=$(cd ../tools && pwd)
 cd "$TMPDIR"
@@ -27,4 +28,9 @@ assert whole == low + high, "pixels differ"
 assert max(max(r) for r in whole) > 0, "nothing drawn"
 PY
 done
+
+# Input without a newline is refused once a line passes 256 MiB, not buffered without limit.
+rc=0; head -c 300000000 /dev/zero | "$BIN/shapesim-render" "${field[@]}" -q -o z.fits >out 2>err || rc=$?
+expect_error "$rc" 1 "^shapesim-render: -:1: a line longer than 256 MiB: not a JSON-lines catalogue"
+[ ! -e z.fits ] || fail "a refused input left z.fits"
 exit 0
