@@ -124,6 +124,7 @@ void check_header_bytes(const std::string& file) {
     long long offset = 0;
     for (int hdu = 0; offset < size && hdu < 100000; ++hdu) {
         long long bitpix = 8, naxis = 0, pcount = 0, gcount = 1, product = 1;
+        bool unsized = false;  // a size this walk does not follow: check this header, then stop
         for (bool end = false; !end;) {
             in.seekg(offset);
             if (!in.read(block, sizeof block)) return;
@@ -162,12 +163,14 @@ void check_header_bytes(const std::string& file) {
                 else if (key == "GCOUNT  ") gcount = card_integer(card, 1);
                 else if (key.compare(0, 5, "NAXIS") == 0 && key[5] >= '0' && key[5] <= '9') {
                     const long long n = card_integer(card, -1);
-                    // Random groups (NAXIS1 = 0) and sizes past 2^50 bytes: left to cfitsio.
-                    if (n <= 0 || product > (1LL << 50) / n) return;
-                    product *= n;
+                    // Random groups (NAXIS1 = 0), a value this reader cannot parse and sizes
+                    // past 2^50 bytes: left to cfitsio, once this header's cards are checked.
+                    if (n <= 0 || product > (1LL << 50) / n) unsized = true;
+                    else product *= n;
                 }
             }
         }
+        if (unsized) return;
         const long long bytes_per = std::llabs(bitpix) / 8;
         if (naxis == 0) product = 0;
         if (pcount < 0 || gcount < 0 || pcount > (1LL << 50) || gcount > (1LL << 20)) return;

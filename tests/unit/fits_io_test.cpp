@@ -557,7 +557,9 @@ TEST_F(FitsTest, StampRoundTrip) {
 // NAXIS2: the fuzz corpus keeps both files); a stray byte in another card is left alone.
 TEST_F(FitsTest, LayoutCardsWithNonAsciiBytesAreRefusedBeforeCfitsio) {
     const std::string root = SHAPESIM_SOURCE_DIR "/tests/fuzz/corpus/fits/";
-    for (const char* name : {"cfitsio-calloc-naxis2-control-byte", "cfitsio-strcpy-ttype-8bit-byte"}) {
+    // The third: a NAXIS1 the walk cannot parse ("0     880") before 8-bit TTYPE cards.
+    for (const char* name : {"cfitsio-calloc-naxis2-control-byte", "cfitsio-strcpy-ttype-8bit-byte",
+                             "cfitsio-strcpy-ttype-after-unparsed-naxis1"}) {
         try {
             FitsReader fits(root + name);
             ADD_FAILURE() << name << " opened";
