@@ -10,6 +10,7 @@
 #include <limits>
 #include <map>
 #include <ostream>
+#include <set>
 
 namespace shapesim {
 
@@ -75,10 +76,8 @@ private:
             bool texts = !value.empty();
             for (const Json& v : value) texts = texts && v.is_string();
             if (!texts && !value.empty()) {
-                if (index_.count(name) == 0 && !skipped_.count(name)) {
-                    skipped_.insert({name, true});
+                if (index_.count(name) == 0 && skipped_.insert(name).second)
                     table_.skipped.push_back(name);
-                }
                 return;
             }
             std::string joined;
@@ -133,7 +132,7 @@ private:
     std::string flux_unit_;
     CatalogueTable table_;
     std::map<std::string, std::size_t> index_;
-    std::map<std::string, bool> skipped_;
+    std::set<std::string> skipped_;
 };
 
 std::string number_text(double v) {
