@@ -121,6 +121,8 @@ FUZZ_FLAGS := -std=c++17 -O1 -g -fno-omit-frame-pointer -fno-sanitize-recover=al
               -fsanitize=address,undefined
 FUZZ_RUNS  ?= 1000000
 FUZZ_TIME  ?= 900
+# FUZZ_SEED=N makes a run repeatable (CI: the same commit fuzzes the same inputs every time).
+FUZZ_SEED  ?=
 FUZZ_TARGETS := records fits
 FUZZ_LIB   := $(FUZZ_BUILD)/libshapesim.a
 
@@ -146,7 +148,7 @@ fuzz: $(FUZZ_TARGETS:%=$(FUZZ_BUILD)/fuzz_%)
 	  LSAN_OPTIONS=suppressions=$(CURDIR)/tests/lsan.supp:print_suppressions=0 \
 	  $(FUZZ_BUILD)/fuzz_$$t $(FUZZ_BUILD)/corpus-$$t tests/fuzz/corpus/$$t \
 	    -runs=$(FUZZ_RUNS) -max_total_time=$(FUZZ_TIME) -max_len=32768 -rss_limit_mb=4096 -malloc_limit_mb=2048 \
-	    -timeout=20 -print_final_stats=1 -artifact_prefix=$(FUZZ_BUILD)/ \
+	    -timeout=20 -print_final_stats=1 -artifact_prefix=$(FUZZ_BUILD)/ $(if $(FUZZ_SEED),-seed=$(FUZZ_SEED)) \
 	    $$( [ $$t = fits ] && echo -detect_leaks=0 ) \
 	    2>$(FUZZ_BUILD)/$$t.log || \
 	    { tail -n 40 $(FUZZ_BUILD)/$$t.log; exit 1; }; \

@@ -558,8 +558,10 @@ TEST_F(FitsTest, StampRoundTrip) {
 TEST_F(FitsTest, LayoutCardsWithNonAsciiBytesAreRefusedBeforeCfitsio) {
     const std::string root = SHAPESIM_SOURCE_DIR "/tests/fuzz/corpus/fits/";
     // The third: a NAXIS1 the walk cannot parse ("0     880") before 8-bit TTYPE cards.
+    // The fourth ends inside its table's header block: cfitsio reads the cards it holds.
     for (const char* name : {"cfitsio-calloc-naxis2-control-byte", "cfitsio-strcpy-ttype-8bit-byte",
-                             "cfitsio-strcpy-ttype-after-unparsed-naxis1"}) {
+                             "cfitsio-strcpy-ttype-after-unparsed-naxis1",
+                             "cfitsio-strcpy-ttype-8bit-in-short-last-block"}) {
         try {
             FitsReader fits(root + name);
             ADD_FAILURE() << name << " opened";
@@ -569,4 +571,22 @@ TEST_F(FitsTest, LayoutCardsWithNonAsciiBytesAreRefusedBeforeCfitsio) {
     }
     // The shipped TinyTim PSF carries a newline in its CREATED card, and opens.
     EXPECT_NO_THROW(FitsReader(SHAPESIM_SOURCE_DIR "/share/data/hdfn/wfpc2_f814w_tinytim_psf.fits"));
+}
+
+// A column name, format or unit must be a quoted string: cfitsio copied an unquoted 70-character
+// TTYPE into its 70-byte column name (a fortify abort, found twice by CI's fuzzing).
+TEST_F(FitsTest, UnquotedTableLayoutTextIsRefusedBeforeCfitsio) {
+    const std::string root = SHAPESIM_SOURCE_DIR "/tests/fuzz/corpus/fits/";
+    for (const char* name : {"cfitsio-strcpy-unquoted-ttype", "cfitsio-strcpy-unquoted-ttype-2"}) {
+        try {
+            FitsReader fits(root + name);
+            ADD_FAILURE() << name << " opened";
+        } catch (const Error& e) {
+            EXPECT_NE(e.message().find("(TTYPE"), std::string::npos) << e.message();
+            EXPECT_NE(e.message().find("unquoted value"), std::string::npos) << e.message();
+        }
+    }
+    // GalSim's own COSMOS catalogue table (the shipped layout) opens.
+    EXPECT_NO_THROW(FitsReader(SHAPESIM_SOURCE_DIR
+                               "/share/data/cosmos_catalog/real_galaxy_catalog_23.5_example.fits"));
 }
