@@ -31,12 +31,17 @@ const char* const description =
     "-o DIR (default: compare): table.md (the paper's Table: mean and rms of C, A, S, rms e,\n"
     "median and sd of the FWHM, with bootstrap errors), distances.md (KS statistic and\n"
     "p-value, 1D Wasserstein distance of each catalogue from the first, per statistic) and, with\n"
-    "gnuplot, the figures of the paper's Figs. 5-11 as PNG.\n"
+    "gnuplot, the figures of the paper's Figs. 5-11 as PNG. With --compare-paired REAL=FILE\n"
+    "NAME=FILE ... (the real image's catalogue, then its replays: shapesim-sample --replay,\n"
+    "rendered and measured alike), pair every real galaxy with its model: FWHM ratios by\n"
+    "magnitude, a markdown table on stdout.\n"
     "\n"
     "Examples (the shipped HDF-N data):\n"
     "  shapesim-measure hdfn_f814w_v2.fits --weight hdfn_f814w_v2_weight.fits \\\n"
     "      --zero-point 22.08 -j 2 > hdf.morph.jsonl\n"
-    "  shapesim-measure --compare hdf=hdf.morph.jsonl sim=sim.morph.jsonl -o report";
+    "  shapesim-measure --compare hdf=hdf.morph.jsonl sim=sim.morph.jsonl -o report\n"
+    "  shapesim-measure --compare-paired hdf=hdf.morph.jsonl r7=replay7.morph.jsonl \\\n"
+    "      r8=replay8.morph.jsonl > paired.md";
 
 int run(int argc, const char* const argv[]) {
     app::ProgramOptions options("shapesim-measure", "[OPTION]... IMAGE", description,
@@ -75,10 +80,19 @@ int run(int argc, const char* const argv[]) {
     const app::Log log("shapesim-measure", options.common().verbosity);
     if (!compare.colours.empty()) {
         if (!detection.image.empty() || !compare.inputs.empty() || !compare.skies.empty())
-            throw po::error("--compare-colours: not with an IMAGE, --compare or --compare-sky");
+            throw po::error("--compare-colours: not with an IMAGE, --compare, --compare-paired "
+                            "or --compare-sky");
         AtomicTextFile file(options.common().output_or_stdout());
         compare.write_colours(file.stream(), options.given("mag-limit") ? mag_limit : 99.0,
                               options.common().threads);
+        file.commit();
+        return 0;
+    }
+    if (!compare.paired.empty()) {
+        if (!detection.image.empty() || !compare.inputs.empty() || !compare.skies.empty())
+            throw po::error("--compare-paired: not with an IMAGE, --compare or --compare-sky");
+        AtomicTextFile file(options.common().output_or_stdout());
+        compare.write_paired(file.stream());
         file.commit();
         return 0;
     }

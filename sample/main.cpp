@@ -29,10 +29,13 @@ const char* const description =
     "  shapesim-sample morphology.pdf.json --like hdf.fits --seed 7 > objects.jsonl\n"
     "  shapesim-sample morphology.pdf.json --area 6 --seed 7 > objects6.jsonl   # 6 arcmin^2\n"
     "  shapesim-sample morphology.pdf.json --like hdf.fits --tile 1 1 256 256 > tile.jsonl\n"
-    "  shapesim-sample --area 6 --tile-grid 1024   # the tiles: 'IX IY X0 Y0 X1 Y1' lines";
+    "  shapesim-sample --area 6 --tile-grid 1024   # the tiles: 'IX IY X0 Y0 X1 Y1' lines\n"
+    "  shapesim-sample --replay shapelets.jsonl --like hdf.fits > replay.jsonl   # the real\n"
+    "      galaxies where they were fitted: render and measure it beside the real image";
 
 struct Settings {
     std::string model;
+    bool replay = false;
     app::FieldOptions field;
     double margin = 0.5;
     std::string star_histogram, counts = "fit";
@@ -40,6 +43,39 @@ struct Settings {
     std::vector<long> tile_grid;
     SampleOptions sample;
 };
+
+// --replay: the fits of the field's own galaxies, where they were fitted. The draw's options
+// have no meaning here: any given is refused rather than ignored.
+int replay(const app::ProgramOptions& options, const Settings& s, const FieldGeometry& field,
+           const std::optional<Tile>& tile, AtomicTextFile& file, const app::Log& log) {
+    for (const char* name : {"density", "count", "ring", "mag-limit", "faint-limit", "zero-point",
+                             "neighbours", "mix", "max-mag-shift", "counts", "size-slope",
+                             "max-perturbation", "hole-allowance", "star-density", "star-count",
+                             "star-histogram", "star-mag-min", "star-mag-max", "star-slope"})
+        if (options.given(name))
+            throw po::error(std::string("--") + name + ": not with --replay (it draws nothing)");
+    JsonlReader reader(s.model, {ShapeletRecord::schema});
+    std::vector<long> lines;
+    const std::vector<ShapeletRecord> fits = reader.read_all<ShapeletRecord>(1, &lines);
+    JsonlWriter out(file.stream(), file.name());
+    ReplaySummary summary;
+    try {
+        summary = replay_field(fits, field, s.margin / field.pixel_scale, tile,
+                               [&](const ObjectRecord& r) { out.write(r.to_json()); });
+    } catch (const Error& e) {
+        // The fit's line: the one whose id the message names.
+        long line = 0;
+        for (std::size_t k = 0; k < fits.size() && !line; ++k)
+            if (e.message().find("fit " + fits[k].id + " ") == 0) line = lines[k];
+        throw Error(e.message(), reader.name(), line, e.field());
+    }
+    file.commit();
+    log.info(summary.written, " of ", fits.size(), " fits replayed where they were fitted (",
+             summary.stars, " stars, ", summary.no_light, " with no light to draw",
+             tile ? ", " + std::to_string(summary.outside_tile) + " outside the tile" : "",
+             ") in ", log.elapsed(), " s");
+    return 0;
+}
 
 int run(int argc, const char* const argv[]) {
     app::ProgramOptions options("shapesim-sample", "[OPTION]... MODEL", description,
@@ -53,6 +89,11 @@ int run(int argc, const char* const argv[]) {
         "input,i", po::value(&s.model)->value_name("MODEL"),
         "the morphology model (shapesim-smooth), or the first argument");
     options.positional("input", 1);
+    options.group("Input").add_options()(
+        "replay", po::bool_switch(&s.replay),
+        "the input is shapesim-decompose's galaxy models of the --like image: write each where\n"
+        "it was fitted, as fitted (no draw, no stars), to render with new noise and measure\n"
+        "beside the real image (shapesim-measure --compare-paired)");
     s.field.declare(options, "Field (default: --like)",
                     "only the objects reaching these field pixels (FITS, inclusive)");
     options.group("Field (default: --like)").add_options()
@@ -120,8 +161,11 @@ int run(int argc, const char* const argv[]) {
         file.commit();
         return 0;
     }
-    if (s.model.empty()) throw po::error("give the morphology MODEL (from shapesim-smooth)");
+    if (s.model.empty())
+        throw po::error(s.replay ? "give the models to replay (shapesim-decompose's records)"
+                                 : "give the morphology MODEL (from shapesim-smooth)");
     const std::optional<Tile> tile = s.field.window(options, field, false);
+    if (s.replay) return replay(options, s, field, tile, file, log);
 
     const Morphology morphology = Morphology::read(s.model);
     if (!options.given("zero-point")) {

@@ -69,6 +69,158 @@ TableRow table_row(const Catalogue& catalogue, const TableCuts& cuts) {
     return t;
 }
 
+namespace {
+
+// A galaxy of a measured catalogue, with what the paired comparison reads.
+struct PairedGalaxy {
+    double x, y, scale, fwhm_arcsec, mag;
+};
+
+std::vector<PairedGalaxy> paired_galaxies(const Catalogue& catalogue, double mag_limit) {
+    std::vector<PairedGalaxy> out;
+    for (const Json& r : catalogue.records) {
+        if (r.contains("kind") && r.at("kind") != "galaxy") continue;
+        auto number = [&](const char* key) {
+            return r.contains(key) && r.at(key).is_number() ? r.at(key).get<double>()
+                                                             : std::numeric_limits<double>::quiet_NaN();
+        };
+        const PairedGalaxy g{number("x"), number("y"), number("pixel_scale"),
+                             number("fwhm") * number("pixel_scale"), number("mag")};
+        if (!(g.mag <= mag_limit) || !std::isfinite(g.x) || !std::isfinite(g.y) ||
+            !(g.scale > 0.0) || !(g.fwhm_arcsec > 0.0))
+            continue;
+        out.push_back(g);
+    }
+    return out;
+}
+
+double log_mean(const std::vector<double>& v) {
+    double s = 0.0;
+    for (double x : v) s += std::log(x);
+    return v.empty() ? std::numeric_limits<double>::quiet_NaN() : s / double(v.size());
+}
+
+}  // namespace
+
+PairedComparison compare_paired(const Catalogue& real, const std::vector<Catalogue>& replays,
+                                double radius_arcsec, const TableCuts& cuts) {
+    if (replays.empty()) throw Error("no replays to pair the real galaxies with");
+    PairedComparison p;
+    p.real = real.name;
+    p.replay_count = long(replays.size());
+    p.radius_arcsec = radius_arcsec;
+    std::vector<PairedGalaxy> galaxies = paired_galaxies(real, cuts.mag_counts);
+    if (galaxies.empty())
+        throw Error("no galaxy with a FWHM at " + std::string("mag <= ") +
+                        std::to_string(cuts.mag_counts),
+                    real.name);
+    std::sort(galaxies.begin(), galaxies.end(),
+              [](const PairedGalaxy& a, const PairedGalaxy& b) { return a.mag < b.mag; });
+    std::vector<std::vector<PairedGalaxy>> measured;
+    for (const Catalogue& c : replays) measured.push_back(paired_galaxies(c, cuts.mag_counts));
+
+    // Each real galaxy's pairs: FWHM ratios and magnitude changes.
+    const std::size_t n = galaxies.size();
+    std::vector<std::vector<double>> ratios(n), dmags(n);
+    for (std::size_t g = 0; g < n; ++g)
+        for (const auto& replay : measured) {
+            const PairedGalaxy* best = nullptr;
+            double best_d2 = std::numeric_limits<double>::infinity();
+            for (const PairedGalaxy& m : replay) {
+                const double d2 = (m.x - galaxies[g].x) * (m.x - galaxies[g].x) +
+                                  (m.y - galaxies[g].y) * (m.y - galaxies[g].y);
+                if (d2 < best_d2) best_d2 = d2, best = &m;
+            }
+            if (best && std::sqrt(best_d2) * galaxies[g].scale <= radius_arcsec) {
+                ratios[g].push_back(best->fwhm_arcsec / galaxies[g].fwhm_arcsec);
+                dmags[g].push_back(best->mag - galaxies[g].mag);
+            }
+        }
+    auto row = [&](std::size_t lo, std::size_t hi) {
+        PairedRow r;
+        r.mag_lo = galaxies[lo].mag;
+        r.mag_hi = galaxies[hi - 1].mag;
+        r.galaxies = long(hi - lo);
+        std::vector<double> per_galaxy, all_ratios, all_dmags;
+        for (std::size_t g = lo; g < hi; ++g) {
+            r.found += long(ratios[g].size());
+            if (ratios[g].empty()) continue;
+            ++r.paired_galaxies;
+            per_galaxy.push_back(log_mean(ratios[g]));
+            all_ratios.insert(all_ratios.end(), ratios[g].begin(), ratios[g].end());
+            all_dmags.insert(all_dmags.end(), dmags[g].begin(), dmags[g].end());
+        }
+        constexpr double nan = std::numeric_limits<double>::quiet_NaN();
+        const double l = per_galaxy.empty() ? nan : mean_of(per_galaxy);
+        r.ratio_geomean = std::exp(l);
+        r.ratio_geomean_err =
+            r.ratio_geomean * bootstrap_error(per_galaxy, mean_of, cuts.resamples, cuts.seed + 50);
+        r.ratio_median = all_ratios.empty() ? nan : median_of_values(all_ratios);
+        r.ratio_mean = all_ratios.empty() ? nan : mean_of(all_ratios);
+        r.dmag_median = all_dmags.empty() ? nan : median_of_values(all_dmags);
+        return r;
+    };
+    // Quarters by magnitude (fewer rows for fewer than 8 galaxies), then all.
+    const std::size_t parts = n >= 8 ? 4 : 1;
+    for (std::size_t q = 0; q < parts && parts > 1; ++q)
+        p.rows.push_back(row(q * n / parts, (q + 1) * n / parts));
+    p.rows.push_back(row(0, n));
+
+    // Unpaired: the catalogues' own FWHM distributions.
+    std::vector<double> real_fwhm, replay_fwhm;
+    for (const PairedGalaxy& g : galaxies) real_fwhm.push_back(g.fwhm_arcsec);
+    for (const auto& replay : measured)
+        for (const PairedGalaxy& g : replay) replay_fwhm.push_back(g.fwhm_arcsec);
+    auto geomean = [](const std::vector<double>& v) { return std::exp(log_mean(v)); };
+    p.real_galaxies = long(real_fwhm.size());
+    p.replay_galaxies = long(replay_fwhm.size());
+    p.real_geomean = geomean(real_fwhm);
+    p.real_geomean_err = bootstrap_error(real_fwhm, geomean, cuts.resamples, cuts.seed + 60);
+    p.real_median = median_of_values(real_fwhm);
+    p.real_median_err = bootstrap_error(real_fwhm, median_of_values, cuts.resamples, cuts.seed + 61);
+    p.replay_geomean = geomean(replay_fwhm);
+    p.replay_geomean_err = bootstrap_error(replay_fwhm, geomean, cuts.resamples, cuts.seed + 62);
+    p.replay_median = median_of_values(replay_fwhm);
+    p.replay_median_err =
+        bootstrap_error(replay_fwhm, median_of_values, cuts.resamples, cuts.seed + 63);
+    return p;
+}
+
+void write_paired_markdown(std::ostream& out, const PairedComparison& p, const std::string& band,
+                           const TableCuts& cuts) {
+    char buf[512];
+    std::snprintf(buf, sizeof buf,
+                  "| %s | galaxies (%s) | found in %ld replays (within %g\") | FWHM ratio, "
+                  "geometric mean | median | mean | Δ%s, median |\n|---|---|---|---|---|---|---|\n",
+                  band.c_str(), p.real.c_str(), p.replay_count, p.radius_arcsec, band.c_str());
+    out << buf;
+    for (std::size_t k = 0; k < p.rows.size(); ++k) {
+        const PairedRow& r = p.rows[k];
+        const long pairs = r.galaxies * p.replay_count;
+        char range[64];
+        if (k + 1 == p.rows.size())
+            std::snprintf(range, sizeof range, "all (%.2f–%.2f)", r.mag_lo, r.mag_hi);
+        else
+            std::snprintf(range, sizeof range, "%.2f–%.2f", r.mag_lo, r.mag_hi);
+        std::snprintf(buf, sizeof buf, "| %s | %ld | %ld/%ld (%.0f%%) | %.3f ± %.3f | %.3f | %.3f | %+.3f |\n",
+                      range, r.galaxies, r.found, pairs, 100.0 * double(r.found) / double(pairs),
+                      r.ratio_geomean, r.ratio_geomean_err, r.ratio_median, r.ratio_mean,
+                      r.dmag_median);
+        out << buf;
+    }
+    std::snprintf(buf, sizeof buf,
+                  "\nGalaxies with %s ≤ %g, unpaired: FWHM geometric mean %.4f″ ± %.4f (%s, %ld) "
+                  "and %.4f″ ± %.4f (the replays, %ld pooled: %+.1f%%); median %.4f″ ± %.4f and %.4f″ ± "
+                  "%.4f (%+.1f%%). Errors: %d bootstrap resamples.\n",
+                  band.c_str(), cuts.mag_counts, p.real_geomean, p.real_geomean_err,
+                  p.real.c_str(), p.real_galaxies, p.replay_geomean, p.replay_geomean_err,
+                  p.replay_galaxies,
+                  100.0 * (p.replay_geomean / p.real_geomean - 1.0), p.real_median,
+                  p.real_median_err, p.replay_median, p.replay_median_err,
+                  100.0 * (p.replay_median / p.real_median - 1.0), cuts.resamples);
+    out << buf;
+}
+
 TableRow table_row_from_json(const Json& row) {
     if (!row.is_object() || !row.contains("name") || !row.at("name").is_string())
         throw Error("missing or not a string", "", 0, "name");

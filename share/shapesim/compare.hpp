@@ -48,6 +48,37 @@ TableRow table_row(const Catalogue& catalogue, const TableCuts& cuts);
 /// and every error, is NaN (n: −1). Throws Error naming the field on a wrong type.
 TableRow table_row_from_json(const Json& row);
 
+/// Real galaxies paired with their models drawn where they were (shapesim-sample --replay,
+/// rendered with new noise and measured alike): each galaxy of `real` (mag ≤ cuts.mag_counts)
+/// and the nearest galaxy of each replay within `radius_arcsec` (positions in the catalogues'
+/// pixels: the replays are of the real image's field). Per quarter of the real galaxies by
+/// magnitude and for all: how many were found, and the FWHM ratio replay/real as a geometric
+/// mean over galaxies (each galaxy's mean log ratio over its replays; bootstrap error over
+/// galaxies), the median and mean over pairs; the median magnitude change. Beside it, unpaired,
+/// the geometric mean and median FWHM of the real catalogue and of the replays pooled.
+struct PairedRow {
+    double mag_lo = 0, mag_hi = 0;  ///< the real galaxies' magnitudes in this row
+    long galaxies = 0, found = 0;   ///< real galaxies; of them × replays, pairs found
+    long paired_galaxies = 0;       ///< real galaxies found in at least one replay
+    double ratio_geomean = 0, ratio_geomean_err = 0, ratio_median = 0, ratio_mean = 0;
+    double dmag_median = 0;
+};
+struct PairedComparison {
+    std::string real;  ///< the real catalogue's name
+    long replay_count = 0;
+    double radius_arcsec = 0;
+    std::vector<PairedRow> rows;  ///< the quarters, then all
+    long real_galaxies = 0, replay_galaxies = 0;
+    double real_geomean = 0, real_geomean_err = 0, replay_geomean = 0, replay_geomean_err = 0;
+    double real_median = 0, real_median_err = 0, replay_median = 0, replay_median_err = 0;
+};
+/// Throws Error when `real` has no galaxy with a FWHM under the cut or there are no replays.
+PairedComparison compare_paired(const Catalogue& real, const std::vector<Catalogue>& replays,
+                                double radius_arcsec, const TableCuts& cuts);
+/// The markdown table of a paired comparison (`band` names the magnitudes).
+void write_paired_markdown(std::ostream& out, const PairedComparison& paired,
+                           const std::string& band, const TableCuts& cuts);
+
 // The --compare report, one writer per file of its folder (the caller owns the files: written
 // atomically, they land whole or not at all).
 

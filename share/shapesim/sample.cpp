@@ -566,4 +566,59 @@ std::string ParentShares::summary(const std::string& band) const {
     return text.str();
 }
 
+ReplaySummary replay_field(const std::vector<ShapeletRecord>& fits, const FieldGeometry& field,
+                           double margin, const std::optional<Tile>& tile,
+                           const std::function<void(const ObjectRecord&)>& emit) {
+    ReplaySummary summary;
+    for (const ShapeletRecord& fit : fits) {
+        const auto kind = fit.extra.find("kind");
+        if (kind != fit.extra.end() && *kind == "star") {
+            ++summary.stars;
+            continue;
+        }
+        if (fit.coeffs.empty() || !fit.flux || !(*fit.flux > 0.0)) {
+            ++summary.no_light;
+            continue;
+        }
+        if (!(std::abs(fit.pixel_scale / field.pixel_scale - 1.0) <= 1e-6)) {
+            std::ostringstream why;
+            why << "fit " << fit.id << " is at " << fit.pixel_scale << "\"/pixel, the field at "
+                << field.pixel_scale << "\": replay the fits on the image they were made of "
+                   "(--like that image)";
+            throw Error(why.str(), "", 0, "pixel_scale");
+        }
+        // An edge galaxy's fit may be centred just off the image, never beyond its own reach.
+        const double reach = model_reach(fit.beta / fit.pixel_scale, fit.n_max) + margin;
+        if (!(fit.x >= 0.5 - reach && fit.x <= field.nx + 0.5 + reach && fit.y >= 0.5 - reach &&
+              fit.y <= field.ny + 0.5 + reach)) {
+            std::ostringstream why;
+            why << "fit " << fit.id << " is centred at (" << fit.x << ", " << fit.y
+                << "), outside the " << field.nx << " x " << field.ny
+                << " field: replay the fits on the image they were made of (--like that image)";
+            throw Error(why.str(), "", 0, "x");
+        }
+        if (tile && !tile->reaches(fit.x, fit.y, reach)) {
+            ++summary.outside_tile;
+            continue;
+        }
+        ObjectRecord o = placed(fit.id, "galaxy", {fit.x, fit.y}, field);
+        o.mag = fit.mag;
+        o.flux = *fit.flux;
+        o.beta = fit.beta;
+        o.pixel_scale = fit.pixel_scale;  // the coefficients' own units
+        o.n_max = fit.n_max;
+        o.coeffs = fit.coeffs;
+        o.parent = fit.id;
+        const auto frame = fit.extra.find("frame");
+        o.extra["frame"] = frame != fit.extra.end() ? *frame : Json("observed");
+        if (const auto psf_beta = fit.extra.find("psf_beta"); psf_beta != fit.extra.end())
+            o.extra["psf_beta"] = *psf_beta;
+        o.extra["reach"] = reach;
+        o.bands = fit.bands;
+        emit(o);
+        ++summary.written;
+    }
+    return summary;
+}
+
 }  // namespace shapesim

@@ -160,4 +160,21 @@ SampleSummary sample_field(const Morphology& morphology, const FieldGeometry& fi
                            const SampleOptions& options, const std::optional<Tile>& tile,
                            const std::function<void(const ObjectRecord&)>& emit);
 
+/// The field replayed (shapesim-sample --replay): each galaxy model shapesim-decompose fitted on
+/// this field's image (`fits`: its shapesim.shapelet/1 records) as an object where it was
+/// fitted, with its own coefficients, flux and magnitude — no draw, no rotation. Rendered with
+/// new noise and measured like the real image, it pairs every real galaxy with its model (the
+/// models' fidelity, apart from what a draw changes). Records carry the fit's id (also as
+/// `parent`), its x, y, ra, dec through `field`'s WCS, `frame` (the fit's; "observed" when it
+/// has none), `psf_beta` when it has one, `reach` (model_reach plus `margin` pixels) and the
+/// fit's bands. Skipped: stars, and fits with no light to draw (flux ≤ 0, no coefficients).
+/// Error (the fit's id) when a fit's pixel scale is not the field's (to 1 part in 10⁶: its x, y
+/// would not be this field's pixels) or its centre lies further outside the field than its reach.
+struct ReplaySummary {
+    long written = 0, outside_tile = 0, stars = 0, no_light = 0;
+};
+ReplaySummary replay_field(const std::vector<ShapeletRecord>& fits, const FieldGeometry& field,
+                           double margin, const std::optional<Tile>& tile,
+                           const std::function<void(const ObjectRecord&)>& emit);
+
 }  // namespace shapesim

@@ -154,3 +154,60 @@ TEST(CompareReport, WritersFormatTheirFiles) {
     EXPECT_NE(script.str().find("'out/sim.dat' using 1:2 with points pt 7 ps 0.4 title 'sim'"),
               std::string::npos);
 }
+
+// Paired catalogues: real galaxies on a grid; replays with every FWHM × 1.1 (one galaxy found
+// in one replay only, one never, one shifted past the radius), a star and a galaxy fainter than
+// the cut left out. The geometric-mean ratio is 1.1 exactly, the finds are counted per quarter
+// and the unpaired geometric means are the catalogues' own.
+TEST(Compare, PairedRatiosAreTheReplaysOverTheRealGalaxies) {
+    auto record = [](double x, double y, double fwhm, double mag) {
+        return Json{{"x", x}, {"y", y}, {"fwhm", fwhm}, {"pixel_scale", 0.05}, {"mag", mag},
+                    {"kind", "galaxy"}};
+    };
+    Catalogue real{"real", {}};
+    for (int k = 0; k < 16; ++k)
+        real.records.push_back(record(10.0 + 20 * k, 50.0, 4.0 + k % 3, 22.0 + 0.25 * k));
+    real.records.push_back(record(500, 500, 3, 20.0));
+    real.records.back()["kind"] = "star";
+    real.records.push_back(record(600, 600, 3, 30.0));  // fainter than the cut
+    std::vector<Catalogue> replays(2);
+    for (int r = 0; r < 2; ++r) {
+        replays[size_t(r)].name = "r" + std::to_string(r);
+        for (int k = 0; k < 16; ++k) {
+            if (k == 15 || (k == 14 && r == 1)) continue;  // 15 never found, 14 once
+            const double dx = k == 13 ? 3.0 : 0.5;         // 13: 0.15″ away, past 0.1″
+            replays[size_t(r)].records.push_back(
+                record(10.0 + 20 * k + dx, 50.0, 1.1 * (4.0 + k % 3), 22.1 + 0.25 * k));
+        }
+    }
+    TableCuts cuts;
+    cuts.resamples = 200;
+    const PairedComparison p = compare_paired(real, replays, 0.1, cuts);
+    ASSERT_EQ(p.rows.size(), 5u);  // four quarters and all
+    const PairedRow& all = p.rows.back();
+    EXPECT_EQ(all.galaxies, 16);
+    EXPECT_EQ(all.found, 2 * 13 + 1);
+    EXPECT_EQ(all.paired_galaxies, 14);
+    EXPECT_NEAR(all.ratio_geomean, 1.1, 1e-12);
+    EXPECT_NEAR(all.ratio_median, 1.1, 1e-12);
+    EXPECT_NEAR(all.ratio_mean, 1.1, 1e-12);
+    EXPECT_NEAR(all.ratio_geomean_err, 0.0, 1e-12);
+    EXPECT_NEAR(all.dmag_median, 0.1, 1e-12);
+    EXPECT_EQ(p.rows[0].found, 8);  // the brightest four, in both replays
+    EXPECT_EQ(p.rows[3].found, 2 + 0 + 1 + 0);  // 12, 13 (too far), 14 (once), 15
+    EXPECT_DOUBLE_EQ(p.rows[3].mag_lo, 25.0);
+    EXPECT_DOUBLE_EQ(p.rows[3].mag_hi, 25.75);
+    double log_real = 0.0;
+    for (int k = 0; k < 16; ++k) log_real += std::log(0.05 * (4.0 + k % 3));
+    EXPECT_NEAR(p.real_geomean, std::exp(log_real / 16), 1e-12);
+    EXPECT_EQ(p.real_galaxies, 16);
+    EXPECT_EQ(p.replay_galaxies, 15 + 14);
+
+    std::ostringstream md;
+    write_paired_markdown(md, p, "I", cuts);
+    EXPECT_NE(md.str().find("| all (22.00–25.75) | 16 | 27/32 (84%) | 1.100 ± 0.000 | 1.100 | "
+                            "1.100 | +0.100 |"),
+              std::string::npos)
+        << md.str();
+    EXPECT_THROW(compare_paired(real, {}, 0.1, cuts), Error);
+}

@@ -1,6 +1,7 @@
 // Filling a field (sample.hpp): tiles, determinism, counts, star magnitudes.
 #include "shapesim/sample.hpp"
 
+#include "shapesim/constants.hpp"
 #include "shapesim/error.hpp"
 #include "shapesim/moments.hpp"
 #include "test_support.hpp"
@@ -568,4 +569,80 @@ TEST(Sample, RingsCancelTheIntrinsicEllipticity) {
     std::size_t exact = 0;
     sample_field(m, f, o, std::nullopt, [&](const ObjectRecord&) { ++exact; });
     EXPECT_EQ(exact, 1000u);
+}
+
+// The field replayed: every galaxy fit with light becomes an object at its fitted centre, its
+// coefficients, flux, magnitude, β and frame as fitted and its sky position through the field's
+// WCS; stars and fits without light are counted and left out; a tile keeps the fits reaching
+// it; a fit of another pixel scale, or centred beyond its reach from the field, is refused.
+TEST(Sample, ReplayWritesEachFitWhereItWasFitted) {
+    const FieldGeometry f = test_field(200, 100);
+    auto fit = [](std::string id, double x, double y, double flux) {
+        ShapeletRecord r;
+        r.id = std::move(id);
+        r.x = x;
+        r.y = y;
+        r.beta = 0.12;
+        r.pixel_scale = 0.04;
+        r.n_max = 2;
+        r.coeffs = {{flux / (2.0 * std::sqrt(pi) * 3.0), 0.0}, {0.01, -0.02}, {0.003, 0.0},
+                    {0.001, 0.0}, {0.0, 0.002}, {-0.004, 0.0}};
+        r.flux = flux;
+        r.mag = 25.0 - 2.5 * std::log10(flux);
+        return r;
+    };
+    std::vector<ShapeletRecord> fits = {fit("a", 20.25, 30.5, 2.0), fit("b", 180.0, 90.0, 1.0),
+                                        fit("star", 50.0, 50.0, 5.0), fit("dark", 60.0, 60.0, 0.0),
+                                        fit("edge", -1.0, 50.0, 1.0)};
+    fits[1].extra["frame"] = "intrinsic";
+    fits[1].extra["psf_beta"] = 0.07;
+    fits[2].extra["kind"] = "star";
+    std::vector<ObjectRecord> out;
+    const ReplaySummary s =
+        replay_field(fits, f, 2.0, std::nullopt, [&](const ObjectRecord& o) { out.push_back(o); });
+    EXPECT_EQ(s.written, 3);
+    EXPECT_EQ(s.stars, 1);
+    EXPECT_EQ(s.no_light, 1);
+    ASSERT_EQ(out.size(), 3u);
+    for (std::size_t k : {0u, 1u}) {
+        const ObjectRecord& o = out[k];
+        const ShapeletRecord& r = fits[k];
+        EXPECT_EQ(o.id, r.id);
+        EXPECT_EQ(*o.parent, r.id);
+        EXPECT_EQ(*o.x, r.x);
+        EXPECT_EQ(*o.y, r.y);
+        EXPECT_EQ(o.coeffs, r.coeffs);
+        EXPECT_EQ(o.flux, *r.flux);
+        EXPECT_EQ(*o.mag, *r.mag);
+        EXPECT_EQ(o.beta, r.beta);
+        EXPECT_EQ(o.n_max, r.n_max);
+        const PixelPosition p = f.wcs.sky_to_pixel(o.ra, o.dec);
+        EXPECT_NEAR(p.x, r.x, 1e-8);
+        EXPECT_NEAR(p.y, r.y, 1e-8);
+        EXPECT_GT(o.extra.at("reach").get<double>(), 2.0);
+    }
+    EXPECT_EQ(out[0].extra.at("frame"), "observed");
+    EXPECT_FALSE(out[0].extra.contains("psf_beta"));
+    EXPECT_EQ(out[1].extra.at("frame"), "intrinsic");
+    EXPECT_EQ(out[1].extra.at("psf_beta"), 0.07);
+
+    // A tile of the field's left half: "b" (at x = 180) does not reach it.
+    out.clear();
+    const ReplaySummary t = replay_field(fits, f, 2.0, Tile{1, 1, 100, 100},
+                                         [&](const ObjectRecord& o) { out.push_back(o); });
+    EXPECT_EQ(t.written, 2);
+    EXPECT_EQ(t.outside_tile, 1);
+
+    std::vector<ShapeletRecord> other = {fit("c", 20.0, 20.0, 1.0)};
+    other[0].pixel_scale = 0.06;
+    EXPECT_THROW(replay_field(other, f, 2.0, std::nullopt, [](const ObjectRecord&) {}), Error);
+    std::vector<ShapeletRecord> far = {fit("d", 20.0, 500.0, 1.0)};
+    try {
+        replay_field(far, f, 2.0, std::nullopt, [](const ObjectRecord&) {});
+        ADD_FAILURE() << "a fit far outside the field was replayed";
+    } catch (const Error& e) {
+        EXPECT_EQ(e.field(), "x");
+        EXPECT_NE(e.message().find("fit d is centred at (20, 500)"), std::string::npos)
+            << e.message();
+    }
 }

@@ -70,6 +70,13 @@ void CompareSettings::declare(ProgramOptions& options) {
         ("compare-sky", po::value(&skies)->value_name("NAME=FILE")->multitoken(),
          "compare skies' noise records (shapesim-detect --noise-model; the first is the "
          "reference): a markdown table on stdout")
+        ("compare-paired", po::value(&paired)->value_name("NAME=FILE")->multitoken(),
+         "pair the real catalogue (the first) galaxy by galaxy with replays of its field (the\n"
+         "others: shapesim-sample --replay, rendered and measured alike; several seeds): the\n"
+         "FWHM ratios by magnitude, a markdown table on stdout")
+        ("pair-radius", po::value(&pair_radius)->default_value(0.1)
+             ->notifier(in_range("pair-radius", 1e-6, 3600.0)),
+         "arcsec: a replay's galaxy this near a real one is its pair")
         ("paper", po::value(&paper)->value_name("FILE"),
          "published rows to add to the Table (JSON lines: name, c_mean, c_rms, ...; e.g.\n"
          "share/data/paper/massey2004_table.jsonl)")
@@ -144,6 +151,15 @@ void CompareSettings::write_colours(std::ostream& o, double mag_limit, int threa
     }
     write_colour_report(o, catalogues, compare_colours(catalogues, mag_limit, cuts.resamples, 0),
                         mag_limit);
+}
+
+void CompareSettings::write_paired(std::ostream& o) const {
+    const std::vector<Catalogue> catalogues = read_catalogues(paired);
+    if (catalogues.size() < 2)
+        throw po::error("--compare-paired needs the real catalogue and at least one replay");
+    const std::vector<Catalogue> replays(catalogues.begin() + 1, catalogues.end());
+    write_paired_markdown(o, compare_paired(catalogues.front(), replays, pair_radius, cuts), band,
+                          cuts);
 }
 
 void CompareSettings::write_skies(std::ostream& o) const {

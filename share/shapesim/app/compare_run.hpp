@@ -1,6 +1,7 @@
 // shapesim-measure's comparison modes: --compare (the Table, the distances and the figures of
-// measured catalogues, compare.hpp), --compare-colours (colours.hpp) and --compare-sky
-// (noise.hpp). Their options, and the reading and writing around the library's work.
+// measured catalogues, compare.hpp), --compare-paired (compare.hpp), --compare-colours
+// (colours.hpp) and --compare-sky (noise.hpp). Their options, and the reading and writing
+// around the library's work.
 #pragma once
 
 #include "shapesim/app/log.hpp"
@@ -14,7 +15,8 @@
 namespace shapesim::app {
 
 struct CompareSettings {
-    std::vector<std::string> inputs, skies, colours;
+    std::vector<std::string> inputs, skies, colours, paired;
+    double pair_radius = 0.1;  // arcsec
     std::string out = "compare", paper;
     std::string band = "I";  // the magnitudes' band, as the Table and figures label the cuts
     TableCuts cuts;
@@ -26,6 +28,8 @@ struct CompareSettings {
     void write_report(const Log& log) const;
     /// --compare-colours: the markdown colour report of galaxies brighter than `mag_limit`.
     void write_colours(std::ostream& out, double mag_limit, int threads) const;
+    /// --compare-paired: the markdown table of the real galaxies paired with their replays.
+    void write_paired(std::ostream& out) const;
     /// --compare-sky: the markdown table of the skies' noise records.
     void write_skies(std::ostream& out) const;
 };
