@@ -277,6 +277,37 @@ $(OUT)/seeds.md: $(R)pipelines/seeds.sh $(SEED_FILES) $(OUT)/hdf.morph.jsonl $(O
 	$(R)pipelines/seeds.sh $(OUT)/seeds/hdf $(OUT)/seeds/xdf > $(tmp)
 	mv $(tmp) $@
 
+# --- the models where they were: every real galaxy paired with its own fit ---------------
+# Each field's fits replayed where they were fitted (shapesim-sample --replay: no draw), at the
+# five seeds rendered and measured as its δ simulations are, then paired galaxy by galaxy with
+# the real catalogue (shapesim-measure --compare-paired): the models' fidelity, before any draw.
+$(OUT)/replays/hdf.objects.jsonl: $(OUT)/shapelets.jsonl $(IMAGE) $(call prog,sample)
+	@mkdir -p $(@D)
+	$(call prog,sample) -q --replay $< --like $(IMAGE) > $(tmp)
+	mv $(tmp) $@
+$(OUT)/replays/hdf_%.fits: $(OUT)/replays/hdf.objects.jsonl $(OUT)/psf.jsonl $(OUT)/hdf.noise.jsonl $(call prog,render)
+	$(HDF_RENDER) -q --seed $* --like $(IMAGE) --noise-weight $(WEIGHT) -o $@ < $<
+$(OUT)/replays/hdf_%.morph.jsonl: $(OUT)/replays/hdf_%.fits $(WEIGHT) $(call prog,measure)
+	$(MEASURE) -q $< --weight $(WEIGHT) > $(tmp)
+	mv $(tmp) $@
+$(OUT)/replays/xdf.objects.jsonl: $(OUT)/xdf/intrinsic.jsonl $(call prog,sample)
+	@mkdir -p $(@D)
+	$(call prog,sample) -q --replay $< $(XDF_FIELD) > $(tmp)
+	mv $(tmp) $@
+$(OUT)/replays/xdf_%.fits: $(OUT)/replays/xdf.objects.jsonl $(OUT)/xdf/psf.jsonl $(OUT)/xdf/real.noise.jsonl $(XDF_WEIGHT) $(call prog,render)
+	$(XDF_RENDER) -q --seed $* -o $@ < $<
+$(OUT)/replays/xdf_%.morph.jsonl: $(OUT)/replays/xdf_%.fits $(OUT)/xdf/psf.jsonl $(XDF_WEIGHT) $(call prog,measure)
+	$(XDF_MEASURE) -q $< --weight $(XDF_WEIGHT) > $(tmp)
+	mv $(tmp) $@
+$(OUT)/replays/hdf.md: $(foreach s,$(SEEDS),$(OUT)/replays/hdf_$(s).morph.jsonl) $(OUT)/hdf.morph.jsonl $(call prog,measure)
+	$(call prog,measure) --compare-paired hdf=$(OUT)/hdf.morph.jsonl \
+	  $(foreach s,$(SEEDS),replay$(s)=$(OUT)/replays/hdf_$(s).morph.jsonl) > $(tmp)
+	mv $(tmp) $@
+$(OUT)/replays/xdf.md: $(foreach s,$(SEEDS),$(OUT)/replays/xdf_$(s).morph.jsonl) $(OUT)/xdf/real.morph.jsonl $(call prog,measure)
+	$(call prog,measure) --compare-paired xdf=$(OUT)/xdf/real.morph.jsonl \
+	  $(foreach s,$(SEEDS),replay$(s)=$(OUT)/replays/xdf_$(s).morph.jsonl) > $(tmp)
+	mv $(tmp) $@
+
 # --- measure all four images alike, and compare -----------------------------------------
 MEASURE = $(call prog,measure) --zero-point $(ZERO_POINT) --mag-limit $(MAG_LIMIT) -j $(THREADS)
 $(OUT)/hdf.morph.jsonl: $(IMAGE) $(WEIGHT) $(call prog,measure)
@@ -356,7 +387,7 @@ $(OUT)/report.md: $(R)pipelines/report.sh $(OUT)/table.md $(OUT)/sky.md $(OUT)/m
     $(OUT)/xdf/table.md $(OUT)/xdf/sky.md \
     $(FIGURES) $(INPUTS) $(OUT)/sim.truth.jsonl $(OUT)/delta.truth.jsonl $(OUT)/sim6.truth.jsonl \
     $(OUT)/merged.json $(OUT)/merged6.objects.jsonl $(OUT)/sim6.objects.jsonl $(OUT)/merged.shares.txt \
-    $(OUT)/seeds.md
+    $(OUT)/seeds.md $(OUT)/replays/hdf.md $(OUT)/replays/xdf.md
 	$(R)pipelines/report.sh $(OUT) $(INPUTS) > $(tmp)
 	mv $(tmp) $@
 

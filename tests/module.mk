@@ -117,7 +117,7 @@ corpus-check: all
 # caches), hence a 4 GB RSS limit; one allocation over 2 GB is still a failure.
 FUZZ_BUILD := build-fuzz
 FUZZ_CXX   ?= clang++
-FUZZ_FLAGS := -std=c++17 -O1 -g -fno-omit-frame-pointer -fno-sanitize-recover=all \
+FUZZ_FLAGS := -std=c++17 -O1 -gline-tables-only -fno-omit-frame-pointer -fno-sanitize-recover=all \
               -fsanitize=address,undefined
 FUZZ_RUNS  ?= 1000000
 FUZZ_TIME  ?= 900

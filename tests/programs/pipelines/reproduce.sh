@@ -87,6 +87,21 @@ for field in hdf xdf; do
     fail "seeds.md lacks the FWHM median row"
 done
 grep -q '^| hdf: statistic | seed 7' "$out/report.md" || fail "report.md lacks the seeds table"
+# The fits where they were: each field's real galaxies paired with five replays of its fits.
+for field in hdf xdf; do
+  grep -q "^| I | galaxies ($field) | found in 5 replays (within 0.1\") | FWHM ratio, geometric mean |" \
+    "$out/replays/$field.md" || fail "replays/$field.md lacks the paired table: $(cat "$out/replays/$field.md")"
+  grep -q "^| I | galaxies ($field) | found in 5 replays" "$out/report.md" || fail "report.md lacks $field's replays"
+done
+# The HDF's bright half comes back in most replays, at its size within 10% (geometric mean).
+python3 - "$out/replays/hdf.md" <<'PY' || fail "the HDF's replays are not its galaxies: $(cat "$out/replays/hdf.md")"
+import sys
+rows = [l.split("|")[1:-1] for l in open(sys.argv[1]) if l.startswith("| ") and "–" in l]
+assert len(rows) == 5, rows
+for r in rows[:2]:
+    n, d = r[2].split()[0].split("/")
+    assert int(n) / int(d) >= 0.7 and abs(float(r[3].split("±")[0]) - 1) < 0.1, r
+PY
 # The light the renderer clipped, per simulation; mixtures of non-negative parents lose < 1%.
 for sim in sim sim6 merged6; do
   grep -q "^| $sim | 0 of [0-9]* (0.0%); at most " "$out/report.md" ||
