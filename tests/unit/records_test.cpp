@@ -157,7 +157,7 @@ TEST(ShapeletRecord, ValidationErrorsNameTheField) {
     EXPECT_EQ(error_of(j), "pixel_scale: must be finite and > 0, got 0");
     j = m03();
     j["n_max"] = -1;
-    EXPECT_EQ(error_of(j), "n_max: must be in [0, 1000], got -1");
+    EXPECT_EQ(error_of(j), "n_max: must be in [0, 200], got -1");
     j = m03();
     j["n_max"] = 2.5;
     EXPECT_EQ(error_of(j), "n_max: expected an integer, got number 2.5");

@@ -29,6 +29,16 @@ assert max(max(r) for r in whole) > 0, "nothing drawn"
 PY
 done
 
+# n_max past the records' cap (200) is refused where the record is read, before any work.
+python3 -c "
+import json
+print(json.dumps({'schema': 'shapesim.object/1', 'id': 'g0', 'kind': 'galaxy', 'ra': 150.1, 'dec': 2.2,
+                  'mag': 20, 'flux': 1000, 'beta': 1.0, 'pixel_scale': 0.2, 'n_max': 1000,
+                  'coeffs': [[1, 0]] + [[0, 0]] * 251000}))" >n1000.jsonl
+rc=0; "$BIN/shapesim-render" n1000.jsonl "${field[@]}" -q -o n.fits >out 2>err || rc=$?
+expect_error "$rc" 1 "^shapesim-render: n1000.jsonl:1: n_max: must be in \\[0, 200\\], got 1000$"
+[ ! -e n.fits ] || fail "a refused n_max left n.fits"
+
 # Input without a newline is refused once a line passes 256 MiB, not buffered without limit.
 rc=0; head -c 300000000 /dev/zero | "$BIN/shapesim-render" "${field[@]}" -q -o z.fits >out 2>err || rc=$?
 expect_error "$rc" 1 "^shapesim-render: -:1: a line longer than 256 MiB: not a JSON-lines catalogue"
