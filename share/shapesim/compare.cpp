@@ -188,7 +188,7 @@ PairedComparison compare_paired(const Catalogue& real, const std::vector<Catalog
 
 void write_paired_markdown(std::ostream& out, const PairedComparison& p, const std::string& band,
                            const TableCuts& cuts) {
-    char buf[512];
+    char buf[4096];  // a line with catalogue names up to ~3,800 characters
     std::snprintf(buf, sizeof buf,
                   "| %s | galaxies (%s) | found in %ld replays (within %g\") | FWHM ratio, "
                   "geometric mean | median | mean | Δ%s, median |\n|---|---|---|---|---|---|---|\n",
