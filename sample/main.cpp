@@ -62,12 +62,8 @@ int replay(const app::ProgramOptions& options, const Settings& s, const FieldGeo
     try {
         summary = replay_field(fits, field, s.margin / field.pixel_scale, tile,
                                [&](const ObjectRecord& r) { out.write(r.to_json()); });
-    } catch (const Error& e) {
-        // The fit's line: the one whose id the message names.
-        long line = 0;
-        for (std::size_t k = 0; k < fits.size() && !line; ++k)
-            if (e.message().find("fit " + fits[k].id + " ") == 0) line = lines[k];
-        throw Error(e.message(), reader.name(), line, e.field());
+    } catch (const Error& e) {  // its line is the fit's place in `fits`: the file's line here
+        throw e.at(reader.name(), e.line() > 0 ? lines[std::size_t(e.line() - 1)] : 0);
     }
     file.commit();
     log.info(summary.written, " of ", fits.size(), " fits replayed where they were fitted (",

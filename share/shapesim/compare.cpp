@@ -12,17 +12,24 @@
 
 namespace shapesim {
 
+namespace {
+
+// A record's finite number `key`, when it has one.
+std::optional<double> finite_number(const Json& r, const char* key) {
+    if (!r.contains(key) || !r.at(key).is_number()) return std::nullopt;
+    const double v = r.at(key).get<double>();
+    return std::isfinite(v) ? std::optional<double>(v) : std::nullopt;
+}
+
+}  // namespace
+
 std::vector<double> Catalogue::column(const std::string& field, double mag_limit) const {
     std::vector<double> out;
     for (const Json& r : records) {
         if (r.contains("kind") && r.at("kind") != "galaxy") continue;
         if (!r.contains("mag") || !r.at("mag").is_number() || r.at("mag").get<double>() > mag_limit)
             continue;
-        auto number = [&](const char* key) -> std::optional<double> {
-            if (!r.contains(key) || !r.at(key).is_number()) return std::nullopt;
-            const double v = r.at(key).get<double>();
-            return std::isfinite(v) ? std::optional<double>(v) : std::nullopt;
-        };
+        auto number = [&](const char* key) { return finite_number(r, key); };
         std::optional<double> v;
         if (field == "fwhm_arcsec") {
             const auto f = number("fwhm"), scale = number("pixel_scale");
@@ -81,8 +88,7 @@ std::vector<PairedGalaxy> paired_galaxies(const Catalogue& catalogue, double mag
     for (const Json& r : catalogue.records) {
         if (r.contains("kind") && r.at("kind") != "galaxy") continue;
         auto number = [&](const char* key) {
-            return r.contains(key) && r.at(key).is_number() ? r.at(key).get<double>()
-                                                             : std::numeric_limits<double>::quiet_NaN();
+            return finite_number(r, key).value_or(std::numeric_limits<double>::quiet_NaN());
         };
         const PairedGalaxy g{number("x"), number("y"), number("pixel_scale"),
                              number("fwhm") * number("pixel_scale"), number("mag")};

@@ -570,7 +570,11 @@ ReplaySummary replay_field(const std::vector<ShapeletRecord>& fits, const FieldG
                            double margin, const std::optional<Tile>& tile,
                            const std::function<void(const ObjectRecord&)>& emit) {
     ReplaySummary summary;
-    for (const ShapeletRecord& fit : fits) {
+    // Every fit is checked before any is written: a refused replay writes nothing.
+    std::vector<ObjectRecord> objects;
+    for (std::size_t k = 0; k < fits.size(); ++k) {
+        const ShapeletRecord& fit = fits[k];
+        const long number = long(k) + 1;  // the Error's line: the fit's place in `fits`
         const auto kind = fit.extra.find("kind");
         if (kind != fit.extra.end() && *kind == "star") {
             ++summary.stars;
@@ -585,7 +589,7 @@ ReplaySummary replay_field(const std::vector<ShapeletRecord>& fits, const FieldG
             why << "fit " << fit.id << " is at " << fit.pixel_scale << "\"/pixel, the field at "
                 << field.pixel_scale << "\": replay the fits on the image they were made of "
                    "(--like that image)";
-            throw Error(why.str(), "", 0, "pixel_scale");
+            throw Error(why.str(), "", number, "pixel_scale");
         }
         // An edge galaxy's fit may be centred just off the image, never beyond its own reach.
         const double reach = model_reach(fit.beta / fit.pixel_scale, fit.n_max) + margin;
@@ -595,7 +599,7 @@ ReplaySummary replay_field(const std::vector<ShapeletRecord>& fits, const FieldG
             why << "fit " << fit.id << " is centred at (" << fit.x << ", " << fit.y
                 << "), outside the " << field.nx << " x " << field.ny
                 << " field: replay the fits on the image they were made of (--like that image)";
-            throw Error(why.str(), "", 0, "x");
+            throw Error(why.str(), "", number, "x");
         }
         if (tile && !tile->reaches(fit.x, fit.y, reach)) {
             ++summary.outside_tile;
@@ -615,9 +619,10 @@ ReplaySummary replay_field(const std::vector<ShapeletRecord>& fits, const FieldG
             o.extra["psf_beta"] = *psf_beta;
         o.extra["reach"] = reach;
         o.bands = fit.bands;
-        emit(o);
-        ++summary.written;
+        objects.push_back(std::move(o));
     }
+    for (const ObjectRecord& o : objects) emit(o);
+    summary.written = long(objects.size());
     return summary;
 }
 

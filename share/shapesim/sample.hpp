@@ -169,7 +169,9 @@ SampleSummary sample_field(const Morphology& morphology, const FieldGeometry& fi
 /// has none), `psf_beta` when it has one, `reach` (model_reach plus `margin` pixels) and the
 /// fit's bands. Skipped: stars, and fits with no light to draw (flux ≤ 0, no coefficients).
 /// Error (the fit's id) when a fit's pixel scale is not the field's (to 1 part in 10⁶: its x, y
-/// would not be this field's pixels) or its centre lies further outside the field than its reach.
+/// would not be this field's pixels) or its centre lies further outside the field than its reach;
+/// the Error's line is the fit's place in `fits`, from 1 (the caller knows the file's lines).
+/// Every fit is checked before the first is emitted: a refused replay emits nothing.
 struct ReplaySummary {
     long written = 0, outside_tile = 0, stars = 0, no_light = 0;
 };

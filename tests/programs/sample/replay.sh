@@ -64,4 +64,11 @@ fi
 [ "$(wc -l <err)" = 1 ] && grep -q "shapelets.jsonl:1: pixel_scale: fit .* replay the fits on the image" err ||
   fail "wrong message for another field: $(cat err)"
 [ ! -s x.jsonl ] || fail "a refused replay wrote records"
+# A bad fit after good ones: its own line named, and still nothing written.
+{ head -3 shapelets.jsonl; sed -n 1p shapelets.jsonl | sed 's/"pixel_scale":[0-9.e-]*/"pixel_scale":0.06/'; } >mixed.jsonl
+if "$BIN/shapesim-sample" --replay mixed.jsonl --like "$HDF_IMAGE" >x.jsonl 2>err; then
+  fail "--replay took a fit of another pixel scale after good ones"
+fi
+grep -q "^shapesim-sample: mixed.jsonl:4: pixel_scale: fit " err || fail "wrong line named: $(cat err)"
+[ ! -s x.jsonl ] || fail "a replay refused at its fourth fit wrote records"
 exit 0
