@@ -60,7 +60,7 @@ BENCH_SRCS :=
 
 include share/module.mk
 include detect/module.mk decompose/module.mk smooth/module.mk sample/module.mk
-include render/module.mk measure/module.mk survey/module.mk table/module.mk
+include render/module.mk measure/module.mk survey/module.mk table/module.mk lens/module.mk calibrate/module.mk
 include tests/module.mk
 
 .PHONY: all deps test unit-test program-test bench stress install clean reproduce colour slurm-test

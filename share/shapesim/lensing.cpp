@@ -19,7 +19,7 @@ namespace {
 
 using Cplx = std::complex<double>;
 
-constexpr double arcsec_per_radian = 180.0 * 3600.0 / pi;
+constexpr double arcsec_per_radian = 1.0 / arcsec;
 constexpr double speed_of_light = 299792.458;        // km/s
 constexpr double gravitational_constant = 4.30091727e-9;  // Mpc (km/s)² / M_sun (IAU 2015)
 
@@ -362,6 +362,13 @@ Convergence GaussianLensingField::at(double x, double y) const {
         c.gamma1 += wv[bj] * row.gamma1;
         c.gamma2 += wv[bj] * row.gamma2;
     }
+    return c;
+}
+
+Convergence LensingSources::at(double x, double y) const {
+    Convergence c = constant;
+    for (const NfwLens& halo : halos) c += halo.at(x, y);
+    if (gaussian) c += gaussian->at(x, y);
     return c;
 }
 

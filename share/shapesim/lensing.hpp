@@ -147,6 +147,15 @@ private:
     std::vector<double> kappa_, gamma1_, gamma2_;  ///< row-major, j * mx_ + i
 };
 
+/// Every lens of a scene: a constant κ and γ, NFW halos and a Gaussian random field, summed.
+struct LensingSources {
+    Convergence constant;
+    std::vector<NfwLens> halos;
+    std::optional<GaussianLensingField> gaussian;
+    /// The summed κ and γ at field pixel (x, y).
+    Convergence at(double x, double y) const;
+};
+
 /// The E- and B-mode power of γ on a periodic grid of nx × ny nodes spaced `spacing_rad`,
 /// (row-major), in bins of ℓ: edges[k] ≤ |ℓ| < edges[k+1]; the estimator κ̃_E = h² DFT of
 /// (cos 2φ γ1 + sin 2φ γ2), P = |κ̃|²/(L L'), averaged over the modes of each bin (a bin with no

@@ -168,7 +168,7 @@ const Names shapelet_fields = {"id",    "x",    "y",   "beta",  "pixel_scale", "
                                "chi2r", "flux", "mag", "flags", "coeffs",      "bands"};
 const Names object_fields = {"id",   "kind",        "ra",   "dec",   "x",      "y",
                              "mag",  "flux",        "pixel_scale",   "beta",   "n_max",
-                             "parent", "flags",     "coeffs",        "bands"};
+                             "parent", "flags",     "coeffs",        "bands",  "lensing"};
 const Names band_fields = {"band", "image", "weight", "weight_type", "zero_point", "gain", "psf"};
 const Names band_coefficient_fields = {"band", "flux", "flux_err", "mag", "chi2r", "coeffs"};
 
@@ -391,6 +391,24 @@ ObjectRecord ObjectRecord::from_json(const Json& j, NumberPairs& coeffs) {
     }
     r.parent = optional_string(j, "parent");
     r.flags = optional_strings(j, "flags");
+    if (j.contains("lensing")) {
+        const Json& l = j.at("lensing");
+        if (!l.is_object())
+            throw Error("must be an object {\"g1\", \"g2\", \"kappa\", \"magnify\"}", {}, 0, "lensing");
+        try {
+            Lensing lensing;
+            lensing.g1 = required_double(l, "g1");
+            lensing.g2 = required_double(l, "g2");
+            lensing.kappa = optional_double(l, "kappa").value_or(0.0);
+            if (l.contains("magnify")) {
+                if (!l.at("magnify").is_boolean()) throw Error("must be true or false", {}, 0, "magnify");
+                lensing.conserve_flux = !l.at("magnify").get<bool>();
+            }
+            r.lensing = lensing;
+        } catch (const Error& e) {
+            throw Error(e.message(), {}, 0, "lensing." + e.field());
+        }
+    }
     r.extra = extra_fields(j, object_fields);
     r.bands = read_bands(j, r.n_max);
     r.validate();
@@ -411,6 +429,19 @@ void ObjectRecord::validate() const {
     if (kind == "galaxy" && !has_shape()) throw Error("a galaxy needs its shape", {}, 0, "coeffs");
     if (has_shape()) check_shape(beta, pixel_scale, n_max, coeffs);
     if (has_shape()) check_bands(beta, pixel_scale, n_max, bands);
+    if (lensing) {
+        check_finite("lensing.g1", lensing->g1);
+        check_finite("lensing.g2", lensing->g2);
+        check_finite("lensing.kappa", lensing->kappa);
+        if (!(lensing->g1 * lensing->g1 + lensing->g2 * lensing->g2 < 1.0))
+            throw Error("|g| must be < 1 (weak lensing), got g = (" + number(lensing->g1) + ", " +
+                            number(lensing->g2) + ")",
+                        {}, 0, "lensing");
+        if (!(lensing->kappa < 1.0))
+            throw Error("must be < 1 (weak lensing), got " + number(lensing->kappa), {}, 0,
+                        "lensing.kappa");
+        if (kind != "galaxy") throw Error("only galaxies are lensed", {}, 0, "lensing");
+    }
 }
 
 Json ObjectRecord::to_json() const {
@@ -432,6 +463,11 @@ Json ObjectRecord::to_json() const {
     }
     if (parent) j["parent"] = *parent;
     j["flags"] = flags;
+    if (lensing)
+        j["lensing"] = {{"g1", lensing->g1},
+                        {"g2", lensing->g2},
+                        {"kappa", lensing->kappa},
+                        {"magnify", !lensing->conserve_flux}};
     put_extra(j, extra, object_fields);
     if (has_shape()) j["coeffs"] = write_coeffs(coeffs);
     put_bands(j, bands);

@@ -28,6 +28,7 @@
 
 #include "shapesim/jsonl.hpp"
 #include "shapesim/model.hpp"
+#include "shapesim/transform.hpp"
 
 #include <optional>
 #include <string>
@@ -143,6 +144,9 @@ struct ObjectRecord {
     std::vector<Complex> coeffs;        ///< packed a_{n,m}; empty = no shape
     std::optional<std::string> parent;  ///< id of the real galaxy it was drawn from
     std::vector<std::string> flags;
+    /// The lensing this galaxy sees (shapesim-lens): "lensing": {"g1", "g2", "kappa",
+    /// "magnify"}; render applies it before the PSF. |g| < 1, κ < 1; magnify false keeps the flux.
+    std::optional<Lensing> lensing;
     Json extra = Json::object();
     std::vector<BandCoefficients> bands;  ///< multi-band: every band (fluxes in its units)
 

@@ -518,10 +518,20 @@ SampleSummary sample_field(const Morphology& morphology, const FieldGeometry& fi
             }
             summary.redraws += member == 0 ? std::uint64_t(g.redraws) : 0;
             ObjectRecord o = galaxy_record(morphology, g, cell, j, p, field, options, reach);
-            if (ring > 1)
+            if (ring > 1) {
+                // Where the ring's first copy is: a ring shares one lensing (shapesim-lens
+                // evaluates it there), and a tile may hold some copies without the first.
+                PixelPosition first = p;
+                if (member > 0) {
+                    RandomStream at(options.seed, object_key(cell, j - member), "galaxy position");
+                    first = cells.position(cell, at);
+                }
                 o.extra["ring"] = {{"first", object_id("g", cell, j - member)},
                                    {"member", member},
-                                   {"of", ring}};
+                                   {"of", ring},
+                                   {"x", first.x},
+                                   {"y", first.y}};
+            }
             emit(o);
             ++summary.galaxies_out;
         });

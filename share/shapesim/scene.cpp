@@ -243,12 +243,17 @@ PreparedObject prepare_object(const ObjectRecord& record, double field_pixel_sca
         ShapeletModel m = record.to_model(*record.x, *record.y);
         if (record.pixel_scale != field_pixel_scale)
             m = dilate(m, record.pixel_scale / field_pixel_scale);
-        if (options.lensing) {
+        // The galaxy's own lensing (shapesim-lens), or the scene's one shear for all.
+        if (record.lensing && options.lensing)
+            throw Error("carries its own lensing (shapesim-lens): --shear/--kappa would lens it "
+                        "twice",
+                        "", 0, "lensing");
+        if (const std::optional<Lensing>& lensing = record.lensing ? record.lensing : options.lensing) {
             p.unlensed_epsilon = moments(m).epsilon;
-            p.lensing = *options.lensing;
+            p.lensing = *lensing;
             ProjectionOptions po;
             po.tolerance = options.lensing_tolerance;
-            const Projection lensed = lens(m, *options.lensing, po);
+            const Projection lensed = lens(m, *lensing, po);
             m = lensed.model;
             p.lensing_error = lensed.relative_error;
         }
@@ -617,6 +622,8 @@ TruthRecord truth_record(const PreparedObject& object, const ObjectRecord& recor
     }
     t.n_max = object.model.n_max;
     t.stamp_radius = object.radius;
+    // A ring's members (shapesim-sample --ring) stay together in a calibration's bootstrap.
+    if (const auto ring = record.extra.find("ring"); ring != record.extra.end()) t.extra["ring"] = *ring;
     return t;
 }
 

@@ -1,8 +1,13 @@
 #include "shapesim/table.hpp"
 
 #include "shapesim/error.hpp"
+#include "shapesim/fits_io.hpp"
 #include "shapesim/jsonl.hpp"
 #include "shapesim/records.hpp"
+
+#include <algorithm>
+#include <fstream>
+#include <sstream>
 
 #include <charconv>
 #include <cstdint>
@@ -202,6 +207,192 @@ void write_ecsv(std::ostream& out, const CatalogueTable& table) {
         }
         out << '\n';
     }
+}
+
+// ---------------------------------------------------------------- read_numeric_columns
+
+namespace {
+
+using Columns = std::map<std::string, std::vector<double>>;
+
+bool ends_with(const std::string& s, const std::string& tail) {
+    if (s.size() < tail.size()) return false;
+    return std::equal(tail.rbegin(), tail.rend(), s.rbegin(),
+                      [](char a, char b) { return std::tolower(a) == std::tolower(b); });
+}
+
+// A text cell as a number: empty, "nan", "null" or "NaN" are NaN; anything else must parse whole.
+bool cell_number(std::string text, double& v) {
+    const auto b = text.find_first_not_of(" \t\r\"");
+    const auto e = text.find_last_not_of(" \t\r\"");
+    text = b == std::string::npos ? std::string() : text.substr(b, e - b + 1);
+    if (text.empty() || text == "nan" || text == "NaN" || text == "null" || text == "--") {
+        v = std::numeric_limits<double>::quiet_NaN();
+        return true;
+    }
+    char* end = nullptr;
+    v = std::strtod(text.c_str(), &end);
+    return end == text.c_str() + text.size();
+}
+
+// Pick the wanted columns out of a header's names; Error for a required one missing.
+std::map<std::string, std::size_t> wanted_columns(const std::vector<std::string>& names,
+                                                  const std::vector<std::string>& required,
+                                                  const std::vector<std::string>& optional,
+                                                  const std::string& path) {
+    std::map<std::string, std::size_t> at;
+    auto find = [&](const std::string& n) {
+        return std::size_t(std::find(names.begin(), names.end(), n) - names.begin());
+    };
+    for (const std::string& n : required) {
+        const std::size_t k = find(n);
+        if (k == names.size()) throw Error("no column " + n, path);
+        at[n] = k;
+    }
+    for (const std::string& n : optional)
+        if (const std::size_t k = find(n); k < names.size()) at[n] = k;
+    return at;
+}
+
+Columns read_fits_columns(const std::string& path, const std::vector<std::string>& required,
+                          const std::vector<std::string>& optional, long max_rows) {
+    FitsReader fits(path);
+    if (path.find('[') == std::string::npos) {
+        // The first table HDU holding every required column.
+        const std::vector<FitsHduInfo> hdus = fits.list_hdus();
+        bool found = false;
+        for (std::size_t k = 0; k < hdus.size() && !found; ++k) {
+            if (hdus[k].is_image) continue;
+            fits.move_to(int(k));
+            found = std::all_of(required.begin(), required.end(),
+                                [&](const std::string& n) { return fits.has_column(n); });
+        }
+        if (!found) throw Error("no table holds the columns " + [&] {
+            std::string list;
+            for (const std::string& n : required) list += (list.empty() ? "" : ", ") + n;
+            return list;
+        }(), path);
+    }
+    const long rows = fits.table_rows();
+    if (rows > max_rows) throw Error("more than " + std::to_string(max_rows) + " rows", fits.place());
+    Columns out;
+    for (const std::string& n : required) out[n] = fits.read_column(n);
+    for (const std::string& n : optional)
+        if (fits.has_column(n)) out[n] = fits.read_column(n);
+    return out;
+}
+
+}  // namespace
+
+std::map<std::string, std::vector<double>> read_numeric_columns(
+    const std::string& path, const std::vector<std::string>& required,
+    const std::vector<std::string>& optional, long max_rows) {
+    const std::string file = path.substr(0, path.find('['));
+    for (const char* ext : {".fits", ".fit", ".fts", ".ldac", ".cat.fits"})
+        if (ends_with(file, ext)) return read_fits_columns(path, required, optional, max_rows);
+
+    std::ifstream in(path);
+    if (!in) throw Error("cannot open the catalogue", path);
+    std::string line;
+    long number = 0;
+    Columns out;
+    std::map<std::string, std::size_t> at;
+    enum class Format { unknown, jsonl, sextractor, sextractor_rows, csv } format = Format::unknown;
+    std::vector<std::string> sextractor_names;
+    long rows = 0;
+    auto begin_rows = [&](const std::vector<std::string>& names) {
+        at = wanted_columns(names, required, optional, path);
+        for (const auto& [n, k] : at) out[n];
+    };
+    while (std::getline(in, line)) {
+        ++number;
+        if (line.size() > max_line_bytes) throw Error("line too long", path, number);
+        if (!line.empty() && line.back() == '\r') line.pop_back();
+        if (line.find_first_not_of(" \t") == std::string::npos) continue;
+        if (format == Format::unknown || format == Format::sextractor) {
+            const auto first = line.find_first_not_of(" \t");
+            if (line[first] == '{') {
+                if (format == Format::sextractor) throw Error("a JSON line after a header", path, number);
+                format = Format::jsonl;
+                for (const std::string& n : required) out[n];
+            } else if (line[first] == '#') {
+                // SExtractor ASCII_HEAD: "#   3 X_IMAGE   Object position along x   [pixel]"
+                std::istringstream f(line.substr(first + 1));
+                long column;
+                std::string name;
+                if (f >> column >> name && column >= 1 && column < 100000) {
+                    format = Format::sextractor;
+                    // A vector column (e.g. "#  5 FLUX_APER") spans to the next header's number.
+                    while (long(sextractor_names.size()) < column - 1)
+                        sextractor_names.push_back(sextractor_names.empty() ? "" : sextractor_names.back() + "+");
+                    sextractor_names.push_back(name);
+                }
+                continue;
+            } else if (format == Format::unknown) {
+                format = Format::csv;
+                std::vector<std::string> names;
+                std::istringstream f(line);
+                std::string cell;
+                while (std::getline(f, cell, ',')) {
+                    const auto b = cell.find_first_not_of(" \t\""), e = cell.find_last_not_of(" \t\"");
+                    names.push_back(b == std::string::npos ? "" : cell.substr(b, e - b + 1));
+                }
+                begin_rows(names);
+                continue;
+            } else {
+                begin_rows(sextractor_names);
+                format = Format::sextractor_rows;
+            }
+        }
+        if (++rows > max_rows) throw Error("more than " + std::to_string(max_rows) + " rows", path, number);
+        if (format == Format::jsonl) {
+            Json record;
+            try {
+                record = Json::parse(line);
+            } catch (const std::exception&) {
+                throw Error("not a JSON object", path, number);
+            }
+            if (!record.is_object()) throw Error("not a JSON object", path, number);
+            for (const std::string& n : required)
+                if (!record.contains(n)) throw Error("no field " + n, path, number, n);
+            for (const std::string& n : optional)
+                if (record.contains(n) && out.find(n) == out.end()) {
+                    out[n].assign(std::size_t(rows - 1), std::numeric_limits<double>::quiet_NaN());
+                }
+            for (auto& [n, column] : out) {
+                double v = std::numeric_limits<double>::quiet_NaN();
+                if (const auto it = record.find(n); it != record.end() && !it->is_null()) {
+                    if (!it->is_number()) throw Error("must be a number", path, number, n);
+                    v = it->get<double>();
+                }
+                column.push_back(v);
+            }
+            continue;
+        }
+        std::vector<std::string> cells;
+        if (format == Format::csv) {
+            std::istringstream f(line);
+            std::string cell;
+            while (std::getline(f, cell, ',')) cells.push_back(cell);
+            if (!line.empty() && line.back() == ',') cells.push_back("");
+        } else {
+            std::istringstream f(line);
+            std::string cell;
+            while (f >> cell) cells.push_back(cell);
+        }
+        for (const auto& [n, k] : at) {
+            double v;
+            if (k >= cells.size()) throw Error("the row has " + std::to_string(cells.size()) + " cells", path, number, n);
+            if (!cell_number(cells[k], v)) throw Error("not a number: " + cells[k].substr(0, 40), path, number, n);
+            out[n].push_back(v);
+        }
+    }
+    if (in.bad()) throw Error("read failed", path);
+    if (format == Format::sextractor && at.empty() && !required.empty())
+        begin_rows(sextractor_names);  // a header and no rows
+    if (format == Format::unknown)
+        for (const std::string& n : required) out[n];  // an empty file: no rows
+    return out;
 }
 
 }  // namespace shapesim

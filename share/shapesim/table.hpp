@@ -11,6 +11,7 @@
 #pragma once
 
 #include <iosfwd>
+#include <map>
 #include <string>
 #include <vector>
 
@@ -43,5 +44,17 @@ CatalogueTable read_table(JsonlReader& reader, const std::string& flux_unit);
 /// `table` as ECSV 1.0 (astropy's enhanced CSV: a YAML header of names, units and types, then
 /// space-separated rows; reals in shortest round-trip form, null reals as nan).
 void write_ecsv(std::ostream& out, const CatalogueTable& table);
+
+/// Numeric columns of any catalogue a user has on disk, by name (case-sensitive; FITS names
+/// case-insensitive, as cfitsio): JSON lines (each line an object; top-level numbers; null or
+/// absent is NaN), a FITS table (`file.fits[EXT]`, else the first table HDU holding the
+/// columns: SExtractor's FITS_LDAC too), SExtractor's ASCII_HEAD ("#   3 X_IMAGE …" header
+/// lines, then whitespace-separated rows), or CSV (a header line of names, then comma-separated
+/// rows; empty cells NaN). The format is told by the extension (.fits .fit .fts .ldac; .csv)
+/// and, for text, by the first line. Every name in `required` must be there (Error naming the
+/// file and the column); `optional` ones absent are left out of the map. At most `max_rows`.
+std::map<std::string, std::vector<double>> read_numeric_columns(
+    const std::string& path, const std::vector<std::string>& required,
+    const std::vector<std::string>& optional = {}, long max_rows = 100000000L);
 
 }  // namespace shapesim

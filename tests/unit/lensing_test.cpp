@@ -18,8 +18,6 @@ using namespace shapesim;
 
 namespace {
 
-constexpr double arcsec = pi / (180.0 * 3600.0);
-
 // Σ(x)/(ρ_s r_s) = 2 ∫_0^∞ ρ(√(x²+z²)) dz with ρ(r)/ρ_s = 1/(r (1+r)²) (r in r_s).
 double surface_density(double x) {
     boost::math::quadrature::exp_sinh<double> integrator;

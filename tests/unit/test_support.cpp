@@ -1,5 +1,9 @@
 #include "test_support.hpp"
 
+#include <cstdlib>
+#include <filesystem>
+#include <stdexcept>
+
 #include "shapesim/basis1d.hpp"
 #include "shapesim/decompose.hpp"
 #include "shapesim/morphology.hpp"
@@ -407,6 +411,17 @@ double sep_ellipse_sum(const std::vector<double>& data, int w, int h, double x, 
     if (sep_sum_ellipse(&im, x, y, 1.0, b / a, theta, a, 0, 0, 0, &sum, &err, &area, &flag) != 0)
         return std::numeric_limits<double>::quiet_NaN();
     return sum;
+}
+
+TempDir::TempDir() {
+    char pattern[] = "/tmp/shapesim-test-XXXXXX";
+    if (!mkdtemp(pattern)) throw std::runtime_error("mkdtemp failed");
+    path_ = pattern;
+}
+
+TempDir::~TempDir() {
+    std::error_code ignored;
+    std::filesystem::remove_all(path_, ignored);
 }
 
 }  // namespace shapesim::test

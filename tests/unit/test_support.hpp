@@ -148,4 +148,17 @@ double sep_ellipse_sum(const std::vector<double>& data, int w, int h, double x, 
 /// Stephens' small-sample correction; Press et al., Numerical Recipes §14.3).
 double ks_p_value(std::vector<double> sample, const std::function<double(double)>& cdf);
 
+/// A scratch directory under /tmp, removed with everything in it when the object goes.
+class TempDir {
+public:
+    TempDir();
+    ~TempDir();
+    TempDir(const TempDir&) = delete;
+    TempDir& operator=(const TempDir&) = delete;
+    const std::string& path() const { return path_; }
+
+private:
+    std::string path_;
+};
+
 }  // namespace shapesim::test

@@ -20,8 +20,10 @@ void FieldOptions::declare(ProgramOptions& options, const std::string& title,
         ("ra", po::value(&ra)->default_value(0.0)->notifier(in_range("ra", -360.0, 360.0)),
          "field centre RA, degrees, with --area/--size (or a --like image without a WCS)")
         ("dec", po::value(&dec)->default_value(0.0)->notifier(in_range("dec", -90.0, 90.0)),
-         "field centre Dec, degrees")
-        ("tile", po::value(&tile)->value_name("X0 Y0 X1 Y1")->multitoken(), tile_help.c_str());
+         "field centre Dec, degrees");
+    if (!tile_help.empty())
+        options.group(title).add_options()
+            ("tile", po::value(&tile)->value_name("X0 Y0 X1 Y1")->multitoken(), tile_help.c_str());
 }
 
 FieldGeometry FieldOptions::field(const ProgramOptions& options) const {

@@ -19,7 +19,8 @@ struct FieldOptions {
     std::vector<double> size, tile;
     std::vector<long> pixels;
 
-    /// Add the options to `options`' group `title`; `tile_help` says what --tile does.
+    /// Add the options to `options`' group `title`; `tile_help` says what --tile does (empty:
+    /// no --tile).
     void declare(ProgramOptions& options, const std::string& title, const std::string& tile_help);
     /// The field: exactly one of --like, --area, --size, --pixels (po::error otherwise).
     FieldGeometry field(const ProgramOptions& options) const;

@@ -1,0 +1,305 @@
+// shapesim-calibrate: truth catalogues (shapesim-render --truth) and the shape catalogues
+// measured on their images → the shear calibration e = (1 + m) g + c, overall and in bins, as
+// a Markdown report (and JSON). The work is in the library: calibration.hpp, table.hpp.
+#include "shapesim/app/options.hpp"
+#include "shapesim/app/run_main.hpp"
+#include "shapesim/atomic_file.hpp"
+#include "shapesim/calibration.hpp"
+#include "shapesim/constants.hpp"
+#include "shapesim/error.hpp"
+#include "shapesim/jsonl.hpp"
+#include "shapesim/records.hpp"
+#include "shapesim/rng.hpp"
+#include "shapesim/table.hpp"
+
+#include <cmath>
+#include <cstdio>
+#include <map>
+#include <sstream>
+
+namespace {
+
+using namespace shapesim;
+namespace po = app::po;
+
+const char* const description =
+    "Match each shape catalogue to the truth of the image it was measured on and fit the\n"
+    "shear response e = (1 + m) g + c per component: m the multiplicative bias, c the additive\n"
+    "one, with bootstrap errors (a ring of rotated copies resampled whole), overall and in\n"
+    "bins of any column (magnitude, size, S/N). Any catalogue a user has: JSON lines\n"
+    "(shapesim-measure's, or a user's), CSV with a header, SExtractor's ASCII_HEAD or a FITS\n"
+    "table (FITS_LDAC too), positions in the image's pixels (or --sky ra, dec). The truth's g\n"
+    "needs to vary: a shear field (shapesim-lens) or several images with different shears.\n"
+    "Writes a Markdown report (stdout, or -o) and, with --json, the numbers.\n"
+    "\n"
+    "Examples:\n"
+    "  shapesim-calibrate truth.jsonl shapes.jsonl > calibration.md\n"
+    "  shapesim-calibrate --e1 E1 --e2 E2 --position X_IMAGE,Y_IMAGE --bin MAG_AUTO:4 \\\n"
+    "      truth.jsonl sex.cat             # SExtractor's catalogue, one image\n"
+    "  shapesim-calibrate t1.jsonl s1.csv t2.jsonl s2.csv --json m_c.json   # two images";
+
+struct Settings {
+    std::vector<std::string> files, bins;
+    std::string e1 = "e1", e2 = "e2", position = "x,y", json;
+    double radius = 0.0, responsivity = 1.0;
+    int bootstrap = 200;
+    bool sky = false, flip_e2 = false;
+};
+
+struct Bin {
+    std::string name;
+    int count = 4;
+};
+
+std::pair<std::string, std::string> split_pair(const std::string& text, const char* option) {
+    const auto comma = text.find(',');
+    if (comma == std::string::npos || comma == 0 || comma + 1 == text.size() ||
+        text.find(',', comma + 1) != std::string::npos)
+        throw po::error(std::string("--") + option + ": give two names, NAME1,NAME2");
+    return {text.substr(0, comma), text.substr(comma + 1)};
+}
+
+Bin parse_bin(const std::string& text) {
+    Bin b;
+    const auto colon = text.find(':');
+    b.name = text.substr(0, colon);
+    if (b.name.empty()) throw po::error("--bin: give a column name, NAME[:N]");
+    if (colon != std::string::npos) {
+        try {
+            std::size_t used = 0;
+            b.count = std::stoi(text.substr(colon + 1), &used);
+            if (used != text.size() - colon - 1) throw std::invalid_argument("");
+        } catch (const std::exception&) {
+            throw po::error("--bin " + text + ": N must be a whole number");
+        }
+        if (b.count < 1 || b.count > 100) throw po::error("--bin " + text + ": N must be 1 to 100");
+    }
+    return b;
+}
+
+// One true galaxy: where, its shear, its block, the fields a bin may use.
+struct TrueGalaxy {
+    double x = 0.0, y = 0.0;
+    double g1 = 0.0, g2 = 0.0;
+    std::uint64_t block = 0;
+    std::map<std::string, double> fields;
+};
+
+std::vector<TrueGalaxy> read_truth(const std::string& path, std::size_t image, bool sky,
+                                   double& ra0, double& dec0) {
+    JsonlReader reader(path, {TruthRecord::schema});
+    std::vector<TrueGalaxy> out;
+    TruthRecord t;
+    while (reader.next_record(t)) {
+        if (t.kind != "galaxy" || !t.shape) continue;
+        TrueGalaxy g;
+        if (sky) {
+            if (std::isnan(ra0)) ra0 = t.ra, dec0 = t.dec;
+            g.x = (t.ra - ra0) * std::cos(dec0 * degree) * 3600.0;
+            g.y = (t.dec - dec0) * 3600.0;
+        } else {
+            g.x = t.x;
+            g.y = t.y;
+        }
+        g.g1 = t.shape->g1;
+        g.g2 = t.shape->g2;
+        // A ring's members are one bootstrap block; else the galaxy is.
+        std::string block = std::to_string(image) + ":" + t.id;
+        if (const auto ring = t.extra.find("ring"); ring != t.extra.end() && ring->is_object() &&
+                                                    ring->contains("first") && (*ring)["first"].is_string())
+            block = std::to_string(image) + ":ring:" + (*ring)["first"].get<std::string>();
+        g.block = fnv1a_64(block);
+        if (t.mag) g.fields["mag"] = *t.mag;
+        g.fields["flux"] = t.flux;
+        if (t.shape->rms_radius) g.fields["rms_radius"] = *t.shape->rms_radius;
+        g.fields["kappa"] = t.shape->kappa;
+        g.fields["mu"] = t.shape->mu;
+        out.push_back(std::move(g));
+    }
+    return out;
+}
+
+std::string cell(double v, double err) {
+    char text[64];
+    if (err > 0.0) std::snprintf(text, sizeof text, "%.3g ± %.2g", v, err);
+    else std::snprintf(text, sizeof text, "%.3g", v);
+    return text;
+}
+
+Json fit_json(const ShearCalibration& c) {
+    auto component = [](const ComponentFit& f) {
+        return Json{{"m", f.m}, {"m_err", f.m_err}, {"c", f.c}, {"c_err", f.c_err}};
+    };
+    return Json{{"galaxies", c.galaxies}, {"blocks", c.blocks}, {"g1", component(c.one)}, {"g2", component(c.two)}};
+}
+
+int run(int argc, const char* const argv[]) {
+    app::ProgramOptions options("shapesim-calibrate", "[OPTION]... TRUTH SHAPES [TRUTH SHAPES]...",
+                                description,
+                                app::Common::output | app::Common::quiet | app::Common::verbose |
+                                    app::Common::config | app::Common::seed |
+                                    app::Common::print_params);
+    Settings s;
+    using app::in_range;
+    options.group("Catalogues").add_options()
+        ("files", po::value(&s.files)->value_name("TRUTH SHAPES")->composing(),
+         "a truth catalogue and the shape catalogue measured on its image; repeat the pair for "
+         "more images")
+        ("e1", po::value(&s.e1)->value_name("NAME")->default_value("e1"), "the shape catalogue's e1 column")
+        ("e2", po::value(&s.e2)->value_name("NAME")->default_value("e2"), "the shape catalogue's e2 column")
+        ("position", po::value(&s.position)->value_name("X,Y")->default_value("x,y"),
+         "its position columns: pixels of the image (or, with --sky, RA,DEC in degrees)")
+        ("sky", po::bool_switch(&s.sky), "match on the sky (ra, dec) instead of in pixels")
+        ("match-radius", po::value(&s.radius)->value_name("R")
+             ->notifier(in_range("match-radius", 1e-9, 1e6)),
+         "the farthest a measurement lies from its galaxy: pixels (default 2), or arcsec with "
+         "--sky (default 0.2)")
+        ("responsivity", po::value(&s.responsivity)->value_name("R")->default_value(1.0)
+             ->notifier(in_range("responsivity", 1e-6, 1e6)),
+         "divide e by this first (a distortion (a²−b²)/(a²+b²) responds to shear by about 2; a "
+         "shear estimate by 1)")
+        ("flip-e2", po::bool_switch(&s.flip_e2),
+         "e2 is in the sky's frame (east left): turn it into the image's (x right, y up)");
+    options.group("Fit").add_options()
+        ("bin", po::value(&s.bins)->value_name("NAME[:N]")->composing(),
+         "also fit in N bins (default 4) of equal counts of this column (the shape catalogue's, "
+         "else the truth's: mag, flux, rms_radius, kappa, mu); repeat for more (default: mag)")
+        ("bootstrap", po::value(&s.bootstrap)->value_name("N")->default_value(200)
+             ->notifier(in_range("bootstrap", 0, 100000)),
+         "bootstrap resamples for the errors")
+        ("json", po::value(&s.json)->value_name("FILE"), "also write the numbers as JSON");
+    options.positional("files", -1);
+    if (!options.parse(argc, argv)) return 0;
+    const app::Log log("shapesim-calibrate", options.common().verbosity);
+    if (s.files.empty() || s.files.size() % 2 != 0)
+        throw po::error("give pairs of files: TRUTH SHAPES [TRUTH SHAPES]...");
+    const auto [px, py] = split_pair(s.position, "position");
+    std::vector<Bin> bins;
+    for (const std::string& b : s.bins) bins.push_back(parse_bin(b));
+    if (s.bins.empty()) bins.push_back(Bin{"mag", 4});
+    const double radius = options.given("match-radius") ? s.radius : s.sky ? 0.2 : 2.0;
+
+    std::vector<std::string> optional;
+    for (const Bin& b : bins) optional.push_back(b.name);
+    std::vector<ShearPoint> points;
+    std::map<std::string, std::vector<double>> bin_values;
+    long measured_total = 0, blends_or_strays = 0, truth_total = 0;
+    double ra0 = std::nan(""), dec0 = std::nan("");
+    for (std::size_t f = 0; f < s.files.size(); f += 2) {
+        const std::string& truth_path = s.files[f];
+        const std::string& shapes_path = s.files[f + 1];
+        const std::vector<TrueGalaxy> truth = read_truth(truth_path, f / 2, s.sky, ra0, dec0);
+        auto columns = read_numeric_columns(shapes_path, {px, py, s.e1, s.e2}, optional);
+        std::vector<double> mx = columns.at(px), my = columns.at(py);
+        const std::vector<double>& e1 = columns.at(s.e1);
+        const std::vector<double>& e2 = columns.at(s.e2);
+        // Rows without a position or a shape are no measurement.
+        std::vector<std::size_t> rows;
+        for (std::size_t k = 0; k < mx.size(); ++k)
+            if (std::isfinite(mx[k]) && std::isfinite(my[k]) && std::isfinite(e1[k]) && std::isfinite(e2[k]))
+                rows.push_back(k);
+        std::vector<double> qx, qy;
+        for (std::size_t k : rows) {
+            if (s.sky) {
+                if (std::isnan(ra0)) throw Error("no true galaxy to match", truth_path);
+                qx.push_back((mx[k] - ra0) * std::cos(dec0 * degree) * 3600.0);
+                qy.push_back((my[k] - dec0) * 3600.0);
+            } else {
+                qx.push_back(mx[k]);
+                qy.push_back(my[k]);
+            }
+        }
+        std::vector<double> tx, ty;
+        for (const TrueGalaxy& g : truth) tx.push_back(g.x), ty.push_back(g.y);
+        const std::vector<long> match = match_nearest(tx, ty, qx, qy, radius);
+        long matched = 0;
+        for (std::size_t q = 0; q < rows.size(); ++q) {
+            if (match[q] < 0) {
+                ++blends_or_strays;
+                continue;
+            }
+            ++matched;
+            const std::size_t k = rows[q];
+            const TrueGalaxy& g = truth[std::size_t(match[q])];
+            ShearPoint p;
+            p.g1 = g.g1;
+            p.g2 = g.g2;
+            p.e1 = e1[k] / s.responsivity;
+            p.e2 = (s.flip_e2 ? -e2[k] : e2[k]) / s.responsivity;
+            p.block = g.block;
+            points.push_back(p);
+            for (const Bin& b : bins) {
+                double v = std::nan("");
+                if (const auto c = columns.find(b.name); c != columns.end()) v = c->second[k];
+                else if (const auto t = g.fields.find(b.name); t != g.fields.end()) v = t->second;
+                bin_values[b.name].push_back(v);
+            }
+        }
+        measured_total += long(rows.size());
+        truth_total += long(truth.size());
+        log.verbose(shapes_path, ": ", matched, " of ", rows.size(), " measurements matched to ",
+                    truth.size(), " true galaxies of ", truth_path);
+    }
+    const std::uint64_t seed = options.common().seed;
+    const ShearCalibration all = fit_shear_calibration(points, s.bootstrap, seed);
+
+    std::ostringstream md;
+    md << "# Shear calibration\n\n"
+       << "e = (1 + m) g + c per component, least squares over " << all.galaxies
+       << " matched galaxies (" << all.blocks << " bootstrap blocks, " << s.bootstrap
+       << " resamples; errors 1σ). " << measured_total << " measurements of " << truth_total
+       << " true galaxies in " << s.files.size() / 2 << " image(s); " << blends_or_strays
+       << " measurements unmatched within " << radius << (s.sky ? "\"" : " px")
+       << " (blends, spurious detections); responsivity " << s.responsivity << ".\n\n"
+       << "| component | m | c |\n|---|---|---|\n"
+       << "| 1 | " << cell(all.one.m, all.one.m_err) << " | " << cell(all.one.c, all.one.c_err) << " |\n"
+       << "| 2 | " << cell(all.two.m, all.two.m_err) << " | " << cell(all.two.c, all.two.c_err) << " |\n";
+    Json json{{"all", fit_json(all)}, {"matched", all.galaxies}, {"measured", measured_total},
+              {"true_galaxies", truth_total}, {"unmatched", blends_or_strays},
+              {"match_radius", radius}, {"responsivity", s.responsivity}, {"bins", Json::object()}};
+    for (const Bin& b : bins) {
+        const std::vector<double>& v = bin_values[b.name];
+        long defined = 0;
+        for (double x : v) defined += std::isfinite(x) ? 1 : 0;
+        md << "\n## By " << b.name << "\n\n";
+        if (defined == 0) {
+            md << "No matched galaxy has a value of " << b.name << ".\n";
+            log.info("no matched galaxy has a value of ", b.name, ": no bins");
+            continue;
+        }
+        md << "| " << b.name << " | galaxies | m1 | c1 | m2 | c2 |\n|---|---|---|---|---|---|\n";
+        Json rows = Json::array();
+        for (const CalibrationBin& bin : fit_in_bins(points, v, b.count, s.bootstrap, seed)) {
+            char range[64];
+            std::snprintf(range, sizeof range, "%.4g – %.4g", bin.lo, bin.hi);
+            md << "| " << range << " | " << bin.galaxies << " | ";
+            Json row{{"lo", bin.lo}, {"hi", bin.hi}, {"galaxies", bin.galaxies}};
+            if (bin.fit) {
+                md << cell(bin.fit->one.m, bin.fit->one.m_err) << " | " << cell(bin.fit->one.c, bin.fit->one.c_err)
+                   << " | " << cell(bin.fit->two.m, bin.fit->two.m_err) << " | "
+                   << cell(bin.fit->two.c, bin.fit->two.c_err) << " |\n";
+                row["fit"] = fit_json(*bin.fit);
+            } else {
+                md << "– | – | – | – |\n";
+            }
+            rows.push_back(row);
+        }
+        json["bins"][b.name] = rows;
+    }
+    if (!s.json.empty()) {
+        AtomicTextFile file(s.json);
+        file.stream() << json.dump(1) << '\n';
+        file.commit();
+    }
+    AtomicTextFile report(options.common().output_or_stdout());
+    report.stream() << md.str();
+    report.commit();
+    log.info(all.galaxies, " galaxies: m1 ", cell(all.one.m, all.one.m_err), ", c1 ",
+             cell(all.one.c, all.one.c_err), "; m2 ", cell(all.two.m, all.two.m_err), ", c2 ",
+             cell(all.two.c, all.two.c_err));
+    return 0;
+}
+
+}  // namespace
+
+int main(int argc, char** argv) { return app::run_main(argc, argv, "shapesim-calibrate", run); }
