@@ -153,6 +153,17 @@ int run(int argc, const char* const argv[]) {
     const std::vector<ObjectRecord> records =
         read_objects(s.input, field.wcs, s.band, placement, o.threads);
     const auto t_prepare = clock::now();
+    // Lensing acts on light before the PSF: a model that already holds its image's PSF
+    // (observed frame) is lensed PSF and all, which a shear calibration must not use.
+    long observed_lensed = 0;
+    for (const ObjectRecord& r : records)
+        if (r.kind == "galaxy" && (r.lensing || o.lensing) &&
+            !(r.extra.contains("frame") && r.extra.at("frame") == "intrinsic"))
+            ++observed_lensed;
+    if (observed_lensed > 0)
+        log.info("note: ", observed_lensed, " lensed galaxies are observed-frame models: their "
+                 "PSF is lensed with them (for a shear calibration draw intrinsic models, "
+                 "shapesim-decompose --psf)");
     RenderedScene scene = prepare_field(records, field, kernels, o, window, s.input);
     s.draw_and_write(options, scene, records, kernels);
     if (const std::string note = clipped_note(summarise_clipped(scene), o.noise_rms); !note.empty())

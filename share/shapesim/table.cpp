@@ -299,6 +299,7 @@ std::map<std::string, std::vector<double>> read_numeric_columns(
     std::map<std::string, std::size_t> at;
     enum class Format { unknown, jsonl, sextractor, sextractor_rows, csv } format = Format::unknown;
     std::vector<std::string> sextractor_names;
+    std::set<std::string> seen;  // JSON lines: the required fields some record holds
     long rows = 0;
     auto begin_rows = [&](const std::vector<std::string>& names) {
         at = wanted_columns(names, required, optional, path);
@@ -354,7 +355,7 @@ std::map<std::string, std::vector<double>> read_numeric_columns(
             }
             if (!record.is_object()) throw Error("not a JSON object", path, number);
             for (const std::string& n : required)
-                if (!record.contains(n)) throw Error("no field " + n, path, number, n);
+                if (record.contains(n)) seen.insert(n);
             for (const std::string& n : optional)
                 if (record.contains(n) && out.find(n) == out.end()) {
                     out[n].assign(std::size_t(rows - 1), std::numeric_limits<double>::quiet_NaN());
@@ -388,6 +389,9 @@ std::map<std::string, std::vector<double>> read_numeric_columns(
         }
     }
     if (in.bad()) throw Error("read failed", path);
+    if (format == Format::jsonl)
+        for (const std::string& n : required)
+            if (!seen.count(n)) throw Error("no column " + n + " (no record holds it)", path);
     if (format == Format::sextractor && at.empty() && !required.empty())
         begin_rows(sextractor_names);  // a header and no rows
     if (format == Format::unknown)

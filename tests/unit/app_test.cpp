@@ -94,6 +94,23 @@ TEST(ProgramOptions, CommonAndProgramOptions) {
     EXPECT_FALSE(defaults.options.given("detect-thresh"));
 }
 
+TEST(ProgramOptions, NegativeNumbersAreValues) {
+    // "--shear 0.01 -0.02": Boost alone reads -0.02 as an unknown short option.
+    std::vector<double> shear;
+    double kappa = 0.0;
+    app::ProgramOptions options{"shapesim-test", "[OPTION]...", "Negative values.", app::Common::all};
+    options.group("Lensing").add_options()
+        ("shear", po::value(&shear)->multitoken(), "G1 G2")
+        ("kappa", po::value(&kappa), "convergence");
+    std::vector<const char*> args{"shapesim-test", "--shear", "0.01", "-0.02", "--kappa", "-1e-3", "-q"};
+    ASSERT_TRUE(options.parse(int(args.size()), args.data()));
+    EXPECT_EQ(shear, (std::vector<double>{0.01, -0.02}));
+    EXPECT_EQ(kappa, -1e-3);
+    EXPECT_EQ(options.common().verbosity, app::Verbosity::quiet);
+    // A short option is still one, and a negative number where none is wanted is still refused.
+    EXPECT_EQ(usage_error({"hdf.fits", "-5"}), "too many positional options have been specified on the command line");
+}
+
 TEST(ProgramOptions, UsageErrors) {
     EXPECT_EQ(usage_error({"hdf.fits", "--detect-thresh", "-1"}),
               "--detect-thresh: must be in [0, 100], got -1");

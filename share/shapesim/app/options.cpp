@@ -149,6 +149,32 @@ std::string ProgramOptions::renamed(const std::string& name) {
     return name;
 }
 
+namespace {
+
+// A negative number ("-0.02", "-1e-3") is a value, not a short option: Boost would read
+// "--shear 0.01 -0.02" as an unknown option -0; as a value token, a multitoken option takes it
+// and a single-valued one (--kappa -0.1) too.
+std::vector<po::option> negative_numbers(std::vector<std::string>& args) {
+    std::vector<po::option> values;
+    auto is_negative_number = [](const std::string& a) {
+        if (a.size() < 2 || a[0] != '-' || !(std::isdigit((unsigned char)a[1]) || a[1] == '.')) return false;
+        char* end = nullptr;
+        std::strtod(a.c_str(), &end);
+        return end == a.c_str() + a.size();
+    };
+    while (!args.empty() && is_negative_number(args.front())) {
+        po::option value;
+        value.position_key = 0;
+        value.value.push_back(args.front());
+        value.original_tokens.push_back(args.front());
+        values.push_back(std::move(value));
+        args.erase(args.begin());
+    }
+    return values;
+}
+
+}  // namespace
+
 bool ProgramOptions::parse(int argc, const char* const argv[]) {
     // Old names become new ones before Boost sees them (so they need no typed declaration of
     // their own); after "--" every argument is a value.
@@ -166,7 +192,8 @@ bool ProgramOptions::parse(int argc, const char* const argv[]) {
     const po::options_description all = all_options(false);
     auto parser = po::command_line_parser(int(arg_pointers.size()), arg_pointers.data())
                       .options(all)
-                      .positional(positional_);
+                      .positional(positional_)
+                      .extra_style_parser(negative_numbers);
     if (allow_unregistered_) parser.allow_unregistered();
     const po::parsed_options parsed = parser.run();
     if (allow_unregistered_)

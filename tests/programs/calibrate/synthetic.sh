@@ -1,0 +1,106 @@
+#!/usr/bin/env bash
+# shapesim-calibrate on synthetic catalogues of known response e = (1 + m) g + c: recovered
+# exactly without noise, within its bootstrap errors (which match σ_e/(σ_g √N)) with shape
+# noise, alike from JSON lines, CSV, SExtractor's ASCII_HEAD and a FITS table, over two images;
+# bins by a column; bad input fails in one line with nothing written.
+source "$(dirname "${BASH_SOURCE[0]}")/../lib.sh"
+cd "$TMPDIR"
+
+# Truth (shapesim.truth/1) and shapes: N galaxies on a grid, g uniform in ±0.05, shapes measured
+# at a small offset, with magnitude and S/N columns; one in 50 measurements a stray.
+python3 - <<'PY'
+import json, random, math
+def make(name, n, m, c, noise, seed):
+    r = random.Random(seed)
+    with open(name + ".truth.jsonl", "w") as t, open(name + ".csv", "w") as s:
+        s.write("x,y,e1,e2,snr\n")
+        for k in range(n):
+            x, y = 10 + 6 * (k % 300), 10 + 6 * (k // 300)
+            g1, g2 = r.uniform(-0.05, 0.05), r.uniform(-0.05, 0.05)
+            mag = 22 + 6 * r.random()
+            t.write(json.dumps({"schema": "shapesim.truth/1", "id": "g%d" % k, "kind": "galaxy",
+                "ra": 0, "dec": 0, "x": x, "y": y, "flux": 10 ** (-0.4 * (mag - 30)), "mag": mag,
+                "e1": 0, "e2": 0, "rms_radius": 2, "lensing_error": 0, "g1": g1, "g2": g2,
+                "kappa": 0, "mu": 1, "n_max": 0, "stamp_radius": 10}) + "\n")
+            e1 = (1 + m[0]) * g1 + c[0] + r.gauss(0, noise)
+            e2 = (1 + m[1]) * g2 + c[1] + r.gauss(0, noise)
+            s.write("%r,%r,%r,%r,%r\n" % (x + 0.3, y - 0.2, e1, e2, 100 / (1 + k % 7)))
+            if k % 50 == 0:
+                s.write("%r,%r,0.5,0.5,1\n" % (x + 3, y + 3))  # a stray, matched to nothing
+make("exact", 3000, (0.02, -0.03), (5e-4, -2e-4), 0.0, 1)
+make("noisy", 18000, (0.04, -0.02), (1e-3, 0.0), 0.26, 2)
+make("noisy2", 18000, (0.04, -0.02), (1e-3, 0.0), 0.26, 3)
+PY
+
+"$BIN/shapesim-calibrate" exact.truth.jsonl exact.csv --json exact.json --bin snr:2 >exact.md 2>err ||
+  fail "calibrate failed: $(cat err)"
+python3 - <<'PY' || fail "m and c not recovered exactly: $(cat exact.md)"
+import json
+j = json.load(open("exact.json"))
+a = j["all"]
+assert a["galaxies"] == 3000 and j["unmatched"] == 60, (a["galaxies"], j["unmatched"])
+assert abs(a["g1"]["m"] - 0.02) < 1e-10 and abs(a["g2"]["m"] + 0.03) < 1e-10, a
+assert abs(a["g1"]["c"] - 5e-4) < 1e-12 and abs(a["g2"]["c"] + 2e-4) < 1e-12, a
+assert a["g1"]["m_err"] < 1e-10
+bins = j["bins"]["snr"]
+assert len(bins) == 2 and sum(b["galaxies"] for b in bins) == 3000
+assert all(abs(b["fit"]["g1"]["m"] - 0.02) < 1e-10 for b in bins)
+md = open("exact.md").read()
+assert "| 1 | 0.02 ± " in md and "| 0.0005 ± " in md and "## By snr" in md, md
+PY
+
+# Two images at once, with shape noise: within 3σ, the errors as shape noise predicts.
+"$BIN/shapesim-calibrate" -q noisy.truth.jsonl noisy.csv noisy2.truth.jsonl noisy2.csv \
+  --json noisy.json >noisy.md || fail "calibrate of two images failed"
+python3 - <<'PY' || fail "noisy recovery off: $(cat noisy.md)"
+import json, math
+a = json.load(open("noisy.json"))["all"]
+assert a["galaxies"] == 36000
+predicted = 0.26 / (0.1 / math.sqrt(12) * math.sqrt(36000))   # σ_e / (σ_g √N)
+assert abs(a["g1"]["m_err"] / predicted - 1) < 0.2, (a["g1"]["m_err"], predicted)
+assert abs(a["g1"]["m"] - 0.04) < 3 * a["g1"]["m_err"] and abs(a["g2"]["m"] + 0.02) < 3 * a["g2"]["m_err"], a
+assert abs(a["g1"]["c"] - 1e-3) < 3 * a["g1"]["c_err"] and abs(a["g2"]["c"]) < 3 * a["g2"]["c_err"], a
+PY
+
+# The same shapes as JSON lines, SExtractor ASCII_HEAD (other column names) and a FITS table.
+python3 - <<'PY'
+import csv, json
+rows = list(csv.DictReader(open("exact.csv")))
+with open("exact.jsonl", "w") as f:
+    for r in rows:
+        f.write(json.dumps({"schema": "user.shapes/1", **{k: float(v) for k, v in r.items()}}) + "\n")
+with open("exact.cat", "w") as f:
+    for k, n in enumerate(["NUMBER", "X_IMAGE", "Y_IMAGE", "E1", "E2", "SNR_WIN"], 1):
+        f.write("#%4d %-16s column %d\n" % (k, n, k))
+    for i, r in enumerate(rows, 1):
+        f.write("%d %s %s %s %s %s\n" % (i, r["x"], r["y"], r["e1"], r["e2"], r["snr"]))
+PY
+"$BIN/shapesim-table" --format fits -o exact.fits exact.jsonl 2>err || fail "table failed: $(cat err)"
+"$BIN/shapesim-calibrate" -q exact.truth.jsonl exact.jsonl --json j1.json >/dev/null || fail "JSON lines failed"
+"$BIN/shapesim-calibrate" -q exact.truth.jsonl exact.fits --json j2.json >/dev/null || fail "FITS failed"
+"$BIN/shapesim-calibrate" -q --position X_IMAGE,Y_IMAGE --e1 E1 --e2 E2 --bin SNR_WIN \
+  exact.truth.jsonl exact.cat --json j3.json >/dev/null || fail "SExtractor ASCII_HEAD failed"
+python3 - <<'PY' || fail "the formats disagree"
+import json
+ref = json.load(open("exact.json"))["all"]
+for f in ("j1.json", "j2.json", "j3.json"):
+    a = json.load(open(f))["all"]
+    for k in ("g1", "g2"):
+        assert abs(a[k]["m"] - ref[k]["m"]) < 1e-12 and abs(a[k]["c"] - ref[k]["c"]) < 1e-14, (f, a, ref)
+PY
+
+# Bad input: one line, nothing written.
+rc=0; "$BIN/shapesim-calibrate" exact.truth.jsonl >out 2>err || rc=$?
+expect_error $rc 2 "^shapesim-calibrate: give pairs of files"
+rc=0; "$BIN/shapesim-calibrate" exact.truth.jsonl exact.csv --e1 shear1 -o r.md 2>err || rc=$?
+expect_error $rc 1 "^shapesim-calibrate: exact.csv: no column shear1"
+[ ! -e r.md ] || fail "a refused run left its report"
+python3 -c '
+import json
+for l in open("exact.truth.jsonl"):
+    t = json.loads(l); t["g1"] = 0.02; print(json.dumps(t))' >one.truth.jsonl
+rc=0; "$BIN/shapesim-calibrate" one.truth.jsonl exact.csv >out 2>err || rc=$?
+expect_error $rc 1 "the true g1 takes one value: m and c need the shear to vary"
+rc=0; "$BIN/shapesim-calibrate" exact.truth.jsonl exact.csv --bin snr:0 >out 2>err || rc=$?
+expect_error $rc 2 "^shapesim-calibrate: --bin snr:0: N must be 1 to 100"
+exit 0

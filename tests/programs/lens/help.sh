@@ -1,0 +1,4 @@
+#!/usr/bin/env bash
+# shapesim-lens --help and a bad option (checks in ../lib.sh).
+source "$(dirname "${BASH_SOURCE[0]}")/../lib.sh"
+check_help shapesim-lens
