@@ -2,6 +2,7 @@
 // DESIGN §5) as shapesim.morph/1 records. Detection is shapesim-detect's own
 // (app/detection_run.hpp), the statistics are measure.hpp / morphometry.hpp; the comparison
 // modes are app/compare_run.hpp.
+#include "shapesim/analytic_psf.hpp"
 #include "shapesim/app/compare_run.hpp"
 #include "shapesim/app/detection_run.hpp"
 #include "shapesim/app/options.hpp"
@@ -12,6 +13,7 @@
 #include "shapesim/jsonl.hpp"
 #include "shapesim/measure.hpp"
 #include "shapesim/parallel.hpp"
+#include "shapesim/psf.hpp"
 #include "shapesim/stellarity.hpp"
 
 
@@ -50,7 +52,7 @@ int run(int argc, const char* const argv[]) {
     app::DetectionSettings detection;
     MeasureOptions measure;
     app::CompareSettings compare;
-    bool stars = false, no_star_profile = false;
+    bool stars = false, no_star_profile = false, shear_estimate = false;
     double mag_limit = 0.0, aperture = 0.0;
     detection.declare(options, false);
     using app::in_range;
@@ -74,7 +76,11 @@ int run(int argc, const char* const argv[]) {
              ->notifier(in_range("max-neighbour-fraction", 0.0, 1.0)),
          "flag \"crowded\" above this fraction of neighbours' pixels in the CAS aperture")
         ("statmorph-boxcar", po::bool_switch(&measure.morphometry.statmorph_boxcar),
-         "S with statmorph's own (even, off-centre) boxcar");
+         "S with statmorph's own (even, off-centre) boxcar")
+        ("shear-estimate", po::bool_switch(&shear_estimate),
+         "also each galaxy's PSF-corrected shear estimate (adaptive moments, linear PSF "
+         "correction; shear_e1, shear_e2, shear_resolution) through the PSF of --psf or "
+         "--psf-analytic: what shapesim-calibrate takes (--e1 shear_e1 --e2 shear_e2)");
     compare.declare(options);
     if (!options.parse(argc, argv)) return 0;
     const app::Log log("shapesim-measure", options.common().verbosity);
@@ -113,8 +119,20 @@ int run(int argc, const char* const argv[]) {
     if (detection.image.empty()) throw po::error("give an IMAGE to measure (or --compare)");
     AtomicTextFile file(options.common().output_or_stdout());
 
+    if (shear_estimate && detection.psf_model.empty() && detection.psf_analytic.empty())
+        throw po::error("--shear-estimate: give the image's PSF, --psf or --psf-analytic");
     const app::DetectionRun detected = detection.run(options, log);
     const DetectionResult& field = detected.field;
+    if (shear_estimate) {
+        const ShapeletModel psf =
+            !detection.psf_model.empty()
+                ? read_psf_model(detection.psf_model, detected.context.pixel_scale)
+                : analytic_psf_model(parse_analytic_psf(detection.psf_analytic),
+                                     detected.context.pixel_scale).psf.model;
+        measure.shear_psf = psf_adaptive_moments(psf);
+        log.verbose("shear estimate: the PSF's adaptive moments (", measure.shear_psf->m11, ", ",
+                    measure.shear_psf->m22, ", ", measure.shear_psf->m12, ") pixels^2");
+    }
     measure.zero_point = detected.context.zero_point;
     measure.aperture_radius = aperture / 2.0 / detected.context.pixel_scale;
     measure.fit_star_profile = !no_star_profile;

@@ -237,6 +237,31 @@ MorphRecord measure_object(const DetectionResult& field, const Detection& object
         }
     }
 
+    if (options.shear_psf && !(e.contains("kind") && e["kind"] == "star")) {
+        // Adaptive moments on the cutout, other objects' and bad pixels left out, from the
+        // detection's centre and size.
+        MaskArray other(labels.rows(), labels.cols());
+        for (long j = 0; j < labels.rows(); ++j)
+            for (long i = 0; i < labels.cols(); ++i)
+                other(j, i) = mask(j, i) || (labels(j, i) != 0 && labels(j, i) != object.label);
+        const double sigma0 = source.a && source.b && *source.a > 0.0 && *source.b > 0.0
+                                  ? std::sqrt(*source.a * *source.b)
+                                  : std::sqrt(options.shear_psf->trace() / 2.0);
+        std::string why;
+        const auto am = adaptive_moments(image, &other, source.x - 1.0 - double(i0),
+                                         source.y - 1.0 - double(j0), std::max(sigma0, 0.5), &why);
+        const auto estimate = am ? linear_shear_estimate(*am, *options.shear_psf) : std::nullopt;
+        if (estimate) {
+            e["shear_e1"] = estimate->epsilon.real();
+            e["shear_e2"] = estimate->epsilon.imag();
+            e["shear_resolution"] = estimate->resolution;
+            e["shear_sigma"] = std::sqrt(std::sqrt(am->m11 * am->m22 - am->m12 * am->m12));
+        } else {
+            r.flags.push_back("shear_failed");
+            e["shear_why"] = am ? "no larger than the PSF" : why;
+        }
+    }
+
     // Reliability.
     if (!(m.r_petro >= options.min_petrosian)) r.flags.push_back("small");
     if (snr < options.min_snr) r.flags.push_back("faint");

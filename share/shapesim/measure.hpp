@@ -9,7 +9,8 @@
 // Record fields: id (the label), x, y, mag (Kron), fwhm, a, b, theta, e1, e2, r_petro
 // (pixels, η = 0.2, about the asymmetry centre), c, a_sym, s (clumpiness ×10 as in Conselice
 // 2003 and the paper), gini, m20; extra: kind, stellarity, r20, r80, smoothness (statmorph's
-// S), sky_sigma, x_asym, y_asym (FITS), snr (Kron). A statistic that cannot be computed is
+// S), sky_sigma, x_asym, y_asym (FITS), snr (Kron); with a PSF for shapes, shear_e1, shear_e2,
+// shear_resolution, shear_sigma (MeasureOptions::shear_psf). A statistic that cannot be computed is
 // left out. Flags say when a statistic is unreliable:
 //   small     r_p < `min_petrosian` pixels (2): the PSF, not the galaxy, sets C, A, S
 //   faint     Kron S/N < `min_snr` (10): A and S are noise-dominated
@@ -22,6 +23,9 @@
 #include "shapesim/detect.hpp"
 #include "shapesim/morphometry.hpp"
 #include "shapesim/records.hpp"
+#include "shapesim/shear_estimate.hpp"
+
+#include <optional>
 
 namespace shapesim {
 
@@ -42,6 +46,12 @@ struct MeasureOptions {
     /// ±3 FWHM (the object's own and unlabelled good pixels): fwhm_moffat = 2α √(2^{1/β} − 1)
     /// (pixels) and beta_moffat: the seeing, free of the pixel's width FWHM_IMAGE carries.
     bool fit_star_profile = true;
+    /// The PSF's adaptive moments (shear_estimate.hpp): each galaxy also gets its PSF-corrected
+    /// shear estimate shear_e1, shear_e2 (responsivity 1), shear_resolution R and
+    /// shear_sigma (√ of the adaptive moments' determinant^½, pixels), from adaptive moments
+    /// on its cutout with other objects' and bad pixels left out; flag "shear_failed" (and
+    /// the reason in shear_why) when there is none. Unset: none.
+    std::optional<AdaptiveMoments> shear_psf;
 };
 
 /// The Moffat fitted to a star (MeasureOptions::fit_star_profile).

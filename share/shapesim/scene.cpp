@@ -243,12 +243,45 @@ PreparedObject prepare_object(const ObjectRecord& record, double field_pixel_sca
         ShapeletModel m = record.to_model(*record.x, *record.y);
         if (record.pixel_scale != field_pixel_scale)
             m = dilate(m, record.pixel_scale / field_pixel_scale);
+        // An intrinsic model (fitted through its image's PSF) is observed through the PSF
+        // itself; an observed-frame one through the galaxy kernel.
+        const bool intrinsic = record.extra.contains("frame") && record.extra.at("frame") == "intrinsic";
+        if (intrinsic && !kernels.star)
+            throw Error("object " + record.id + " is an intrinsic model: give --psf", "", 0, "frame");
+        const std::optional<CartesianModel>& kernel = intrinsic ? kernels.star : kernels.galaxy;
+        // Never sharper than it was seen: an intrinsic model fitted through a PSF broader than
+        // the target's carries no real structure below that PSF's scale (only the fit's
+        // ringing), so it is first smoothed by the Gaussian that brings the target's scale to
+        // its own (Gaussian scales add in quadrature; an n_max 0 kernel keeps the order).
+        std::optional<CartesianModel> smoothing;
+        if (intrinsic && kernels.star && record.extra.contains("psf_beta") &&
+            record.extra.at("psf_beta").is_number()) {
+            const double seen = record.extra.at("psf_beta").get<double>() / field_pixel_scale;
+            const double target = kernels.star->beta_pix;
+            if (seen > target) {
+                CartesianModel gaussian(0.0, 0.0, std::sqrt(seen * seen - target * target), 0);
+                gaussian.b(0, 0) = 1.0;
+                gaussian.b(0, 0) = 1.0 / flux(to_polar(gaussian));  // unit flux
+                smoothing = gaussian;
+            }
+        }
+        auto smooth = [&](const CartesianModel& c) {
+            ConvolveWorkspace local;
+            return convolve(c, *smoothing, workspace ? *workspace : local);
+        };
         // The galaxy's own lensing (shapesim-lens), or the scene's one shear for all.
         if (record.lensing && options.lensing)
             throw Error("carries its own lensing (shapesim-lens): --shear/--kappa would lens it "
                         "twice",
                         "", 0, "lensing");
-        if (const std::optional<Lensing>& lensing = record.lensing ? record.lensing : options.lensing) {
+        const std::optional<Lensing>& lensing = record.lensing ? record.lensing : options.lensing;
+        // The smoothing is the galaxy's (the finest it was seen at): lensed with it. (Without
+        // lensing it is applied after, the same to rounding and one conversion fewer.)
+        if (smoothing && lensing) {
+            m = to_polar(smooth(to_cartesian(m)));
+            smoothing.reset();
+        }
+        if (lensing) {
             p.unlensed_epsilon = moments(m).epsilon;
             p.lensing = *lensing;
             ProjectionOptions po;
@@ -260,28 +293,7 @@ PreparedObject prepare_object(const ObjectRecord& record, double field_pixel_sca
         p.intrinsic = moments(m);
         p.flux = p.intrinsic->flux;
         model = to_cartesian(m);
-        // An intrinsic model (fitted through its image's PSF) is observed through the PSF
-        // itself; an observed-frame one through the galaxy kernel.
-        const bool intrinsic = record.extra.contains("frame") && record.extra.at("frame") == "intrinsic";
-        if (intrinsic && !kernels.star)
-            throw Error("object " + record.id + " is an intrinsic model: give --psf", "", 0, "frame");
-        const std::optional<CartesianModel>& kernel = intrinsic ? kernels.star : kernels.galaxy;
-        // Never sharper than it was seen: an intrinsic model fitted through a PSF broader than
-        // the target's carries no real structure below that PSF's scale (only the fit's
-        // ringing), so it is first smoothed by the Gaussian that brings the target's scale to
-        // its own (Gaussian scales add in quadrature; an n_max 0 kernel keeps the order).
-        if (intrinsic && kernels.star && record.extra.contains("psf_beta") &&
-            record.extra.at("psf_beta").is_number()) {
-            const double seen = record.extra.at("psf_beta").get<double>() / field_pixel_scale;
-            const double target = kernels.star->beta_pix;
-            if (seen > target) {
-                CartesianModel gaussian(0.0, 0.0, std::sqrt(seen * seen - target * target), 0);
-                gaussian.b(0, 0) = 1.0;
-                gaussian.b(0, 0) = 1.0 / flux(to_polar(gaussian));  // unit flux
-                ConvolveWorkspace local;
-                model = convolve(model, gaussian, workspace ? *workspace : local);
-            }
-        }
+        if (smoothing) model = smooth(model);
         if (kernel) {
             ConvolveWorkspace local;
             model = convolve(model, *kernel, workspace ? *workspace : local);

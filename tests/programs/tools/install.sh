@@ -19,7 +19,7 @@ env -u MAKEFLAGS -u MAKELEVEL -u MFLAGS make -C "$root" --no-print-directory $sa
 usr=$stage/usr
 
 mkdir "$TMPDIR/elsewhere" && cd "$TMPDIR/elsewhere"
-programs=(detect decompose smooth sample render measure survey table)
+programs=(detect decompose smooth sample lens render measure calibrate survey table)
 for p in "${programs[@]}"; do
   prog=shapesim-$p
   BIN=$usr/bin check_version "$prog"

@@ -5,7 +5,7 @@
 # same results, with one warning line each on stderr (none under -q).
 source "$(dirname "${BASH_SOURCE[0]}")/../lib.sh"
 cd "$TMPDIR"
-programs=(detect decompose smooth sample render measure)
+programs=(detect decompose smooth sample lens render measure)
 for p in "${programs[@]}"; do
   help=$("$BIN/shapesim-$p" --help)
   for option in '-i \[ --input \]' '-o \[ --output \]' '-q \[ --quiet \]' '-v \[ --verbose \]' \
