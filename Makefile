@@ -12,6 +12,8 @@
 #   make corpus-matrix   every program on the bad-input corpus into tests/corpus/matrix.md
 #   make colour          the multi-colour simulation of the shipped ten-band XDF cutout into
 #                        out/colour/ (pipelines/colour.mk; OUT=, SEED=, AREA=, MAG_LIMIT=)
+#   make lensing         a weak-lensing shear calibration end to end into out/lensing/
+#                        (pipelines/lensing.mk; OUT=, SEED=, AREA=, NOISE=, SHEAR=, HALO=)
 #   make slurm-test      a 4-tile survey through a one-node Slurm cluster = make -j (root; CI)
 #   make install         programs, libshapesim.a, public headers, shapesim.pc and man pages
 #                        into PREFIX (/usr/local); DESTDIR= stages them
@@ -63,7 +65,7 @@ include detect/module.mk decompose/module.mk smooth/module.mk sample/module.mk
 include render/module.mk measure/module.mk survey/module.mk table/module.mk lens/module.mk calibrate/module.mk
 include tests/module.mk
 
-.PHONY: all deps test unit-test program-test bench stress install clean reproduce colour slurm-test
+.PHONY: all deps test unit-test program-test bench stress install clean reproduce colour lensing slurm-test
 all: $(PROGRAMS:%=$(BIN)/%)
 
 # Every first target installs what is missing (as root) or prints the apt line.
@@ -106,6 +108,11 @@ reproduce: deps all examples
 # The XDF's nine bands end to end (pipelines/colour.mk); OUT, SEED, AREA, MAG_LIMIT pass on.
 colour: deps all examples
 	$(MAKE) --no-print-directory -f pipelines/colour.mk BIN=$(BIN) EXAMPLES=$(BUILD)/examples
+
+# A weak-lensing shear calibration end to end (pipelines/lensing.mk); OUT, SEED, AREA, NOISE,
+# SHEAR, HALO pass on.
+lensing: deps all
+	$(MAKE) --no-print-directory -f pipelines/lensing.mk BIN=$(BIN)
 
 # A 4-tile survey on a throw-away one-node Slurm cluster equals make -j (CI; root; installs Slurm).
 slurm-test: all
