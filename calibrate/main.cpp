@@ -1,6 +1,7 @@
 // shapesim-calibrate: truth catalogues (shapesim-render --truth) and the shape catalogues
 // measured on their images → the shear calibration e = (1 + m) g + c, overall and in bins, as
 // a Markdown report (and JSON). The work is in the library: calibration.hpp, table.hpp.
+#include "shapesim/app/gnuplot.hpp"
 #include "shapesim/app/options.hpp"
 #include "shapesim/app/run_main.hpp"
 #include "shapesim/atomic_file.hpp"
@@ -12,6 +13,10 @@
 #include "shapesim/rng.hpp"
 #include "shapesim/table.hpp"
 
+#include <sys/stat.h>
+
+#include <algorithm>
+#include <cerrno>
 #include <cmath>
 #include <cstdio>
 #include <map>
@@ -40,7 +45,7 @@ const char* const description =
 
 struct Settings {
     std::vector<std::string> files, bins;
-    std::string e1 = "e1", e2 = "e2", position = "x,y", json;
+    std::string e1 = "e1", e2 = "e2", position = "x,y", json, figures;
     double radius = 0.0, responsivity = 1.0;
     int bootstrap = 200;
     bool sky = false, flip_e2 = false;
@@ -133,6 +138,73 @@ Json fit_json(const ShearCalibration& c) {
     return Json{{"galaxies", c.galaxies}, {"blocks", c.blocks}, {"g1", component(c.one)}, {"g2", component(c.two)}};
 }
 
+// The figure: <e − g> in ten equal-count bins of g per component (mean and its error) with
+// the fitted m g + c, and m1, m2 in the bins of `bin_name`; data, script and PNG in `dir`.
+bool write_figures(const std::string& dir, const std::vector<ShearPoint>& points,
+                   const ShearCalibration& all, const std::string& bin_name,
+                   const std::vector<CalibrationBin>& bins) {
+    if (::mkdir(dir.c_str(), 0777) != 0 && errno != EEXIST)
+        throw Error("cannot create the figures' folder", dir);
+    {
+        AtomicTextFile data(dir + "/residuals.dat");
+        data.stream().precision(17);
+        data.stream() << "# component g_mean residual_mean residual_error galaxies\n";
+        for (int component = 1; component <= 2; ++component) {
+            std::vector<std::pair<double, double>> ge;
+            for (const ShearPoint& p : points)
+                ge.emplace_back(component == 1 ? p.g1 : p.g2, component == 1 ? p.e1 - p.g1 : p.e2 - p.g2);
+            std::sort(ge.begin(), ge.end());
+            const std::size_t n = ge.size();
+            for (std::size_t b = 0; b < 10; ++b) {
+                const std::size_t lo = n * b / 10, hi = n * (b + 1) / 10;
+                if (hi - lo < 2) continue;
+                double sg = 0.0, sr = 0.0, srr = 0.0;
+                for (std::size_t k = lo; k < hi; ++k) sg += ge[k].first, sr += ge[k].second, srr += ge[k].second * ge[k].second;
+                const double m = double(hi - lo), mean = sr / m;
+                const double sd = std::sqrt(std::max(0.0, srr / m - mean * mean) * m / (m - 1.0));
+                data.stream() << component << ' ' << sg / m << ' ' << mean << ' ' << sd / std::sqrt(m) << ' '
+                              << hi - lo << '\n';
+            }
+            data.stream() << "\n\n";
+        }
+        data.commit();
+    }
+    {
+        AtomicTextFile data(dir + "/bins.dat");
+        data.stream().precision(17);
+        data.stream() << "# " << bin_name << "_lo " << bin_name << "_hi m1 m1_error m2 m2_error\n";
+        for (const CalibrationBin& b : bins)
+            if (b.fit)
+                data.stream() << b.lo << ' ' << b.hi << ' ' << b.fit->one.m << ' ' << b.fit->one.m_err << ' '
+                              << b.fit->two.m << ' ' << b.fit->two.m_err << '\n';
+        data.commit();
+    }
+    // A column spanning decades (S/N, flux) on a log axis.
+    const bool wide = !bins.empty() && bins.front().lo > 0.0 && bins.back().hi > 20.0 * bins.front().lo;
+    {
+        AtomicTextFile gp(dir + "/calibration.gp");
+        gp.stream() << "# gnuplot " << dir << "/calibration.gp\n"
+                    << "set terminal pngcairo size 1100,450 enhanced font 'DejaVu Sans,11'\n"
+                    << "set output '" << dir << "/calibration.png'\n"
+                    << "set multiplot layout 1,2\nset key top left\nset grid\n"
+                    << "set xlabel 'true g'\nset ylabel '<e - g>'\n"
+                    << "set title 'e = (1 + m) g + c: m_1 = " << cell(all.one.m, all.one.m_err)
+                    << ", m_2 = " << cell(all.two.m, all.two.m_err) << "'\n"
+                    << "plot '" << dir << "/residuals.dat' index 0 using 2:3:4 with yerrorbars pt 7 lc 1 title 'e_1', "
+                    << all.one.m << " * x + " << all.one.c << " lc 1 title 'fit 1', '" << dir
+                    << "/residuals.dat' index 1 using 2:3:4 with yerrorbars pt 5 lc 2 title 'e_2', "
+                    << all.two.m << " * x + " << all.two.c << " lc 2 title 'fit 2'\n"
+                    << "set xlabel '" << bin_name << "' noenhanced\nset ylabel 'm'\nset title 'm in bins of "
+                    << bin_name << "' noenhanced\n"
+                    << (wide ? "set logscale x\n" : "")
+                    << "plot '" << dir << "/bins.dat' using (sqrt(abs($1*$2))):3:4 with yerrorbars pt 7 lc 1 title 'm_1', '"
+                    << dir << "/bins.dat' using (sqrt(abs($1*$2))):5:6 with yerrorbars pt 5 lc 2 title 'm_2', "
+                    << "0 lc 0 notitle\nunset multiplot\n";
+        gp.commit();
+    }
+    return app::run_gnuplot(dir + "/calibration.gp", dir + "/gnuplot.log");
+}
+
 int run(int argc, const char* const argv[]) {
     app::ProgramOptions options("shapesim-calibrate", "[OPTION]... TRUTH SHAPES [TRUTH SHAPES]...",
                                 description,
@@ -167,7 +239,10 @@ int run(int argc, const char* const argv[]) {
         ("bootstrap", po::value(&s.bootstrap)->value_name("N")->default_value(200)
              ->notifier(in_range("bootstrap", 0, 100000)),
          "bootstrap resamples for the errors")
-        ("json", po::value(&s.json)->value_name("FILE"), "also write the numbers as JSON");
+        ("json", po::value(&s.json)->value_name("FILE"), "also write the numbers as JSON")
+        ("figures", po::value(&s.figures)->value_name("DIR"),
+         "also draw calibration.png there: <e - g> against g per component with the fitted "
+         "line, and m against the first --bin (data and gnuplot script beside it)");
     options.positional("files", -1);
     if (!options.parse(argc, argv)) return 0;
     const app::Log log("shapesim-calibrate", options.common().verbosity);
@@ -257,6 +332,7 @@ int run(int argc, const char* const argv[]) {
     Json json{{"all", fit_json(all)}, {"matched", all.galaxies}, {"measured", measured_total},
               {"true_galaxies", truth_total}, {"unmatched", blends_or_strays},
               {"match_radius", radius}, {"responsivity", s.responsivity}, {"bins", Json::object()}};
+    std::vector<CalibrationBin> first_bins;  // the figure's
     for (const Bin& b : bins) {
         const std::vector<double>& v = bin_values[b.name];
         long defined = 0;
@@ -269,7 +345,9 @@ int run(int argc, const char* const argv[]) {
         }
         md << "| " << b.name << " | galaxies | m1 | c1 | m2 | c2 |\n|---|---|---|---|---|---|\n";
         Json rows = Json::array();
-        for (const CalibrationBin& bin : fit_in_bins(points, v, b.count, s.bootstrap, seed)) {
+        const std::vector<CalibrationBin> fitted = fit_in_bins(points, v, b.count, s.bootstrap, seed);
+        if (&b == &bins.front()) first_bins = fitted;
+        for (const CalibrationBin& bin : fitted) {
             char range[64];
             std::snprintf(range, sizeof range, "%.4g – %.4g", bin.lo, bin.hi);
             md << "| " << range << " | " << bin.galaxies << " | ";
@@ -285,6 +363,12 @@ int run(int argc, const char* const argv[]) {
             rows.push_back(row);
         }
         json["bins"][b.name] = rows;
+    }
+    if (!s.figures.empty()) {
+        if (write_figures(s.figures, points, all, bins.front().name, first_bins))
+            log.info("figure: ", s.figures, "/calibration.png");
+        else
+            log.warn("gnuplot not found: the figure not drawn (run gnuplot ", s.figures, "/calibration.gp)");
     }
     if (!s.json.empty()) {
         AtomicTextFile file(s.json);

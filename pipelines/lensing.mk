@@ -10,7 +10,8 @@
 #                          [SHEAR="0.02 -0.01"] [HALO="X Y M200 C Z"] [SOURCE_Z=1]
 #
 # Outputs in $(OUT): objects.jsonl, lensed.jsonl, image.fits, truth.jsonl, shapes.jsonl,
-# calibration.md (the report) and calibration.json (its numbers).
+# calibration.md (the report), calibration.json (its numbers) and figures/calibration.png
+# (<e − g> against g, and m against S/N).
 SELF := $(lastword $(MAKEFILE_LIST))
 OUT      ?= out/lensing
 include $(dir $(SELF))common.mk
@@ -58,5 +59,6 @@ $(OUT)/shapes.jsonl: $(OUT)/image.fits $(PSF) $(call prog,measure)
 	mv $(tmp) $@
 $(OUT)/calibration.md: $(OUT)/truth.jsonl $(OUT)/shapes.jsonl $(call prog,calibrate)
 	$(call prog,calibrate) $(OUT)/truth.jsonl $(OUT)/shapes.jsonl --e1 shear_e1 --e2 shear_e2 \
-	  --bin snr:4 --bin shear_resolution:4 --bin mag:4 --json $(OUT)/calibration.json > $(tmp)
+	  --bin snr:4 --bin shear_resolution:4 --bin mag:4 --json $(OUT)/calibration.json \
+	  --figures $(OUT)/figures > $(tmp)
 	mv $(tmp) $@

@@ -1,5 +1,6 @@
 #include "shapesim/app/compare_run.hpp"
 
+#include "shapesim/app/gnuplot.hpp"
 #include "shapesim/atomic_file.hpp"
 #include "shapesim/colours.hpp"
 #include "shapesim/error.hpp"
@@ -125,13 +126,7 @@ void CompareSettings::write_report(const Log& log) const {
                    [&](std::ostream& o) { write_figure_data(o, cat); });
     write_file(out + "/figures.gp",
                [&](std::ostream& o) { write_figures_script(o, out, catalogues, band, cuts); });
-    if (std::system("command -v gnuplot >/dev/null 2>&1") == 0) {
-        // gnuplot's own chatter (e.g. "empty y range" for a constant statistic) goes to a log
-        // beside the figures: stderr keeps to our one-line messages.
-        const std::string command = "gnuplot '" + out + "/figures.gp' 2>'" + out + "/gnuplot.log'";
-        if (std::system(command.c_str()) != 0)
-            throw Error("gnuplot failed on the figures (see gnuplot.log there)",
-                        out + "/figures.gp");
+    if (run_gnuplot(out + "/figures.gp", out + "/gnuplot.log")) {
         log.info("table, distances and 7 figures in ", out, "/");
     } else {
         log.warn("gnuplot not found: figures not drawn (run gnuplot ", out, "/figures.gp)");

@@ -32,8 +32,17 @@ make("noisy", 18000, (0.04, -0.02), (1e-3, 0.0), 0.26, 2)
 make("noisy2", 18000, (0.04, -0.02), (1e-3, 0.0), 0.26, 3)
 PY
 
-"$BIN/shapesim-calibrate" exact.truth.jsonl exact.csv --json exact.json --bin snr:2 >exact.md 2>err ||
-  fail "calibrate failed: $(cat err)"
+"$BIN/shapesim-calibrate" exact.truth.jsonl exact.csv --json exact.json --bin snr:2 --figures fig \
+  >exact.md 2>err || fail "calibrate failed: $(cat err)"
+[ -s fig/calibration.png ] && [ -s fig/residuals.dat ] && [ -s fig/bins.dat ] || fail "no figure: $(ls fig)"
+# The residuals e − g of an exact m = 0.02 lie on 0.02 g + 0.0005, bin by bin.
+python3 - <<'PY' || fail "the figure's residuals are not the fit's"
+rows = [l.split() for l in open("fig/residuals.dat") if l.strip() and not l.startswith("#")]
+assert len(rows) == 20, len(rows)
+for c, g, r, err, n in rows:
+    m, cc = (0.02, 5e-4) if c == "1" else (-0.03, -2e-4)
+    assert abs(float(r) - (m * float(g) + cc)) < 1e-12, (c, g, r)
+PY
 python3 - <<'PY' || fail "m and c not recovered exactly: $(cat exact.md)"
 import json
 j = json.load(open("exact.json"))
