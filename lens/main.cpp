@@ -7,6 +7,7 @@
 #include "shapesim/atomic_file.hpp"
 #include "shapesim/constants.hpp"
 #include "shapesim/error.hpp"
+#include "shapesim/fits_io.hpp"
 #include "shapesim/jsonl.hpp"
 #include "shapesim/lensing.hpp"
 #include "shapesim/records.hpp"
@@ -39,7 +40,8 @@ const char* const description =
     "  shapesim-lens --area 6 --shear 0.02 0 < objects.jsonl   # one shear for all";
 
 struct Settings {
-    std::string input = "-", power, b_power;
+    std::string input = "-", power, b_power, map;
+    long map_binning = 0;
     app::FieldOptions field;
     std::vector<double> shear, halos;
     double kappa = 0.0, source_z = 0.0;
@@ -47,6 +49,41 @@ struct Settings {
     GaussianFieldOptions gaussian;
     bool no_magnify = false, drop_strong = false;
 };
+
+// κ, γ1, γ2 at the centres of B × B blocks of field pixels, as three float images with the
+// field's WCS scaled to the blocks (a SIP distortion is left out of the map's).
+void write_map(const std::string& path, const LensingSources& lenses, const FieldGeometry& field,
+               long binning, const app::Log& log) {
+    const long b = binning > 0 ? binning : std::max(1L, (std::max(long(field.nx), long(field.ny)) + 1023) / 1024);
+    const long mx = (field.nx + b - 1) / b, my = (field.ny + b - 1) / b;
+    ImageArray kappa(my, mx), gamma1(my, mx), gamma2(my, mx);
+    for (long j = 0; j < my; ++j)
+        for (long i = 0; i < mx; ++i) {
+            // Map pixel (i+1, j+1) is centred on field pixel B (i + ½) + ½.
+            const Convergence c = lenses.at(double(b) * (double(i) + 0.5) + 0.5, double(b) * (double(j) + 0.5) + 0.5);
+            kappa(j, i) = c.kappa;
+            gamma1(j, i) = c.gamma1;
+            gamma2(j, i) = c.gamma2;
+        }
+    Wcs wcs = field.wcs;
+    wcs.crpix1 = (wcs.crpix1 + 0.5 * double(b - 1)) / double(b);
+    wcs.crpix2 = (wcs.crpix2 + 0.5 * double(b - 1)) / double(b);
+    wcs.cd1_1 *= double(b), wcs.cd1_2 *= double(b), wcs.cd2_1 *= double(b), wcs.cd2_2 *= double(b);
+    wcs.sip_order = 0;
+    wcs.sip_a.clear();
+    wcs.sip_b.clear();
+    if (wcs.ctype1.size() > 4 && wcs.ctype1.substr(wcs.ctype1.size() - 4) == "-SIP") {
+        wcs.ctype1.resize(wcs.ctype1.size() - 4);
+        wcs.ctype2.resize(wcs.ctype2.size() - 4);
+    }
+    FitsWriter out(path, "shapesim-lens");
+    const std::vector<FitsKeyword> keywords{FitsKeyword("BINNING", double(b), "field pixels per map pixel")};
+    out.write_image(kappa, FitsImageSpec{"KAPPA", -32, "", wcs, keywords, {"convergence"}});
+    out.write_image(gamma1, FitsImageSpec{"GAMMA1", -32, "", wcs, keywords, {"shear gamma1 (image frame)"}});
+    out.write_image(gamma2, FitsImageSpec{"GAMMA2", -32, "", wcs, keywords, {"shear gamma2 (image frame)"}});
+    out.commit();
+    log.verbose("map: ", mx, " x ", my, " pixels of ", b, " x ", b, " field pixels in ", path);
+}
 
 int run(int argc, const char* const argv[]) {
     app::ProgramOptions options("shapesim-lens", "[OPTION]... [FILE]", description,
@@ -86,6 +123,11 @@ int run(int argc, const char* const argv[]) {
         ("kappa", po::value(&s.kappa)->notifier(in_range("kappa", -1.0, 0.999)),
          "a constant convergence added everywhere");
     options.group("Output").add_options()
+        ("map", po::value(&s.map)->value_name("FITS"),
+         "also write the lensing over the field: image HDUs KAPPA, GAMMA1, GAMMA2 (the field's "
+         "WCS, binned)")
+        ("map-binning", po::value(&s.map_binning)->value_name("B")->notifier(in_range("map-binning", 1L, 100000L)),
+         "field pixels per map pixel (default: a map at most 1024 pixels a side)")
         ("no-magnify", po::bool_switch(&s.no_magnify),
          "keep every galaxy's flux (shear and size only; by default flux and area grow by mu)")
         ("drop-strong", po::bool_switch(&s.drop_strong),
@@ -140,6 +182,8 @@ int run(int argc, const char* const argv[]) {
             log.info("note: ", s.power, " covers ell ", e.ell_min(), " - ", e.ell_max(),
                      ", the field ", ell_min, " - ", g.ell_limit(), ": no power outside the table");
     }
+
+    if (!s.map.empty()) write_map(s.map, lenses, field, s.map_binning, log);
 
     AtomicTextFile file(options.common().output_or_stdout());
     JsonlReader reader(s.input, {ObjectRecord::schema});

@@ -5,6 +5,7 @@
 # NFW halos shear tangentially; rotated pairs cut the scatter of the mean shear ≥ 10× against
 # random orientations; bad input fails in one line with nothing written.
 source "$(dirname "${BASH_SOURCE[0]}")/../lib.sh"
+tools=$(cd ../tools && pwd)
 cd "$TMPDIR"
 hdf_morphology
 # The HDF's PSF: the models hold it (observed frame), so render convolves them with nothing
@@ -100,8 +101,23 @@ for k, (x, y) in enumerate([(700, 600), (500, 600), (600, 700), (600, 500), (900
     print(json.dumps({"schema": "shapesim.object/1", "id": "p%d" % k, "kind": "galaxy", "ra": 0, "dec": 0,
                       "x": x, "y": y, "flux": 1, "beta": 0.1, "pixel_scale": 0.05, "n_max": 0,
                       "coeffs": [[1, 0]]}))' >probes.jsonl
-"$BIN/shapesim-lens" -q "${field[@]}" --halo 600 600 1e14 5 0.3 --source-z 1.2 <probes.jsonl >probes.out ||
-  fail "lens of the probes failed"
+"$BIN/shapesim-lens" -q "${field[@]}" --halo 600 600 1e14 5 0.3 --source-z 1.2 --map map.fits --map-binning 1 \
+  <probes.jsonl >probes.out || fail "lens of the probes failed"
+# The map holds the same lensing at each pixel (float: to 1e-6).
+python3 - "$tools" <<'PY' || fail "the map is not the probes' lensing"
+import json, sys
+sys.path.insert(0, sys.argv[1])
+from fitsdata import read
+probes = [json.loads(l) for l in open("probes.out")]
+cards, nx, ny, kappa = read("map.fits", "KAPPA")
+_, _, _, gamma1 = read("map.fits", "GAMMA1")
+assert (nx, ny) == (1500, 1500) and cards["EXTNAME"] == "KAPPA", (nx, ny)
+for p in probes:
+    i, j = int(p["x"]) - 1, int(p["y"]) - 1
+    l = p["lensing"]
+    assert abs(kappa[j][i] - l["kappa"]) < 1e-6 * abs(l["kappa"]), (p["id"], kappa[j][i], l)
+    assert abs(gamma1[j][i] - l["g1"] * (1 - l["kappa"])) < 1e-6 * abs(l["g1"]) + 1e-9, (p["id"], gamma1[j][i], l)
+PY
 python3 - <<'PY' || fail "the halo does not shear tangentially: $(cat probes.out)"
 import json
 g = [json.loads(l)["lensing"] for l in open("probes.out")]
