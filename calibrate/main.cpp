@@ -48,7 +48,7 @@ struct Settings {
     std::string e1 = "e1", e2 = "e2", position = "x,y", json, figures;
     double radius = 0.0, responsivity = 1.0;
     int bootstrap = 200;
-    bool sky = false, flip_e2 = false;
+    bool sky = false, flip_e2 = false, complete_rings = false;
 };
 
 struct Bin {
@@ -87,6 +87,7 @@ struct TrueGalaxy {
     double x = 0.0, y = 0.0;
     double g1 = 0.0, g2 = 0.0;
     std::uint64_t block = 0;
+    long ring_size = 1;  ///< the copies of its ring (1: none)
     std::map<std::string, double> fields;
 };
 
@@ -111,8 +112,11 @@ std::vector<TrueGalaxy> read_truth(const std::string& path, std::size_t image, b
         // A ring's members are one bootstrap block; else the galaxy is.
         std::string block = std::to_string(image) + ":" + t.id;
         if (const auto ring = t.extra.find("ring"); ring != t.extra.end() && ring->is_object() &&
-                                                    ring->contains("first") && (*ring)["first"].is_string())
+                                                    ring->contains("first") && (*ring)["first"].is_string()) {
             block = std::to_string(image) + ":ring:" + (*ring)["first"].get<std::string>();
+            if (ring->contains("of") && (*ring)["of"].is_number_integer())
+                g.ring_size = std::max<long>(1, (*ring)["of"].get<long>());
+        }
         g.block = fnv1a_64(block);
         if (t.mag) g.fields["mag"] = *t.mag;
         g.fields["flux"] = t.flux;
@@ -230,6 +234,9 @@ int run(int argc, const char* const argv[]) {
              ->notifier(in_range("responsivity", 1e-6, 1e6)),
          "divide e by this first (a distortion (a²−b²)/(a²+b²) responds to shear by about 2; a "
          "shear estimate by 1)")
+        ("complete-rings", po::bool_switch(&s.complete_rings),
+         "keep only rings (shapesim-sample --ring) whose every copy was measured: a ring with a "
+         "copy lost (undetected, blended) no longer cancels its shape noise")
         ("flip-e2", po::bool_switch(&s.flip_e2),
          "e2 is in the sky's frame (east left): turn it into the image's (x right, y up)");
     options.group("Fit").add_options()
@@ -257,6 +264,7 @@ int run(int argc, const char* const argv[]) {
     std::vector<std::string> optional;
     for (const Bin& b : bins) optional.push_back(b.name);
     std::vector<ShearPoint> points;
+    std::vector<long> ring_sizes;  // each point's ring's copies
     std::map<std::string, std::vector<double>> bin_values;
     long measured_total = 0, blends_or_strays = 0, truth_total = 0;
     double ra0 = std::nan(""), dec0 = std::nan("");
@@ -303,6 +311,7 @@ int run(int argc, const char* const argv[]) {
             p.e2 = (s.flip_e2 ? -e2[k] : e2[k]) / s.responsivity;
             p.block = g.block;
             points.push_back(p);
+            ring_sizes.push_back(g.ring_size);
             for (const Bin& b : bins) {
                 double v = std::nan("");
                 if (const auto c = columns.find(b.name); c != columns.end()) v = c->second[k];
@@ -315,6 +324,24 @@ int run(int argc, const char* const argv[]) {
         log.verbose(shapes_path, ": ", matched, " of ", rows.size(), " measurements matched to ",
                     truth.size(), " true galaxies of ", truth_path);
     }
+    long incomplete = 0;
+    if (s.complete_rings) {
+        std::map<std::uint64_t, long> matched;
+        for (const ShearPoint& p : points) ++matched[p.block];
+        std::vector<ShearPoint> kept;
+        std::map<std::string, std::vector<double>> kept_values;
+        for (std::size_t k = 0; k < points.size(); ++k) {
+            if (matched[points[k].block] < ring_sizes[k]) {
+                ++incomplete;
+                continue;
+            }
+            kept.push_back(points[k]);
+            for (auto& [name, values] : bin_values) kept_values[name].push_back(values[k]);
+        }
+        points = std::move(kept);
+        bin_values = std::move(kept_values);
+        log.verbose(incomplete, " matched galaxies in rings with a copy lost left out");
+    }
     const std::uint64_t seed = options.common().seed;
     const ShearCalibration all = fit_shear_calibration(points, s.bootstrap, seed);
 
@@ -325,13 +352,16 @@ int run(int argc, const char* const argv[]) {
        << " resamples; errors 1σ). " << measured_total << " measurements of " << truth_total
        << " true galaxies in " << s.files.size() / 2 << " image(s); " << blends_or_strays
        << " measurements unmatched within " << radius << (s.sky ? "\"" : " px")
-       << " (blends, spurious detections); responsivity " << s.responsivity << ".\n\n"
+       << " (blends, spurious detections); responsivity " << s.responsivity
+       << (s.complete_rings ? "; " + std::to_string(incomplete) + " galaxies of rings with a copy lost left out" : "")
+       << ".\n\n"
        << "| component | m | c |\n|---|---|---|\n"
        << "| 1 | " << cell(all.one.m, all.one.m_err) << " | " << cell(all.one.c, all.one.c_err) << " |\n"
        << "| 2 | " << cell(all.two.m, all.two.m_err) << " | " << cell(all.two.c, all.two.c_err) << " |\n";
     Json json{{"all", fit_json(all)}, {"matched", all.galaxies}, {"measured", measured_total},
               {"true_galaxies", truth_total}, {"unmatched", blends_or_strays},
-              {"match_radius", radius}, {"responsivity", s.responsivity}, {"bins", Json::object()}};
+              {"match_radius", radius}, {"responsivity", s.responsivity},
+              {"incomplete_rings_left_out", incomplete}, {"bins", Json::object()}};
     std::vector<CalibrationBin> first_bins;  // the figure's
     for (const Bin& b : bins) {
         const std::vector<double>& v = bin_values[b.name];

@@ -98,6 +98,38 @@ for f in ("j1.json", "j2.json", "j3.json"):
         assert abs(a[k]["m"] - ref[k]["m"]) < 1e-12 and abs(a[k]["c"] - ref[k]["c"]) < 1e-14, (f, a, ref)
 PY
 
+# Rings: 100 pairs sharing their shear, one copy of ten pairs unmeasured. Each pair is one
+# bootstrap block; --complete-rings leaves out the ten whose partner was lost.
+python3 - <<'PY'
+import json, random
+r = random.Random(5)
+with open("rings.truth.jsonl", "w") as t, open("rings.csv", "w") as s:
+    s.write("x,y,e1,e2\n")
+    for k in range(200):
+        pair = k // 2
+        r.seed(pair)
+        g1, g2 = r.uniform(-0.05, 0.05), r.uniform(-0.05, 0.05)
+        x, y = 10 + 6 * (k % 30), 10 + 6 * (k // 30)
+        t.write(json.dumps({"schema": "shapesim.truth/1", "id": "g%d" % k, "kind": "galaxy", "ra": 0,
+            "dec": 0, "x": x, "y": y, "flux": 1, "e1": 0, "e2": 0, "rms_radius": 2, "lensing_error": 0,
+            "g1": g1, "g2": g2, "kappa": 0, "mu": 1, "n_max": 0, "stamp_radius": 10,
+            "ring": {"first": "g%d" % (2 * pair), "member": k % 2, "of": 2, "x": x, "y": y}}) + "\n")
+        if pair < 10 and k % 2 == 1: continue
+        s.write("%r,%r,%r,%r\n" % (x, y, 1.01 * g1 + 0.3 * (-1) ** k, 1.01 * g2))
+PY
+"$BIN/shapesim-calibrate" -q rings.truth.jsonl rings.csv --json all.json >/dev/null || fail "rings failed"
+"$BIN/shapesim-calibrate" -q rings.truth.jsonl rings.csv --complete-rings --json complete.json >/dev/null ||
+  fail "--complete-rings failed"
+python3 - <<'PY' || fail "rings are not blocks, or incomplete ones not left out"
+import json
+a, c = json.load(open("all.json")), json.load(open("complete.json"))
+assert (a["all"]["galaxies"], a["all"]["blocks"]) == (190, 100), a["all"]
+assert (c["all"]["galaxies"], c["all"]["blocks"], c["incomplete_rings_left_out"]) == (180, 90, 10), c
+# Complete pairs cancel their ±0.3 exactly: m1 = 0.01 to rounding; the ten lone copies do not.
+assert abs(c["all"]["g1"]["m"] - 0.01) < 1e-9 and c["all"]["g1"]["m_err"] < 1e-9, c["all"]
+assert abs(a["all"]["g1"]["m"] - 0.01) > 1e-3, a["all"]
+PY
+
 # Bad input: one line, nothing written.
 rc=0; "$BIN/shapesim-calibrate" exact.truth.jsonl >out 2>err || rc=$?
 expect_error $rc 2 "^shapesim-calibrate: give pairs of files"
