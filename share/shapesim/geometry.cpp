@@ -7,6 +7,7 @@
 #include <algorithm>
 #include <cmath>
 #include <optional>
+#include <ostream>
 
 namespace shapesim {
 
@@ -247,6 +248,35 @@ FieldGeometry read_field_geometry(const std::string& path, std::optional<double>
     g.pixel_scale = g.wcs.pixel_scale_arcsec();
     g.bunit = fits.optional_string("BUNIT").value_or("");
     return g;
+}
+
+bool Tile::reaches(double x, double y, double radius) const {
+    // Distance from (x, y) to the window's area [x0 − ½, x1 + ½] × [y0 − ½, y1 + ½].
+    const double dx = std::max({double(x0) - 0.5 - x, 0.0, x - double(x1) - 0.5});
+    const double dy = std::max({double(y0) - 0.5 - y, 0.0, y - double(y1) - 0.5});
+    return dx * dx + dy * dy <= radius * radius;
+}
+
+bool Tile::owns(double x, double y) const {
+    return x >= double(x0) - 0.5 && x < double(x1) + 0.5 && y >= double(y0) - 0.5 && y < double(y1) + 0.5;
+}
+
+std::vector<Tile> tile_grid(long field_nx, long field_ny, long width, long height) {
+    if (width < 1 || height < 1) throw Error("tile sides must be at least 1 pixel");
+    std::vector<Tile> tiles;
+    for (long y0 = 1; y0 <= field_ny; y0 += height)
+        for (long x0 = 1; x0 <= field_nx; x0 += width)
+            tiles.push_back({x0, y0, std::min(x0 + width - 1, field_nx), std::min(y0 + height - 1, field_ny)});
+    return tiles;
+}
+
+void write_tile_grid(std::ostream& out, const std::string& name, long field_nx, long field_ny,
+                     long width, long height) {
+    for (const Tile& t : tile_grid(field_nx, field_ny, width, height))
+        out << (t.x0 - 1) / width << ' ' << (t.y0 - 1) / height << ' ' << t.x0 << ' ' << t.y0
+            << ' ' << t.x1 << ' ' << t.y1 << '\n';
+    out.flush();
+    if (!out) throw Error("cannot write the tile grid", name);
 }
 
 }  // namespace shapesim

@@ -114,47 +114,6 @@ void SampleOptions::validate() const {
     if (stars.density > 0.0 || (star_count && *star_count > 0)) stars.validate();
 }
 
-bool Tile::reaches(double x, double y, double radius) const {
-    // Distance from (x, y) to the window's area [x0 − ½, x1 + ½] × [y0 − ½, y1 + ½].
-    const double dx = std::max({double(x0) - 0.5 - x, 0.0, x - double(x1) - 0.5});
-    const double dy = std::max({double(y0) - 0.5 - y, 0.0, y - double(y1) - 0.5});
-    return dx * dx + dy * dy <= radius * radius;
-}
-
-bool Tile::owns(double x, double y) const {
-    return x >= double(x0) - 0.5 && x < double(x1) + 0.5 && y >= double(y0) - 0.5 && y < double(y1) + 0.5;
-}
-
-std::vector<Tile> tile_grid(long field_nx, long field_ny, long width, long height) {
-    if (width < 1 || height < 1) throw Error("tile sides must be at least 1 pixel");
-    std::vector<Tile> tiles;
-    for (long y0 = 1; y0 <= field_ny; y0 += height)
-        for (long x0 = 1; x0 <= field_nx; x0 += width)
-            tiles.push_back({x0, y0, std::min(x0 + width - 1, field_nx), std::min(y0 + height - 1, field_ny)});
-    return tiles;
-}
-
-std::string SampleSummary::describe(const FieldGeometry& field, double density,
-                                    bool in_tile) const {
-    std::ostringstream line;
-    line << galaxies << " galaxies and " << stars << " stars over " << field.area_arcmin2()
-         << " arcmin^2 (" << density << " per arcmin^2; " << field.nx << " x " << field.ny
-         << " pixels); " << galaxies_out << " galaxies and " << stars_out << " stars written"
-         << (in_tile ? " (in the tile)" : "") << " from " << cells_read << " of " << cells
-         << " sky cells; " << redraws << " perturbations redrawn; ";
-    if (faint > 0)
-        line << faint << " galaxies below the limit (" << faint_out << " written); ";
-    return line.str();
-}
-
-void write_tile_grid(std::ostream& out, const std::string& name, long field_nx, long field_ny,
-                     long width, long height) {
-    for (const Tile& t : tile_grid(field_nx, field_ny, width, height))
-        out << (t.x0 - 1) / width << ' ' << (t.y0 - 1) / height << ' ' << t.x0 << ' ' << t.y0
-            << ' ' << t.x1 << ' ' << t.y1 << '\n';
-    out.flush();
-    if (!out) throw Error("cannot write the tile grid", name);
-}
 
 void apply_model_counts(SampleOptions& options, const Morphology& morphology, bool fit_counts,
                         bool density_given, const std::string& model_path) {
@@ -477,6 +436,19 @@ void sample_stars(const Morphology& morphology, const FieldGeometry& field,
 }
 
 }  // namespace
+
+std::string SampleSummary::describe(const FieldGeometry& field, double density,
+                                    bool in_tile) const {
+    std::ostringstream line;
+    line << galaxies << " galaxies and " << stars << " stars over " << field.area_arcmin2()
+         << " arcmin^2 (" << density << " per arcmin^2; " << field.nx << " x " << field.ny
+         << " pixels); " << galaxies_out << " galaxies and " << stars_out << " stars written"
+         << (in_tile ? " (in the tile)" : "") << " from " << cells_read << " of " << cells
+         << " sky cells; " << redraws << " perturbations redrawn; ";
+    if (faint > 0)
+        line << faint << " galaxies below the limit (" << faint_out << " written); ";
+    return line.str();
+}
 
 SampleSummary sample_field(const Morphology& morphology, const FieldGeometry& field,
                            const SampleOptions& options, const std::optional<Tile>& tile,

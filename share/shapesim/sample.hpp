@@ -90,25 +90,6 @@ struct SampleOptions {
     void validate() const;
 };
 
-/// A window of a field's pixels, FITS coordinates, inclusive: pixels x0…x1, y0…y1.
-struct Tile {
-    long x0 = 1, y0 = 1, x1 = 1, y1 = 1;
-    /// Whether a circle of `radius` pixels about (x, y) meets the window's pixel area.
-    bool reaches(double x, double y, double radius) const;
-    /// Whether (x, y) lies in the window's pixels, [x0 − ½, x1 + ½) × [y0 − ½, y1 + ½): each
-    /// point of a field belongs to exactly one tile of a grid.
-    bool owns(double x, double y) const;
-};
-
-/// The field cut into tiles of `width` × `height` pixels, row by row from (1, 1); the last
-/// column and row of tiles take what is left. Throws Error unless both sides are ≥ 1.
-std::vector<Tile> tile_grid(long field_nx, long field_ny, long width, long height);
-
-/// The grid of tile_grid() as lines "IX IY X0 Y0 X1 Y1" (IX, IY from 0: the tile's column and
-/// row; the rest its --tile arguments), flushed; Error naming `name` when `out` fails.
-void write_tile_grid(std::ostream& out, const std::string& name, long field_nx, long field_ny,
-                     long width, long height);
-
 /// The model's say in a draw. With `fit_counts` (--counts fit), `options.draw.counts` are the
 /// counts fitted to its real fields (conditional_counts; when they cannot be, an Error naming
 /// `model_path` points to --counts parents). Unless `density_given`, `options.density` becomes

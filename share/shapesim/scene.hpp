@@ -48,7 +48,6 @@
 #include "shapesim/pixel_noise.hpp"
 #include "shapesim/records.hpp"
 #include "shapesim/render.hpp"
-#include "shapesim/sample.hpp"
 #include "shapesim/transform.hpp"
 
 #include <cstdint>
