@@ -148,65 +148,9 @@ private:
     int w_, h_;
 };
 
-// Brent's root finder on a bracket [a, b] with f(a)·f(b) ≤ 0 (fa = f(a) and fb = f(b), known
-// to the caller, whose search found the bracket), absolute tolerance `tol`.
-double brent(const std::function<double(double)>& f, double a, double b, double fa, double fb,
-             double tol) {
-    if (fa == 0.0) return a;
-    if (fb == 0.0) return b;
-    double c = a, fc = fa, d = b - a, e = d;
-    for (int iter = 0; iter < 200; ++iter) {
-        if ((fb > 0.0) == (fc > 0.0)) {
-            c = a;
-            fc = fa;
-            d = e = b - a;
-        }
-        if (std::abs(fc) < std::abs(fb)) {
-            a = b;
-            b = c;
-            c = a;
-            fa = fb;
-            fb = fc;
-            fc = fa;
-        }
-        const double tol1 = 2.0 * 2.2e-16 * std::abs(b) + 0.5 * tol;
-        const double m = 0.5 * (c - b);
-        if (std::abs(m) <= tol1 || fb == 0.0) return b;
-        if (std::abs(e) >= tol1 && std::abs(fa) > std::abs(fb)) {
-            double p, q, r;
-            const double s = fb / fa;
-            if (a == c) {
-                p = 2.0 * m * s;
-                q = 1.0 - s;
-            } else {
-                q = fa / fc;
-                r = fb / fc;
-                p = s * (2.0 * m * q * (q - r) - (b - a) * (r - 1.0));
-                q = (q - 1.0) * (r - 1.0) * (s - 1.0);
-            }
-            if (p > 0.0) q = -q;
-            p = std::abs(p);
-            if (2.0 * p < std::min(3.0 * m * q - std::abs(tol1 * q), std::abs(e * q))) {
-                e = d;
-                d = p / q;
-            } else {
-                d = m;
-                e = d;
-            }
-        } else {
-            d = m;
-            e = d;
-        }
-        a = b;
-        fa = fb;
-        b += std::abs(d) > tol1 ? d : (m > 0.0 ? tol1 : -tol1);
-        fb = f(b);
-    }
-    return b;
-}
-
 // The first root of `f` walking outward over `points` radii from `lo` to `hi` (f > 0 inside),
-// refined by Brent; `lo` when f < 0 already there, `hi` when f never turns negative.
+// refined by brent_root (optimize.hpp); `lo` when f < 0 already there, `hi` when f never
+// turns negative.
 double first_root(const std::function<double(double)>& f, double lo, double hi, int points,
                   bool* bracketed) {
     double r_prev = lo, v_prev = 0.0;
@@ -220,7 +164,7 @@ double first_root(const std::function<double(double)>& f, double lo, double hi, 
                 *bracketed = false;
                 return lo;
             }
-            return brent(f, r_prev, r, v_prev, v, 1e-6);
+            return brent_root(f, r_prev, r, v_prev, v, 1e-6);
         }
         r_prev = r;
         v_prev = v;
@@ -649,7 +593,7 @@ void measure_concentration(const Apertures& on_z, const Centre& centre,
                 known = k;
             }
             const double g_r = walked[std::size_t(k)] / flux_total - fraction;
-            if (g_r > 0.0) return brent(g, prev, r, g_prev, g_r, 1e-6);
+            if (g_r > 0.0) return brent_root(g, prev, r, g_prev, g_r, 1e-6);
             prev = r;
             g_prev = g_r;
         }

@@ -2,7 +2,8 @@
 // expansion 2, contraction ½, shrink ½; outside and inside contraction told apart), over N
 // parameters. Morphometry's asymmetry centre (statmorph's choice, so its defaults are scipy's)
 // and decompose's elliptical Gaussians use it. Golden-section search in one variable: the β
-// searches of decompose (χ²_r) and of the PSF fit (residual sum of squares).
+// searches of decompose (χ²_r) and of the PSF fit (residual sum of squares). Brent's root
+// finder: morphometry's Petrosian radius and its light-fraction radii.
 #pragma once
 
 #include <algorithm>
@@ -146,6 +147,63 @@ auto golden_section(const F& f, double a, double b, double tolerance, const Less
         }
     }
     return {c, d, std::move(fc), std::move(fd)};
+}
+
+/// Brent's root finder on a bracket [a, b] with f(a)·f(b) ≤ 0 (fa = f(a) and fb = f(b), known
+/// to the caller, whose search found the bracket), absolute tolerance `tol`; at most 200 steps.
+template <class F>
+double brent_root(const F& f, double a, double b, double fa, double fb, double tol) {
+    if (fa == 0.0) return a;
+    if (fb == 0.0) return b;
+    double c = a, fc = fa, d = b - a, e = d;
+    for (int iter = 0; iter < 200; ++iter) {
+        if ((fb > 0.0) == (fc > 0.0)) {
+            c = a;
+            fc = fa;
+            d = e = b - a;
+        }
+        if (std::abs(fc) < std::abs(fb)) {
+            a = b;
+            b = c;
+            c = a;
+            fa = fb;
+            fb = fc;
+            fc = fa;
+        }
+        const double tol1 = 2.0 * 2.2e-16 * std::abs(b) + 0.5 * tol;
+        const double m = 0.5 * (c - b);
+        if (std::abs(m) <= tol1 || fb == 0.0) return b;
+        if (std::abs(e) >= tol1 && std::abs(fa) > std::abs(fb)) {
+            double p, q, r;
+            const double s = fb / fa;
+            if (a == c) {
+                p = 2.0 * m * s;
+                q = 1.0 - s;
+            } else {
+                q = fa / fc;
+                r = fb / fc;
+                p = s * (2.0 * m * q * (q - r) - (b - a) * (r - 1.0));
+                q = (q - 1.0) * (r - 1.0) * (s - 1.0);
+            }
+            if (p > 0.0) q = -q;
+            p = std::abs(p);
+            if (2.0 * p < std::min(3.0 * m * q - std::abs(tol1 * q), std::abs(e * q))) {
+                e = d;
+                d = p / q;
+            } else {
+                d = m;
+                e = d;
+            }
+        } else {
+            d = m;
+            e = d;
+        }
+        a = b;
+        fa = fb;
+        b += std::abs(d) > tol1 ? d : (m > 0.0 ? tol1 : -tol1);
+        fb = f(b);
+    }
+    return b;
 }
 
 }  // namespace shapesim

@@ -1,4 +1,5 @@
-// optimize.hpp's golden-section search: the minimum of a parabola within the tolerance, each
+// optimize.hpp's Brent root finder (to its tolerance, in few steps; an end that is a root) and
+// its golden-section search: the minimum of a parabola within the tolerance, each
 // point evaluated once and in order, every dropped point reported, the golden ratio's
 // bracket shrinking.
 #include "shapesim/optimize.hpp"
@@ -39,4 +40,19 @@ TEST(GoldenSection, ANarrowBracketIsEvaluatedOnlyAtItsTwoPoints) {
                                         std::less<double>(), [](double) {});
     EXPECT_EQ(calls, 2);
     EXPECT_LT(bracket.fc, bracket.fd);  // f(x) = x: the lower point is the lower value
+}
+
+TEST(BrentRoot, FindsTheRootOfABracketWithinTheTolerance) {
+    int calls = 0;
+    const auto f = [&](double x) {
+        ++calls;
+        return std::cos(x);
+    };
+    const double root = brent_root(f, 0.0, 2.0, std::cos(0.0), std::cos(2.0), 1e-10);
+    EXPECT_NEAR(root, M_PI / 2.0, 1e-10);
+    EXPECT_LT(calls, 12);  // superlinear: bisection alone would take 35
+    // An end that is a root is returned without a call.
+    calls = 0;
+    EXPECT_EQ(brent_root(f, M_PI / 2.0, 3.0, 0.0, std::cos(3.0), 1e-10), M_PI / 2.0);
+    EXPECT_EQ(calls, 0);
 }
