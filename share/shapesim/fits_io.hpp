@@ -239,4 +239,20 @@ Stamp read_stamp(FitsReader& fits, const std::string& id);
 /// mask BITPIX 8.
 void write_stamp(FitsWriter& out, const Stamp& stamp);
 
+// The FITS side of a WCS (fits_wcs.cpp).
+
+/// Read the WCS of the current HDU: CRPIXi, CRVALi, CTYPEi and the CD matrix (else
+/// PCi_j × CDELTi, else CDELTi with CROTA2). Throws Error naming the file/HDU and keyword.
+Wcs read_wcs(FitsReader& fits);
+/// True when the current HDU declares a celestial WCS (CTYPE1 present).
+bool has_wcs(FitsReader& fits);
+
+/// The geometry of the first image HDU of `path` (cfitsio syntax `file.fits[EXT]` allowed).
+/// Its header's TAN WCS when it has one (CTYPE1 present and not blank); otherwise, with
+/// `pixel_scale`, a north-up TAN WCS centred on (`ra`, `dec`) as shapesim-detect assumes;
+/// otherwise Error naming the file. Pixels are not read.
+FieldGeometry read_field_geometry(const std::string& path,
+                                  std::optional<double> pixel_scale = std::nullopt,
+                                  double ra = 0.0, double dec = 0.0);
+
 }  // namespace shapesim

@@ -26,8 +26,6 @@
 
 namespace shapesim {
 
-class FitsReader;
-
 /// A sky position in degrees.
 struct SkyPosition {
     double ra = 0.0, dec = 0.0;
@@ -79,12 +77,6 @@ struct Wcs {
 Wcs tan_wcs(double ra, double dec, double pixel_scale_arcsec, double crpix1, double crpix2,
             double rotation_deg = 0.0);
 
-/// Read the WCS of the current HDU: CRPIXi, CRVALi, CTYPEi and the CD matrix (else
-/// PCi_j × CDELTi, else CDELTi with CROTA2). Throws Error naming the file/HDU and keyword.
-Wcs read_wcs(FitsReader& fits);
-/// True when the current HDU declares a celestial WCS (CTYPE1 present).
-bool has_wcs(FitsReader& fits);
-
 /// The geometry of a field, as taken by `--like IMAGE` (DESIGN §1).
 struct FieldGeometry {
     int nx = 0, ny = 0;        ///< size in pixels (NAXIS1, NAXIS2)
@@ -101,14 +93,6 @@ struct FieldGeometry {
 /// give between 1 and 10⁹ pixels a side.
 FieldGeometry make_field(double width_arcmin, double height_arcmin, double pixel_scale,
                          double ra, double dec);
-
-/// The geometry of the first image HDU of `path` (cfitsio syntax `file.fits[EXT]` allowed).
-/// Its header's TAN WCS when it has one (CTYPE1 present and not blank); otherwise, with
-/// `pixel_scale`, a north-up TAN WCS centred on (`ra`, `dec`) as shapesim-detect assumes;
-/// otherwise Error naming the file. Pixels are not read.
-FieldGeometry read_field_geometry(const std::string& path,
-                                  std::optional<double> pixel_scale = std::nullopt,
-                                  double ra = 0.0, double dec = 0.0);
 
 /// A window of a field's pixels, FITS coordinates, inclusive: pixels x0…x1, y0…y1.
 struct Tile {

@@ -4,6 +4,7 @@
 #include "shapesim/error.hpp"
 
 #include "shapesim/atomic_file.hpp"
+#include "shapesim/fits_io.hpp"
 #include "shapesim/geometry.hpp"
 #include "shapesim/noise.hpp"
 #include "shapesim/psf.hpp"

@@ -1,5 +1,7 @@
 #include "shapesim/app/field_options.hpp"
 
+#include "shapesim/fits_io.hpp"
+
 #include <cmath>
 
 namespace shapesim::app {
