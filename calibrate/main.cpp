@@ -39,13 +39,13 @@ const char* const description =
     "\n"
     "Examples:\n"
     "  shapesim-calibrate truth.jsonl shapes.jsonl > calibration.md\n"
-    "  shapesim-calibrate --e1 E1 --e2 E2 --position X_IMAGE,Y_IMAGE --bin MAG_AUTO:4 \\\n"
-    "      truth.jsonl sex.cat             # SExtractor's catalogue, one image\n"
+    "  shapesim-calibrate --position XWIN_IMAGE,YWIN_IMAGE --bin SNR_WIN:4 \\\n"
+    "      --moments X2WIN_IMAGE,Y2WIN_IMAGE,XYWIN_IMAGE truth.jsonl sex.cat   # SExtractor's\n"
     "  shapesim-calibrate t1.jsonl s1.csv t2.jsonl s2.csv --json m_c.json   # two images";
 
 struct Settings {
     std::vector<std::string> files, bins;
-    std::string e1 = "e1", e2 = "e2", position = "x,y", json, figures;
+    std::string e1 = "e1", e2 = "e2", position = "x,y", moments, json, figures;
     double radius = 0.0, responsivity = 1.0;
     int bootstrap = 200;
     bool sky = false, flip_e2 = false, complete_rings = false;
@@ -223,6 +223,10 @@ int run(int argc, const char* const argv[]) {
          "more images")
         ("e1", po::value(&s.e1)->value_name("NAME")->default_value("e1"), "the shape catalogue's e1 column")
         ("e2", po::value(&s.e2)->value_name("NAME")->default_value("e2"), "the shape catalogue's e2 column")
+        ("moments", po::value(&s.moments)->value_name("XX,YY,XY"),
+         "the shape from second-moment columns instead of --e1/--e2 (SExtractor's windowed "
+         "X2WIN_IMAGE,Y2WIN_IMAGE,XYWIN_IMAGE): e = (a−b)/(a+b) e^{2iθ} of their ellipse, not "
+         "corrected for the PSF")
         ("position", po::value(&s.position)->value_name("X,Y")->default_value("x,y"),
          "its position columns: pixels of the image (or, with --sky, RA,DEC in degrees)")
         ("sky", po::bool_switch(&s.sky), "match on the sky (ra, dec) instead of in pixels")
@@ -256,6 +260,15 @@ int run(int argc, const char* const argv[]) {
     if (s.files.empty() || s.files.size() % 2 != 0)
         throw po::error("give pairs of files: TRUTH SHAPES [TRUTH SHAPES]...");
     const auto [px, py] = split_pair(s.position, "position");
+    std::vector<std::string> moment_names;
+    if (!s.moments.empty()) {
+        if (options.given("e1") || options.given("e2")) throw po::error("--moments: not with --e1/--e2");
+        std::istringstream names(s.moments);
+        for (std::string name; std::getline(names, name, ',');) moment_names.push_back(name);
+        if (moment_names.size() != 3 || std::any_of(moment_names.begin(), moment_names.end(),
+                                                    [](const std::string& n) { return n.empty(); }))
+            throw po::error("--moments: give three names, XX,YY,XY");
+    }
     std::vector<Bin> bins;
     for (const std::string& b : s.bins) bins.push_back(parse_bin(b));
     if (s.bins.empty()) bins.push_back(Bin{"mag", 4});
@@ -272,10 +285,32 @@ int run(int argc, const char* const argv[]) {
         const std::string& truth_path = s.files[f];
         const std::string& shapes_path = s.files[f + 1];
         const std::vector<TrueGalaxy> truth = read_truth(truth_path, f / 2, s.sky, ra0, dec0);
-        auto columns = read_numeric_columns(shapes_path, {px, py, s.e1, s.e2}, optional);
+        std::vector<std::string> wanted{px, py};
+        if (moment_names.empty()) wanted.insert(wanted.end(), {s.e1, s.e2});
+        else wanted.insert(wanted.end(), moment_names.begin(), moment_names.end());
+        auto columns = read_numeric_columns(shapes_path, wanted, optional);
         std::vector<double> mx = columns.at(px), my = columns.at(py);
-        const std::vector<double>& e1 = columns.at(s.e1);
-        const std::vector<double>& e2 = columns.at(s.e2);
+        std::vector<double> e1, e2;
+        if (moment_names.empty()) {
+            e1 = columns.at(s.e1);
+            e2 = columns.at(s.e2);
+        } else {
+            // ε of the moments' ellipse: χ = (Qxx − Qyy + 2i Qxy)/(Qxx + Qyy), ε = χ/(1 + √(1 − |χ|²)).
+            const std::vector<double>& xx = columns.at(moment_names[0]);
+            const std::vector<double>& yy = columns.at(moment_names[1]);
+            const std::vector<double>& xy = columns.at(moment_names[2]);
+            for (std::size_t k = 0; k < xx.size(); ++k) {
+                const double t = xx[k] + yy[k], det = xx[k] * yy[k] - xy[k] * xy[k];
+                double a = std::nan(""), b = std::nan("");
+                if (t > 0.0 && det > 0.0) {
+                    const double c1 = (xx[k] - yy[k]) / t, c2 = 2.0 * xy[k] / t;
+                    const double d = 1.0 + std::sqrt(std::max(0.0, 1.0 - c1 * c1 - c2 * c2));
+                    a = c1 / d, b = c2 / d;
+                }
+                e1.push_back(a);
+                e2.push_back(b);
+            }
+        }
         // Rows without a position or a shape are no measurement.
         std::vector<std::size_t> rows;
         for (std::size_t k = 0; k < mx.size(); ++k)
