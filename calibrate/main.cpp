@@ -276,10 +276,14 @@ int run(int argc, const char* const argv[]) {
 
     std::vector<std::string> optional;
     for (const Bin& b : bins) optional.push_back(b.name);
+    // shapesim-measure's catalogues hold the uncorrected distortion as e1, e2 and the shear
+    // estimate as shear_e1, shear_e2: calibrating the first by default would mislead.
+    const bool e_defaulted = moment_names.empty() && !options.given("e1") && !options.given("e2");
+    if (e_defaulted) optional.push_back("shear_e1");
     std::vector<ShearPoint> points;
     std::vector<long> ring_sizes;  // each point's ring's copies
     std::map<std::string, std::vector<double>> bin_values;
-    long measured_total = 0, blends_or_strays = 0, truth_total = 0;
+    long measured_total = 0, blends_or_strays = 0, truth_total = 0, without_shape = 0;
     double ra0 = std::nan(""), dec0 = std::nan("");
     for (std::size_t f = 0; f < s.files.size(); f += 2) {
         const std::string& truth_path = s.files[f];
@@ -289,6 +293,16 @@ int run(int argc, const char* const argv[]) {
         if (moment_names.empty()) wanted.insert(wanted.end(), {s.e1, s.e2});
         else wanted.insert(wanted.end(), moment_names.begin(), moment_names.end());
         auto columns = read_numeric_columns(shapes_path, wanted, optional);
+        // A bin's column is the shape catalogue's or one of the truth's fields.
+        for (const Bin& b : bins)
+            if (!columns.count(b.name) && b.name != "mag" && b.name != "flux" && b.name != "rms_radius" &&
+                b.name != "kappa" && b.name != "mu")
+                throw Error("--bin " + b.name + ": no such column, nor a truth field (mag, flux, "
+                            "rms_radius, kappa, mu)", shapes_path);
+        if (e_defaulted && columns.count("shear_e1"))
+            log.info("note: ", shapes_path, " has shear_e1, shear_e2 (shapesim-measure --shear-estimate): "
+                     "its e1, e2 are the PSF-blurred distortion; calibrate the estimate with --e1 "
+                     "shear_e1 --e2 shear_e2");
         std::vector<double> mx = columns.at(px), my = columns.at(py);
         std::vector<double> e1, e2;
         if (moment_names.empty()) {
@@ -355,6 +369,7 @@ int run(int argc, const char* const argv[]) {
             }
         }
         measured_total += long(rows.size());
+        without_shape += long(mx.size() - rows.size());
         truth_total += long(truth.size());
         log.verbose(shapes_path, ": ", matched, " of ", rows.size(), " measurements matched to ",
                     truth.size(), " true galaxies of ", truth_path);
@@ -385,7 +400,9 @@ int run(int argc, const char* const argv[]) {
        << "e = (1 + m) g + c per component, least squares over " << all.galaxies
        << " matched galaxies (" << all.blocks << " bootstrap blocks, " << s.bootstrap
        << " resamples; errors 1σ). " << measured_total << " measurements of " << truth_total
-       << " true galaxies in " << s.files.size() / 2 << " image(s); " << blends_or_strays
+       << " true galaxies in " << s.files.size() / 2 << " image(s)"
+       << (without_shape ? " (and " + std::to_string(without_shape) + " rows without a position or a shape)" : "")
+       << "; " << blends_or_strays
        << " measurements unmatched within " << radius << (s.sky ? "\"" : " px")
        << " (blends, spurious detections); responsivity " << s.responsivity
        << (s.complete_rings ? "; " + std::to_string(incomplete) + " galaxies of rings with a copy lost left out" : "")

@@ -160,6 +160,9 @@ for l in open("exact.truth.jsonl"):
     t = json.loads(l); t["g1"] = 0.02; print(json.dumps(t))' >one.truth.jsonl
 rc=0; "$BIN/shapesim-calibrate" one.truth.jsonl exact.csv >out 2>err || rc=$?
 expect_error $rc 1 "the true g1 takes one value: m and c need the shear to vary"
+rc=0; "$BIN/shapesim-calibrate" exact.truth.jsonl exact.csv --bin nosuch -o r.md 2>err || rc=$?
+expect_error $rc 1 "^shapesim-calibrate: exact.csv: --bin nosuch: no such column, nor a truth field"
+[ ! -e r.md ] || fail "a refused run left its report"
 rc=0; "$BIN/shapesim-calibrate" exact.truth.jsonl exact.csv --bin snr:0 >out 2>err || rc=$?
 expect_error $rc 2 "^shapesim-calibrate: --bin snr:0: N must be 1 to 100"
 exit 0
