@@ -8,6 +8,7 @@
 #include "shapesim/calibration.hpp"
 #include "shapesim/constants.hpp"
 #include "shapesim/error.hpp"
+#include "shapesim/geometry.hpp"
 #include "shapesim/jsonl.hpp"
 #include "shapesim/records.hpp"
 #include "shapesim/rng.hpp"
@@ -20,6 +21,7 @@
 #include <cmath>
 #include <cstdio>
 #include <map>
+#include <optional>
 #include <sstream>
 
 namespace {
@@ -92,7 +94,7 @@ struct TrueGalaxy {
 };
 
 std::vector<TrueGalaxy> read_truth(const std::string& path, std::size_t image, bool sky,
-                                   double& ra0, double& dec0) {
+                                   std::optional<Wcs>& plane) {
     JsonlReader reader(path, {TruthRecord::schema});
     std::vector<TrueGalaxy> out;
     TruthRecord t;
@@ -100,9 +102,11 @@ std::vector<TrueGalaxy> read_truth(const std::string& path, std::size_t image, b
         if (t.kind != "galaxy" || !t.shape) continue;
         TrueGalaxy g;
         if (sky) {
-            if (std::isnan(ra0)) ra0 = t.ra, dec0 = t.dec;
-            g.x = (t.ra - ra0) * std::cos(dec0 * degree) * 3600.0;
-            g.y = (t.dec - dec0) * 3600.0;
+            // The sky on a tangent plane of 1″ pixels about the first galaxy (across RA 0 too).
+            if (!plane) plane = tan_wcs(t.ra, t.dec, 1.0, 0.0, 0.0);
+            const PixelPosition p = plane->sky_to_pixel(t.ra, t.dec);
+            g.x = p.x;
+            g.y = p.y;
         } else {
             g.x = t.x;
             g.y = t.y;
@@ -284,11 +288,11 @@ int run(int argc, const char* const argv[]) {
     std::vector<long> ring_sizes;  // each point's ring's copies
     std::map<std::string, std::vector<double>> bin_values;
     long measured_total = 0, blends_or_strays = 0, truth_total = 0, without_shape = 0;
-    double ra0 = std::nan(""), dec0 = std::nan("");
+    std::optional<Wcs> plane;  // --sky: the tangent plane positions are matched on
     for (std::size_t f = 0; f < s.files.size(); f += 2) {
         const std::string& truth_path = s.files[f];
         const std::string& shapes_path = s.files[f + 1];
-        const std::vector<TrueGalaxy> truth = read_truth(truth_path, f / 2, s.sky, ra0, dec0);
+        const std::vector<TrueGalaxy> truth = read_truth(truth_path, f / 2, s.sky, plane);
         std::vector<std::string> wanted{px, py};
         if (moment_names.empty()) wanted.insert(wanted.end(), {s.e1, s.e2});
         else wanted.insert(wanted.end(), moment_names.begin(), moment_names.end());
@@ -333,9 +337,10 @@ int run(int argc, const char* const argv[]) {
         std::vector<double> qx, qy;
         for (std::size_t k : rows) {
             if (s.sky) {
-                if (std::isnan(ra0)) throw Error("no true galaxy to match", truth_path);
-                qx.push_back((mx[k] - ra0) * std::cos(dec0 * degree) * 3600.0);
-                qy.push_back((my[k] - dec0) * 3600.0);
+                if (!plane) throw Error("no true galaxy to match", truth_path);
+                const PixelPosition p = plane->sky_to_pixel(mx[k], my[k]);
+                qx.push_back(p.x);
+                qy.push_back(p.y);
             } else {
                 qx.push_back(mx[k]);
                 qy.push_back(my[k]);

@@ -148,6 +148,34 @@ assert abs(c["all"]["g1"]["m"] - 0.01) < 1e-9 and c["all"]["g1"]["m_err"] < 1e-9
 assert abs(a["all"]["g1"]["m"] - 0.01) > 1e-3, a["all"]
 PY
 
+# On the sky (--sky): the same galaxies placed across RA 0 at 0.1″ a pixel, matched by
+# ra, dec (the shapes' RA written in (−180°, 180]), give the pixel matching's m and c.
+python3 - <<'PY'
+import csv, json
+def sky(x, y):
+    return ((x - 900) * 0.1 / 3600) % 360, 10 + y * 0.1 / 3600
+with open("sky.truth.jsonl", "w") as f:
+    for l in open("exact.truth.jsonl"):
+        t = json.loads(l)
+        t["ra"], t["dec"] = sky(t["x"], t["y"])
+        f.write(json.dumps(t) + "\n")
+with open("sky.csv", "w") as f:
+    f.write("ra,dec,e1,e2\n")
+    for r in csv.DictReader(open("exact.csv")):
+        ra, dec = sky(float(r["x"]), float(r["y"]))
+        ra = ra - 360 if ra > 180 else ra   # this catalogue writes RA in (-180, 180]
+        f.write("%r,%r,%s,%s\n" % (ra, dec, r["e1"], r["e2"]))
+PY
+"$BIN/shapesim-calibrate" -q --sky --position ra,dec sky.truth.jsonl sky.csv --json sky.json >/dev/null ||
+  fail "--sky failed"
+python3 - <<'PY' || fail "--sky does not match as the pixels do"
+import json
+a, ref = json.load(open("sky.json")), json.load(open("exact.json"))
+assert a["all"]["galaxies"] == ref["all"]["galaxies"] == 3000, a["all"]
+for k in ("g1", "g2"):
+    assert abs(a["all"][k]["m"] - ref["all"][k]["m"]) < 1e-12, (a["all"], ref["all"])
+PY
+
 # Bad input: one line, nothing written.
 rc=0; "$BIN/shapesim-calibrate" exact.truth.jsonl >out 2>err || rc=$?
 expect_error $rc 2 "^shapesim-calibrate: give pairs of files"
