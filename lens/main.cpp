@@ -48,6 +48,7 @@ struct Settings {
     Cosmology cosmology;
     GaussianFieldOptions gaussian;
     bool no_magnify = false, drop_strong = false;
+    WeakLensingLimits limits;
 };
 
 // κ, γ1, γ2 at the centres of B × B blocks of field pixels, as three float images with the
@@ -130,9 +131,16 @@ int run(int argc, const char* const argv[]) {
          "field pixels per map pixel (default: a map at most 1024 pixels a side)")
         ("no-magnify", po::bool_switch(&s.no_magnify),
          "keep every galaxy's flux (shear and size only; by default flux and area grow by mu)")
+        ("max-shear", po::value(&s.limits.max_shear)->value_name("G")->default_value(0.5)
+             ->notifier(in_range("max-shear", 1e-6, 0.999)),
+         "the strongest reduced shear |g| drawn: the lens acts on a galaxy as one matrix, which "
+         "near a critical curve stretches it into a straight bar, not an arc")
+        ("max-magnification", po::value(&s.limits.max_magnification)->value_name("MU")->default_value(10.0)
+             ->notifier(in_range("max-magnification", 1.0, 1e6)),
+         "the largest magnification drawn (the same reason)")
         ("drop-strong", po::bool_switch(&s.drop_strong),
-         "leave out galaxies where kappa >= 1 or |g| >= 1 (multiple images, not modelled); by "
-         "default they are an error");
+         "leave out galaxies beyond weak lensing (kappa >= 1, |g| > --max-shear, mu > "
+         "--max-magnification); by default they are an error");
     options.positional("input", 1);
     if (!options.parse(argc, argv)) return 0;
     const app::Log log("shapesim-lens", options.common().verbosity);
@@ -209,7 +217,7 @@ int run(int argc, const char* const argv[]) {
                 ++in_rings;
             }
             const Convergence c = lenses.at(at_x, at_y);
-            const std::optional<Lensing> l = reduced(c, !s.no_magnify);
+            const std::optional<Lensing> l = reduced(c, !s.no_magnify, s.limits);
             if (!l) {
                 if (s.drop_strong) {
                     ++dropped;
@@ -219,7 +227,8 @@ int run(int argc, const char* const argv[]) {
                     "object " + r.id + " at (" + std::to_string(*r.x) + ", " + std::to_string(*r.y) +
                         ") is strongly lensed (kappa " + std::to_string(c.kappa) + ", gamma (" +
                         std::to_string(c.gamma1) + ", " + std::to_string(c.gamma2) +
-                        ")): multiple images are not modelled (see --drop-strong)",
+                        ")): beyond weak lensing (kappa >= 1, |g| > --max-shear or mu > "
+                        "--max-magnification; see --drop-strong)",
                     "", 0, "lensing"));
             }
             r.lensing = l;

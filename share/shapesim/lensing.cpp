@@ -70,15 +70,17 @@ double keys(double t) {
 
 }  // namespace
 
-std::optional<Lensing> reduced(const Convergence& c, bool magnify) {
+std::optional<Lensing> reduced(const Convergence& c, bool magnify, const WeakLensingLimits& limits) {
     if (!(c.kappa < 1.0)) return std::nullopt;
     const double g1 = c.gamma1 / (1.0 - c.kappa), g2 = c.gamma2 / (1.0 - c.kappa);
-    if (!(g1 * g1 + g2 * g2 < 1.0)) return std::nullopt;
+    const double g_sq = g1 * g1 + g2 * g2;
+    if (!(g_sq < 1.0) || !(std::sqrt(g_sq) <= limits.max_shear)) return std::nullopt;
     Lensing l;
     l.g1 = g1;
     l.g2 = g2;
     l.kappa = c.kappa;
     l.conserve_flux = !magnify;
+    if (!(magnification(l) <= limits.max_magnification)) return std::nullopt;
     return l;
 }
 

@@ -53,9 +53,19 @@ struct Convergence {
     }
 };
 
-/// The reduced shear g = γ/(1−κ) and κ; nullopt where the weak-lensing description fails
-/// (κ ≥ 1, or |g| ≥ 1: multiple images, not modelled).
-std::optional<Lensing> reduced(const Convergence& c, bool magnify = true);
+/// Where a galaxy's lensing is still the local, weak kind this code draws: the lens applied as
+/// one matrix over the galaxy holds while |g| and μ stay moderate; near a critical curve
+/// (|g| → 1, μ → ∞) it stretches a galaxy into a straight bar across the field, not an arc.
+struct WeakLensingLimits {
+    double max_shear = 0.5;           ///< |g| at most this
+    double max_magnification = 10.0;  ///< μ at most this
+};
+
+/// The reduced shear g = γ/(1−κ) and κ; nullopt where the weak-lensing description fails:
+/// κ ≥ 1, |g| beyond `limits.max_shear` (< 1: multiple images are not modelled) or μ beyond
+/// `limits.max_magnification`.
+std::optional<Lensing> reduced(const Convergence& c, bool magnify = true,
+                               const WeakLensingLimits& limits = {});
 
 /// κ and γ_t of an NFW halo at x = R/r_s > 0 for κ_s = ρ_s r_s / Σ_crit (Wright & Brainerd).
 struct NfwProfile {

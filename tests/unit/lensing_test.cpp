@@ -112,6 +112,11 @@ TEST(Lensing, ReducedShearRefusesStrongLensing) {
     EXPECT_FALSE(g->conserve_flux);
     EXPECT_FALSE(reduced(Convergence{1.0, 0.0, 0.0}));
     EXPECT_FALSE(reduced(Convergence{0.5, 0.4, 0.3}));
+    // Beyond the weak limits: |g| = 0.6 > 0.5, and μ = 1/((1−κ)²(1−|g|²)) = 11.1 > 10 at κ = 0.7.
+    EXPECT_FALSE(reduced(Convergence{0.0, 0.6, 0.0}));
+    EXPECT_TRUE(reduced(Convergence{0.0, 0.6, 0.0}, true, WeakLensingLimits{0.7, 10.0}));
+    EXPECT_FALSE(reduced(Convergence{0.7, 0.0, 0.0}));
+    EXPECT_TRUE(reduced(Convergence{0.7, 0.0, 0.0}, true, WeakLensingLimits{0.5, 12.0}));
 }
 
 TEST(Lensing, PowerSpectrumTableInterpolatesLogLog) {

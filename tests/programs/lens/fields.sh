@@ -160,7 +160,7 @@ expect_error $rc 2 "^shapesim-lens: --halo takes five numbers each"
 rc=0; "$BIN/shapesim-lens" "${field[@]}" <objects.jsonl >out 2>err || rc=$?
 expect_error $rc 2 "^shapesim-lens: no lens"
 rc=0; "$BIN/shapesim-lens" "${field[@]}" --halo 600 600 1e16 4 0.3 --source-z 1 -o strong.jsonl <objects.jsonl 2>err || rc=$?
-expect_error $rc 1 "is strongly lensed (kappa .*see --drop-strong"
+expect_error $rc 1 "is strongly lensed (kappa .*beyond weak lensing .*see --drop-strong)"
 [ ! -e strong.jsonl ] || fail "a refused run left its output"
 "$BIN/shapesim-lens" -q "${field[@]}" --halo 600 600 1e16 4 0.3 --source-z 1 --drop-strong <objects.jsonl \
   >dropped.jsonl || fail "--drop-strong failed"
