@@ -53,6 +53,7 @@ int run(int argc, const char* const argv[]) {
     MeasureOptions measure;
     app::CompareSettings compare;
     bool stars = false, no_star_profile = false, shear_estimate = false;
+    std::string psf_field;
     double mag_limit = 0.0, aperture = 0.0;
     detection.declare(options, false);
     using app::in_range;
@@ -80,7 +81,10 @@ int run(int argc, const char* const argv[]) {
         ("shear-estimate", po::bool_switch(&shear_estimate),
          "also each galaxy's PSF-corrected shear estimate (adaptive moments, linear PSF "
          "correction; shear_e1, shear_e2, shear_resolution) through the PSF of --psf or "
-         "--psf-analytic: what shapesim-calibrate takes (--e1 shear_e1 --e2 shear_e2)");
+         "--psf-analytic: what shapesim-calibrate takes (--e1 shear_e1 --e2 shear_e2)")
+        ("psf-field", po::value(&psf_field)->value_name("FILE"),
+         "the PSF varying across the image (psfex's .psf) for --shear-estimate: each galaxy "
+         "is corrected by the PSF at its own place");
     compare.declare(options);
     if (!options.parse(argc, argv)) return 0;
     const app::Log log("shapesim-measure", options.common().verbosity);
@@ -119,11 +123,21 @@ int run(int argc, const char* const argv[]) {
     if (detection.image.empty()) throw po::error("give an IMAGE to measure (or --compare)");
     AtomicTextFile file(options.common().output_or_stdout());
 
-    if (shear_estimate && detection.psf_model.empty() && detection.psf_analytic.empty())
-        throw po::error("--shear-estimate: give the image's PSF, --psf or --psf-analytic");
+    if (!psf_field.empty() && !shear_estimate)
+        throw po::error("--psf-field is the PSF of --shear-estimate: give that too");
+    if (shear_estimate && detection.psf_model.empty() && detection.psf_analytic.empty() &&
+        psf_field.empty())
+        throw po::error("--shear-estimate: give the image's PSF, --psf, --psf-analytic or "
+                        "--psf-field");
     const app::DetectionRun detected = detection.run(options, log);
     const DetectionResult& field = detected.field;
-    if (shear_estimate) {
+    if (!psf_field.empty()) {
+        PsfField psf = read_psf_field(psf_field);
+        log.verbose("shear estimate: the PSF at each galaxy's place from ", psf_field,
+                    " (n_max ", psf.n_max, ", worst residual ", 100 * psf.max_residual_fraction,
+                    "% of the peak)");
+        measure.shear_psf_field = std::make_shared<const PsfField>(std::move(psf));
+    } else if (shear_estimate) {
         const ShapeletModel psf =
             !detection.psf_model.empty()
                 ? read_psf_model(detection.psf_model, detected.context.pixel_scale)

@@ -50,6 +50,11 @@ int run(int argc, const char* const argv[]) {
          "an analytic PSF instead of --psf: gaussian:FWHM, moffat:FWHM[,BETA] or "
          "airy:LAMBDA_OVER_D[,OBSCURATION] (arcsec), optionally ;jitter=SIGMA, modelled at the "
          "image's pixel scale (shapesim-decompose --psf-analytic writes the same model)")
+        ("psf-field", po::value(&s.psf_field)->value_name("FILE"),
+         "a PSF that varies across the field: PSFEx's model of the image (psfex's .psf, in "
+         "this field's pixels); each star is drawn as, and each galaxy convolved with, the PSF "
+         "at its own place, and the truth records that PSF's shape (psf_e1, psf_e2, "
+         "psf_rms_radius)")
         ("galaxy-psf", po::value(&s.galaxy_psf)->value_name("FILE"),
          "the PSF the galaxy models already hold (e.g. models of real galaxies): galaxies are "
          "convolved with the difference kernel psf / galaxy-psf, or not at all when equal")
@@ -139,6 +144,15 @@ int run(int argc, const char* const argv[]) {
                       : scene_kernels(m.psf.model,
                                       read_psf_model(s.galaxy_psf, field.pixel_scale),
                                       s.difference_order);
+    } else if (!s.psf_field.empty()) {
+        PsfField psf = read_psf_field(s.psf_field);
+        log.info("PSF varying across the field (", s.psf_field, "): degree ", psf.degree,
+                 " in x, y, shapelets to n_max ", psf.n_max, ", beta ", psf.beta_pix,
+                 " pixels, worst residual ", 100 * psf.max_residual_fraction, "% of the peak");
+        if (!psf.reached_target)
+            log.warn("the PSF field's shapelet model misses PSFEx's by ",
+                     100 * psf.max_residual_fraction, "% of the peak somewhere across its stars");
+        kernels = field_kernels(std::move(psf));
     } else {
         kernels = read_scene_kernels(s.psf, s.galaxy_psf, field.pixel_scale, s.difference_order);
     }
@@ -147,7 +161,7 @@ int run(int argc, const char* const argv[]) {
     using clock = std::chrono::steady_clock;
     const auto t_read = clock::now();
     ObjectPlacement placement;
-    placement.have_psf = kernels.star.has_value();
+    placement.have_psf = kernels.has_psf();
     placement.galaxy_psf_known = !s.galaxy_psf.empty();
     placement.by_sky = s.place_by_sky;
     const std::vector<ObjectRecord> records =

@@ -15,6 +15,7 @@ packages=(
   libgtest-dev              # unit tests
   libbenchmark-dev          # make bench
   source-extractor          # SExtractor, the cross-check of shapesim-detect (tests, bench)
+  psfex                     # PSFEx: the varying PSF model render --psf-field reads (tests)
   fitsverify                # HEASARC's FITS checker (the survey test checks every image with it)
   python3-astropy           # tests: the FITS tables, ECSV and WCS read back by astropy
   gnuplot-nox               # shapesim-measure --compare figures

@@ -464,6 +464,31 @@ std::vector<double> FitsReader::read_column(const std::string& name) {
     return values;
 }
 
+std::vector<double> FitsReader::read_cell(const std::string& name, long row, long max_values) {
+    const long rows = table_rows();
+    int type = 0;
+    long repeat = 0;
+    const int number = column_of(impl_->f, name, impl_->place, type, repeat);
+    if (type == TSTRING || type == TLOGICAL || type == TBIT)
+        throw Error("column " + name + " is not numeric", impl_->place, 0, name);
+    if (row < 1 || row > rows)
+        throw Error("no row " + std::to_string(row) + " (the table has " + std::to_string(rows) +
+                        ")",
+                    impl_->place, 0, name);
+    if (repeat > max_values)
+        throw Error("column " + name + " holds " + std::to_string(repeat) +
+                        " values per row, more than " + std::to_string(max_values),
+                    impl_->place, 0, name);
+    std::vector<double> values(std::size_t(repeat), 0.0);
+    double null_value = std::numeric_limits<double>::quiet_NaN();
+    int any_null = 0, status = 0;
+    if (repeat > 0)
+        fits_read_col(impl_->f, TDOUBLE, number, row, 1, repeat, &null_value, values.data(),
+                      &any_null, &status);
+    check(status, impl_->place, name);
+    return values;
+}
+
 std::vector<std::string> FitsReader::read_text_column(const std::string& name) {
     const long rows = table_rows();
     int type = 0;

@@ -105,6 +105,10 @@ public:
     /// undefined values NaN); Error naming the place and column when it is absent, text, or
     /// holds more than one value per row.
     std::vector<double> read_column(const std::string& name);
+    /// Every value of numeric column `name` in table row `row` (1-based): a vector cell such as
+    /// PSFEx's PSF_MASK. Error naming the place and column when it is absent, text, the row
+    /// is not in the table, or the cell holds more than `max_values` values.
+    std::vector<double> read_cell(const std::string& name, long row, long max_values);
     /// Text column `name` of the current table, trailing blanks removed; Error naming the place
     /// and column when it is absent or not text.
     std::vector<std::string> read_text_column(const std::string& name);

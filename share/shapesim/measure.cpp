@@ -3,6 +3,7 @@
 #include "shapesim/constants.hpp"
 #include "shapesim/error.hpp"
 #include "shapesim/exact_aperture.hpp"
+#include "shapesim/polar.hpp"
 
 #include <Eigen/Dense>
 
@@ -237,7 +238,13 @@ MorphRecord measure_object(const DetectionResult& field, const Detection& object
         }
     }
 
-    if (options.shear_psf && !(e.contains("kind") && e["kind"] == "star")) {
+    if ((options.shear_psf || options.shear_psf_field) &&
+        !(e.contains("kind") && e["kind"] == "star")) {
+        // The PSF where the galaxy is, when it varies across the image.
+        const AdaptiveMoments psf =
+            options.shear_psf_field
+                ? psf_adaptive_moments(to_polar(options.shear_psf_field->at(source.x, source.y)))
+                : *options.shear_psf;
         // Adaptive moments on the cutout, other objects' and bad pixels left out, from the
         // detection's centre and size.
         MaskArray other(labels.rows(), labels.cols());
@@ -246,11 +253,11 @@ MorphRecord measure_object(const DetectionResult& field, const Detection& object
                 other(j, i) = mask(j, i) || (labels(j, i) != 0 && labels(j, i) != object.label);
         const double sigma0 = source.a && source.b && *source.a > 0.0 && *source.b > 0.0
                                   ? std::sqrt(*source.a * *source.b)
-                                  : std::sqrt(options.shear_psf->trace() / 2.0);
+                                  : std::sqrt(psf.trace() / 2.0);
         std::string why;
         const auto am = adaptive_moments(image, &other, source.x - 1.0 - double(i0),
                                          source.y - 1.0 - double(j0), std::max(sigma0, 0.5), &why);
-        const auto estimate = am ? linear_shear_estimate(*am, *options.shear_psf) : std::nullopt;
+        const auto estimate = am ? linear_shear_estimate(*am, psf) : std::nullopt;
         if (estimate) {
             e["shear_e1"] = estimate->epsilon.real();
             e["shear_e2"] = estimate->epsilon.imag();

@@ -22,9 +22,11 @@
 
 #include "shapesim/detect.hpp"
 #include "shapesim/morphometry.hpp"
+#include "shapesim/psf_field.hpp"
 #include "shapesim/records.hpp"
 #include "shapesim/shear_estimate.hpp"
 
+#include <memory>
 #include <optional>
 
 namespace shapesim {
@@ -52,6 +54,9 @@ struct MeasureOptions {
     /// on its cutout with other objects' and bad pixels left out; flag "shear_failed" (and
     /// the reason in shear_why) when there is none. Unset: none.
     std::optional<AdaptiveMoments> shear_psf;
+    /// A PSF varying across the image (psf_field.hpp): when set, each galaxy's estimate is
+    /// corrected by the PSF's adaptive moments at its own place, and shear_psf is unused.
+    std::shared_ptr<const PsfField> shear_psf_field;
 };
 
 /// The Moffat fitted to a star (MeasureOptions::fit_star_profile).

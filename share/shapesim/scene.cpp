@@ -162,6 +162,14 @@ SceneKernels scene_kernels(const ShapeletModel& psf, const std::optional<Shapele
     return kernels;
 }
 
+SceneKernels field_kernels(PsfField field) {
+    SceneKernels kernels;
+    kernels.field = std::make_shared<const PsfField>(std::move(field));
+    kernels.galaxy_note = "the PSF at each object's place (n_max " +
+                          std::to_string(kernels.field->n_max) + ")";
+    return kernels;
+}
+
 SceneKernels read_scene_kernels(const std::string& psf_path, const std::string& models_psf_path,
                                 double pixel_scale, int difference_order) {
     if (psf_path.empty()) return SceneKernels{};
@@ -246,18 +254,26 @@ PreparedObject prepare_object(const ObjectRecord& record, double field_pixel_sca
         // An intrinsic model (fitted through its image's PSF) is observed through the PSF
         // itself; an observed-frame one through the galaxy kernel.
         const bool intrinsic = record.extra.contains("frame") && record.extra.at("frame") == "intrinsic";
-        if (intrinsic && !kernels.star)
+        if (intrinsic && !kernels.has_psf())
             throw Error("object " + record.id + " is an intrinsic model: give --psf", "", 0, "frame");
-        const std::optional<CartesianModel>& kernel = intrinsic ? kernels.star : kernels.galaxy;
+        std::optional<CartesianModel> here;  // the PSF where it is, when the PSF varies
+        if (kernels.field) {
+            here = kernels.field->at(*record.x, *record.y);
+            p.psf = moments(*here);
+        }
+        const std::optional<CartesianModel>& star = kernels.field ? here : kernels.star;
+        const std::optional<CartesianModel>& kernel = kernels.field ? here
+                                                      : intrinsic   ? kernels.star
+                                                                    : kernels.galaxy;
         // Never sharper than it was seen: an intrinsic model fitted through a PSF broader than
         // the target's carries no real structure below that PSF's scale (only the fit's
         // ringing), so it is first smoothed by the Gaussian that brings the target's scale to
         // its own (Gaussian scales add in quadrature; an n_max 0 kernel keeps the order).
         std::optional<CartesianModel> smoothing;
-        if (intrinsic && kernels.star && record.extra.contains("psf_beta") &&
+        if (intrinsic && star && record.extra.contains("psf_beta") &&
             record.extra.at("psf_beta").is_number()) {
             const double seen = record.extra.at("psf_beta").get<double>() / field_pixel_scale;
-            const double target = kernels.star->beta_pix;
+            const double target = star->beta_pix;
             if (seen > target) {
                 CartesianModel gaussian(0.0, 0.0, std::sqrt(seen * seen - target * target), 0);
                 gaussian.b(0, 0) = 1.0;
@@ -299,9 +315,14 @@ PreparedObject prepare_object(const ObjectRecord& record, double field_pixel_sca
             model = convolve(model, *kernel, workspace ? *workspace : local);
         }
     } else {
-        if (!kernels.star)
+        if (!kernels.has_psf())
             throw Error("a point source needs a PSF (--psf)", "", 0, "coeffs");
-        model = *kernels.star;
+        if (kernels.field) {
+            model = kernels.field->at(*record.x, *record.y);
+            p.psf = moments(model);
+        } else {
+            model = *kernels.star;
+        }
         model.b *= record.flux;
         model.x = *record.x;
         model.y = *record.y;
@@ -631,6 +652,12 @@ TruthRecord truth_record(const PreparedObject& object, const ObjectRecord& recor
             t.shape->kappa = object.lensing->kappa;
             t.shape->mu = magnification(*object.lensing);
         }
+    }
+    if (object.psf) {
+        // The PSF it was drawn with (it varies over the field): its shape and size there.
+        t.extra["psf_e1"] = object.psf->epsilon.real();
+        t.extra["psf_e2"] = object.psf->epsilon.imag();
+        t.extra["psf_rms_radius"] = object.psf->rms_radius;
     }
     t.n_max = object.model.n_max;
     t.stamp_radius = object.radius;

@@ -46,6 +46,7 @@
 #include "shapesim/moments.hpp"
 #include "shapesim/noise.hpp"
 #include "shapesim/pixel_noise.hpp"
+#include "shapesim/psf_field.hpp"
 #include "shapesim/records.hpp"
 #include "shapesim/render.hpp"
 #include "shapesim/transform.hpp"
@@ -53,6 +54,7 @@
 #include <cstdint>
 #include <functional>
 #include <iosfwd>
+#include <memory>
 #include <optional>
 #include <string>
 #include <vector>
@@ -92,7 +94,14 @@ struct SceneKernels {
     std::optional<CartesianModel> galaxy;  ///< none: galaxies drawn as they are
     std::optional<CartesianModel> star;    ///< the PSF stars are drawn as (required for stars)
     std::string galaxy_note = "none";      ///< `galaxy` in words (the image's GALKERN card)
+    /// A PSF varying across the field (psf_field.hpp): when set, each star is drawn as, and
+    /// each galaxy convolved with, the PSF at its own position; `star` and `galaxy` unused.
+    std::shared_ptr<const PsfField> field;
+    bool has_psf() const { return star.has_value() || field != nullptr; }
 };
+
+/// The kernels of a PSF varying across the field (galaxies convolved with it, as stars are).
+SceneKernels field_kernels(PsfField field);
 
 /// The kernels of an image whose PSF is `psf` (unit flux, field pixels), the galaxy models
 /// already holding `models_psf` (none: no PSF): stars are drawn as `psf`; galaxies convolved
@@ -123,6 +132,7 @@ struct PreparedObject {
     double radius = 0.0;      ///< R, pixels
     double flux = 0.0;        ///< true flux in the image (after lensing)
     std::optional<Moments> intrinsic;  ///< moments of the lensed galaxy before the PSF
+    std::optional<Moments> psf;        ///< moments of the PSF it was drawn with, when it varies
     std::optional<Complex> unlensed_epsilon;  ///< its ellipticity before lensing (NaN: undefined)
     std::optional<Lensing> lensing;           ///< the lensing applied to it
     double lensing_error = 0.0;        ///< relative truncation of the lensed projection

@@ -24,6 +24,11 @@ void RenderSettings::check(const ProgramOptions& options) {
         throw po::error("--galaxy-psf needs --psf or --psf-analytic");
     if (!psf.empty() && !psf_analytic.empty())
         throw po::error("--psf and --psf-analytic exclude each other");
+    if (!psf_field.empty() && (!psf.empty() || !psf_analytic.empty()))
+        throw po::error("--psf-field is the PSF: not with --psf or --psf-analytic");
+    if (!psf_field.empty() && !galaxy_psf.empty())
+        throw po::error("--psf-field with --galaxy-psf: a PSF varying across the field draws "
+                        "intrinsic models (shapesim-decompose --psf), not observed-frame ones");
     if (!psf_analytic.empty()) {
         try {
             parse_analytic_psf(psf_analytic);
@@ -66,7 +71,10 @@ void RenderSettings::finish_scene(const ProgramOptions& options, const FieldGeom
 
 SceneLabels RenderSettings::labels(const ProgramOptions& options) const {
     return SceneLabels{options.common().seed,
-                       !psf_analytic.empty() ? psf_analytic : psf.empty() ? "none" : psf,
+                       !psf_analytic.empty() ? psf_analytic
+                       : !psf_field.empty()   ? psf_field
+                       : psf.empty()          ? "none"
+                                              : psf,
                        noise_label(noise_model, !noise_weight.empty()), band,
                        options.given("exptime")    ? exptime
                        : options.given("exposure") ? exposure

@@ -16,6 +16,7 @@ namespace shapesim::app {
 struct RenderSettings {
     std::string input = "-", psf, galaxy_psf, truth, noise_like, noise_model, noise_weight, band;
     std::string psf_analytic;   ///< --psf-analytic SPEC (analytic_psf.hpp)
+    std::string psf_field;      ///< --psf-field FILE: PSFEx's model (psf_field.hpp)
     bool place_by_sky = false;  ///< --place-by-sky: no check of the objects' own x, y
     FieldOptions field;
     std::vector<double> shear;

@@ -1,0 +1,76 @@
+// A PSF that varies across the field: PSFEx's model read as it is, and its shapelet form.
+//
+// PSFEx (Bertin 2011, ASPC 442, 435) stores K sampled images B_k (PSF_MASK, w × h samples
+// PSF_SAMP image pixels apart) and the PSF at image position (x, y) is
+//   P(x, y) = Σ_k x̃^i ỹ^j B_k,   x̃ = (x − POLZERO1)/POLSCAL1,  ỹ = (y − POLZERO2)/POLSCAL2,
+// over i + j ≤ POLDEG1, j outer and i inner (1, x̃, x̃², ỹ, x̃ỹ, ỹ² for degree 2). The samples
+// are of the effective PSF (the PSF already convolved with the image pixel), centred on sample
+// (⌊w/2⌋, ⌊h/2⌋), 0-based.
+//
+// The shapelet form (fit_psf_field) gives every B_k one β, n_max and centre and fits it by
+// least squares as the pixel-integrated basis: a box one image pixel wide about each sample,
+// so the model is the PSF before the pixel, like every PSF record in shapesim. The fit is
+// linear, so the shapelet PSF at (x, y), Σ x̃^i ỹ^j c_k, is exactly the fit of PSFEx's image
+// there. β is the minimum of the residual summed over a 3 × 3 grid of places across the
+// stars' range (|x̃|, |ỹ| ≤ ½); n_max rises until the worst residual there is within the
+// target of the peak.
+#pragma once
+
+#include "shapesim/image.hpp"
+#include "shapesim/model.hpp"
+
+#include <string>
+#include <vector>
+
+namespace shapesim {
+
+/// A PSFEx model as its file holds it (one context group of two image coordinates).
+struct PsfexModel {
+    int degree = 0;                       ///< POLDEG1
+    double x_zero = 0, y_zero = 0;        ///< POLZERO1, POLZERO2 (FITS pixels)
+    double x_scale = 1, y_scale = 1;      ///< POLSCAL1, POLSCAL2 (pixels)
+    double sampling = 1;                  ///< PSF_SAMP: image pixels per sample
+    std::string x_name, y_name;           ///< POLNAME1, POLNAME2 (X_IMAGE, Y_IMAGE, …)
+    std::vector<ImageArray> components;   ///< B_k, rows along y
+    /// The K monomials x̃^i ỹ^j at (x, y), in PSFEx's order.
+    std::vector<double> terms(double x, double y) const;
+};
+
+/// The PSFEx model in the PSF_DATA table of `path` (psfex's .psf). Error naming the file and
+/// keyword when it is not one: no PSF_DATA, a context that is not two image coordinates in one
+/// group, PSFAXIS3 not (d+1)(d+2)/2, a sampling or scale not > 0, a stamp over 1024² samples or
+/// of even size, values not finite.
+PsfexModel read_psfex(const std::string& path);
+
+/// PSFEx's own PSF image at (x, y): Σ_k terms_k B_k, its samples (not normalised).
+ImageArray psfex_image(const PsfexModel& model, double x, double y);
+
+struct PsfFieldOptions {
+    int n_max_min = 4, n_max_cap = 20;
+    double residual_target = 0.005;       ///< stop once the worst |residual| ≤ this × peak
+    double min_resolution_pixels = 0.5;   ///< β/√(n_max+1) ≥ this (image pixels)
+    double beta_tolerance = 1e-3;         ///< final bracket in ln β
+};
+
+/// The shapelet form of a PSFEx model (see the file comment), in the image's pixels.
+struct PsfField {
+    int degree = 0;
+    double x_zero = 0, y_zero = 0, x_scale = 1, y_scale = 1;
+    int n_max = 0;
+    double beta_pix = 1;
+    std::vector<Eigen::MatrixXd> b;       ///< Cartesian coefficients of each term
+    std::vector<double> flux;             ///< each term's flux
+    double max_residual_fraction = 0;     ///< worst |PSFEx − model| / peak over the 3 × 3 places
+    bool reached_target = false;
+    std::vector<double> terms(double x, double y) const;
+    /// The PSF at (x, y), unit flux, centred at (0, 0). Error when its flux there is not > 0
+    /// (a polynomial taken far beyond the stars it was fitted to).
+    CartesianModel at(double x, double y) const;
+};
+
+PsfField fit_psf_field(const PsfexModel& model, const PsfFieldOptions& options = {});
+
+/// read_psfex() then fit_psf_field(), with Errors naming `path`.
+PsfField read_psf_field(const std::string& path, const PsfFieldOptions& options = {});
+
+}  // namespace shapesim
