@@ -146,8 +146,10 @@ int run(int argc, const char* const argv[]) {
                                       s.difference_order);
     } else if (!s.psf_field.empty()) {
         PsfField psf = read_psf_field(s.psf_field);
-        log.info("PSF varying across the field (", s.psf_field, "): degree ", psf.degree,
-                 " in x, y, shapelets to n_max ", psf.n_max, ", beta ", psf.beta_pix,
+        log.info("PSF varying across the field (", s.psf_field, "): ",
+                 psf.degree == 0 ? std::string("constant (psfex's degree 0)")
+                                 : "degree " + std::to_string(psf.degree) + " in x, y",
+                 ", shapelets to n_max ", psf.n_max, ", beta ", psf.beta_pix,
                  " pixels, worst residual ", 100 * psf.max_residual_fraction, "% of the peak");
         if (!psf.reached_target)
             log.warn("the PSF field's shapelet model misses PSFEx's by ",

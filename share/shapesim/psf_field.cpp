@@ -87,29 +87,36 @@ PsfexModel read_psfex(const std::string& path) {
     fits.move_to("PSF_DATA");
     const std::string place = fits.place();
     PsfexModel m;
-    if (fits.required_int("POLNAXIS") != 2 || fits.required_int("POLNGRP") != 1)
-        throw Error("the PSF varies with POLNAXIS " + std::to_string(fits.required_int("POLNAXIS")) +
-                        " parameters in POLNGRP groups: shapesim reads two image coordinates "
-                        "in one group (psfex's PSFVAR_KEYS X_IMAGE,Y_IMAGE, the default)",
+    // No context (psfex's PSFVAR_DEGREES 0 or too few stars): one PSF for the whole field.
+    const long long axes = fits.required_int("POLNAXIS");
+    if (axes != 0 && (axes != 2 || fits.required_int("POLNGRP") != 1))
+        throw Error("the PSF varies with " + std::to_string(axes) + " context parameters in " +
+                        std::to_string(fits.optional_int("POLNGRP").value_or(0)) +
+                        " groups: shapesim reads two image coordinates in one group (psfex's "
+                        "PSFVAR_KEYS X_IMAGE,Y_IMAGE, the default)",
                     place, 0, "POLNAXIS");
-    m.x_name = fits.required_string("POLNAME1");
-    m.y_name = fits.required_string("POLNAME2");
     auto image_coordinate = [](const std::string& name, char axis) {
         return !name.empty() && std::toupper(static_cast<unsigned char>(name[0])) == axis &&
                name.size() >= 5 && name.substr(name.size() - 5) == "IMAGE";
     };
-    if (!image_coordinate(m.x_name, 'X') || !image_coordinate(m.y_name, 'Y'))
-        throw Error("the PSF varies with " + m.x_name + ", " + m.y_name +
-                        ", not image coordinates (X*_IMAGE, Y*_IMAGE)",
-                    place, 0, "POLNAME1");
-    const long long degree = fits.required_int("POLDEG1");
-    if (degree < 0 || degree > 10)
-        throw Error("POLDEG1 " + std::to_string(degree) + " is not 0 to 10", place, 0, "POLDEG1");
+    long long degree = 0;
+    if (axes == 2) {
+        m.x_name = fits.required_string("POLNAME1");
+        m.y_name = fits.required_string("POLNAME2");
+        if (!image_coordinate(m.x_name, 'X') || !image_coordinate(m.y_name, 'Y'))
+            throw Error("the PSF varies with " + m.x_name + ", " + m.y_name +
+                            ", not image coordinates (X*_IMAGE, Y*_IMAGE)",
+                        place, 0, "POLNAME1");
+        degree = fits.required_int("POLDEG1");
+        if (degree < 0 || degree > 10)
+            throw Error("POLDEG1 " + std::to_string(degree) + " is not 0 to 10", place, 0,
+                        "POLDEG1");
+        m.x_zero = fits.required_double("POLZERO1");
+        m.y_zero = fits.required_double("POLZERO2");
+        m.x_scale = fits.required_double("POLSCAL1");
+        m.y_scale = fits.required_double("POLSCAL2");
+    }
     m.degree = int(degree);
-    m.x_zero = fits.required_double("POLZERO1");
-    m.y_zero = fits.required_double("POLZERO2");
-    m.x_scale = fits.required_double("POLSCAL1");
-    m.y_scale = fits.required_double("POLSCAL2");
     m.sampling = fits.required_double("PSF_SAMP");
     for (const auto& [key, value] : {std::pair{"POLSCAL1", m.x_scale}, {"POLSCAL2", m.y_scale},
                                      {"PSF_SAMP", m.sampling}})

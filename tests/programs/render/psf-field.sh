@@ -8,6 +8,7 @@
 source "$(dirname "${BASH_SOURCE[0]}")/../lib.sh"
 command -v source-extractor >/dev/null && command -v psfex >/dev/null ||
   fail "source-extractor and psfex are needed (share/scripts/install-deps.sh installs them)"
+xdf=$(cd ../../../share/data/xdf && pwd)
 cd "$TMPDIR"
 
 # A 1024² ground-based frame at 0.2″ with 196 Moffat stars (β 3) whose FWHM grows with y and
@@ -63,6 +64,41 @@ psfex stars.ldac -c /dev/null -PSF_SAMPLING 1.0 -PSF_SIZE 25,25 -PSFVAR_DEGREES 
   -VERBOSE_TYPE QUIET 2>psfex.err || fail "psfex failed: $(cat psfex.err)"
 [ -s stars.psf ] && [ -s snap_stars.fits ] || fail "psfex wrote no model: $(cat psfex.err)"
 
+# FWHM from the area above half the peak (8× bilinear); ellipticity (distortion) from adaptive
+# Gaussian-weighted moments: measured alike on psfex's image and on ours.
+cat >shape.py <<'PY'
+import numpy as np
+def shape(im):
+    # FWHM from the area above half the peak (8× bilinear); ellipticity (distortion) from
+    # adaptive Gaussian-weighted moments: both measured alike on both images.
+    k = 8
+    n = im.shape[0]
+    g = np.linspace(0, n - 1, (n - 1) * k + 1)
+    i0 = np.minimum(np.floor(g).astype(int), n - 2)
+    f = g - i0
+    rows = im[i0] * (1 - f)[:, None] + im[i0 + 1] * f[:, None]
+    fine = rows[:, i0] * (1 - f)[None, :] + rows[:, i0 + 1] * f[None, :]
+    fwhm = 2 * np.sqrt((fine > fine.max() / 2).sum() / k ** 2 / np.pi)
+    yy, xx = np.mgrid[0:n, 0:n].astype(float)
+    cx = cy = (n - 1) / 2
+    m = np.array([[4.0, 0], [0, 4.0]])
+    for _ in range(100):
+        d = np.stack([xx - cx, yy - cy])
+        inv = np.linalg.inv(m)
+        wgt = im * np.exp(-0.5 * np.einsum("i...,ij,j...->...", d, inv, d))
+        s = wgt.sum()
+        cx, cy = (wgt * xx).sum() / s, (wgt * yy).sum() / s
+        q = np.array([[(wgt * d[0] ** 2).sum(), (wgt * d[0] * d[1]).sum()],
+                      [(wgt * d[0] * d[1]).sum(), (wgt * d[1] ** 2).sum()]]) / s
+        new = 2 * q
+        if abs(new - m).max() < 1e-10:
+            break
+        m = new
+    e1 = (m[0, 0] - m[1, 1]) / (m[0, 0] + m[1, 1])
+    e2 = 2 * m[0, 1] / (m[0, 0] + m[1, 1])
+    return fwhm, e1, e2
+PY
+
 # 25 stars across the field at pixel centres, far enough apart not to touch.
 /usr/bin/python3 - <<'PY' || fail "could not write the stars"
 import json
@@ -103,35 +139,7 @@ for j in range(9):
         s = snap[25 * j:25 * (j + 1), 25 * i:25 * (i + 1)]
         assert abs(psfex_at(x, y) - s).max() < 1e-5 * s.max(), (i, j)
 
-def shape(im):
-    # FWHM from the area above half the peak (8× bilinear); ellipticity (distortion) from
-    # adaptive Gaussian-weighted moments: both measured alike on both images.
-    k = 8
-    n = im.shape[0]
-    g = np.linspace(0, n - 1, (n - 1) * k + 1)
-    i0 = np.minimum(np.floor(g).astype(int), n - 2)
-    f = g - i0
-    rows = im[i0] * (1 - f)[:, None] + im[i0 + 1] * f[:, None]
-    fine = rows[:, i0] * (1 - f)[None, :] + rows[:, i0 + 1] * f[None, :]
-    fwhm = 2 * np.sqrt((fine > fine.max() / 2).sum() / k ** 2 / np.pi)
-    yy, xx = np.mgrid[0:n, 0:n].astype(float)
-    cx = cy = (n - 1) / 2
-    m = np.array([[4.0, 0], [0, 4.0]])
-    for _ in range(100):
-        d = np.stack([xx - cx, yy - cy])
-        inv = np.linalg.inv(m)
-        wgt = im * np.exp(-0.5 * np.einsum("i...,ij,j...->...", d, inv, d))
-        s = wgt.sum()
-        cx, cy = (wgt * xx).sum() / s, (wgt * yy).sum() / s
-        q = np.array([[(wgt * d[0] ** 2).sum(), (wgt * d[0] * d[1]).sum()],
-                      [(wgt * d[0] * d[1]).sum(), (wgt * d[1] ** 2).sum()]]) / s
-        new = 2 * q
-        if abs(new - m).max() < 1e-10:
-            break
-        m = new
-    e1 = (m[0, 0] - m[1, 1]) / (m[0, 0] + m[1, 1])
-    e2 = 2 * m[0, 1] / (m[0, 0] + m[1, 1])
-    return fwhm, e1, e2
+exec(open("shape.py").read())
 
 image = fits.getdata("rendered.fits")
 truth = {t["id"]: t for t in map(json.loads, open("truth.jsonl"))}
@@ -148,13 +156,41 @@ for line in open("stars.jsonl"):
     worst_f = max(worst_f, abs(f1 / f0 - 1))
     worst_e = max(worst_e, np.hypot(b1 - a1, b2 - a2) / max(np.hypot(a1, a2), 0.01))
 print(f"stars against psfex's PSF at their places: FWHM within {100 * worst_f:.2f}%, "
-      f"ellipticity within {100 * worst_e:.2f}% (of |e|, at least 0.01)")
+      f"ellipticity within {100 * worst_e:.1e}% (of |e|, at least 0.01)")
 assert worst_f < 0.01 and worst_e < 0.01
 # The PSF varies: the truth follows it (e1 grows with x, the size with y).
 t = [truth[f"s{i}2"] for i in range(5)]
 assert t[0]["psf_e1"] < -0.01 and t[4]["psf_e1"] > 0.01, [s["psf_e1"] for s in t]
 t = [truth[f"s2{j}"] for j in range(5)]
 assert t[4]["psf_rms_radius"] > 1.1 * t[0]["psf_rms_radius"], [s["psf_rms_radius"] for s in t]
+PY
+
+# A real image: the shipped XDF F814W cut (0.06″ pixels). psfex finds too few stars to let
+# the PSF vary (degree 0) and samples it 1.06 pixels apart; a star rendered through its model
+# has psfex's FWHM (in pixels) and ellipticity.
+source-extractor "$xdf/f814w_sci.fits" -c /dev/null -CATALOG_NAME xdf.ldac -CATALOG_TYPE FITS_LDAC \
+  -PARAMETERS_NAME psf.param -FILTER N -DETECT_THRESH 5 -PHOT_APERTURES 6 \
+  -STARNNW_NAME /usr/share/source-extractor/default.nnw -VERBOSE_TYPE QUIET 2>sex.err ||
+  fail "source-extractor failed on the XDF: $(cat sex.err)"
+psfex xdf.ldac -c /dev/null -PSF_SIZE 25,25 -PSFVAR_DEGREES 0 -SAMPLE_FWHMRANGE 1.5,8 \
+  -SAMPLE_MINSN 20 -CHECKPLOT_TYPE NONE -CHECKIMAGE_TYPE NONE -WRITE_XML N -VERBOSE_TYPE QUIET \
+  2>psfex.err || fail "psfex failed on the XDF: $(cat psfex.err)"
+printf '{"schema":"shapesim.object/1","id":"s1","kind":"star","ra":0,"dec":0,"flux":1000}\n' >one.jsonl
+"$BIN/shapesim-render" one.jsonl --pixels 101 --pixel-scale 0.06 --psf-field xdf.psf --noise-free \
+  -o one.fits 2>render.err || fail "render --psf-field xdf.psf failed: $(cat render.err)"
+grep -q "constant (psfex's degree 0)" render.err || fail "render: $(cat render.err)"
+/usr/bin/python3 - <<'PY' || fail "the XDF star does not match psfex's PSF"
+import numpy as np
+from astropy.io import fits
+exec(open("shape.py").read())
+t = fits.open("xdf.psf")[1]
+step = t.header["PSF_SAMP"]
+assert t.header["ACCEPTED"] >= 8 and abs(step - 1) > 0.01, (t.header["ACCEPTED"], step)
+f0, a1, a2 = shape(t.data["PSF_MASK"][0][0])
+f1, b1, b2 = shape(fits.getdata("one.fits")[38:63, 38:63])
+print(f"XDF: {t.header['ACCEPTED']} stars, sampling {step:.3f}: FWHM {f1:.3f} px against psfex's "
+      f"{f0 * step:.3f}, e ({b1:.4f}, {b2:.4f}) against ({a1:.4f}, {a2:.4f})")
+assert abs(f1 / (f0 * step) - 1) < 0.01 and np.hypot(b1 - a1, b2 - a2) < 0.01 * max(np.hypot(a1, a2), 0.01)
 PY
 
 # Round galaxies (intrinsic Gaussians) through the varying PSF: measure's PSF-blurred e1, e2
