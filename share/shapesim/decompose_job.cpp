@@ -25,6 +25,10 @@ void JobReader::add_band_psf(const std::string& band, const ShapeletModel& psf_a
     band_psfs_[band] = psf_arcsec;
 }
 
+void JobReader::set_psf_field(std::shared_ptr<const PsfField> field) {
+    psf_field_ = std::move(field);
+}
+
 void JobReader::add_band_correlation(const std::string& band,
                                      const NoiseCorrelation& correlation) {
     band_correlations_[band] = correlation;
@@ -94,10 +98,17 @@ DecomposeJob JobReader::read(const SourceRecord& source, const JsonlReader& read
         return *v;
     });
     job.zero_point = placed([&] { return optional_double(source.extra, "zero_point"); });
-    job.psf = psf_at("", job.pixel_scale);
+    if (psf_field_) {
+        // The PSF where the source is (its model is centred at 0, as set_psf's).
+        job.psf = placed([&] { return psf_field_->at(source.x, source.y); });
+    } else {
+        job.psf = psf_at("", job.pixel_scale);
+    }
     if (settings_.bands) {
         // A band without its own PSF is fitted through the common one.
-        const auto psf_of = [&](const std::string& band) { return psf_at(band, job.pixel_scale); };
+        const auto psf_of = [&](const std::string& band) {
+            return band_psfs_.count(band) || !psf_field_ ? psf_at(band, job.pixel_scale) : job.psf;
+        };
         job.joint = placed([&] {
             std::vector<SourceBand> bands = source_bands(source);
             if (bands.empty()) return JointStamps{};

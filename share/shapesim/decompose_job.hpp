@@ -12,9 +12,11 @@
 #include "shapesim/jsonl.hpp"
 #include "shapesim/model.hpp"
 #include "shapesim/noise.hpp"
+#include "shapesim/psf_field.hpp"
 #include "shapesim/records.hpp"
 
 #include <map>
+#include <memory>
 #include <optional>
 #include <string>
 #include <utility>
@@ -67,6 +69,9 @@ public:
     explicit JobReader(JobSettings settings);
     /// The PSF of every band without its own (a unit-flux model in arcsec, pixel scale 1).
     void set_psf(const ShapeletModel& psf_arcsec);
+    /// A PSF varying across the image (in its pixels), taken at each source's x, y: the PSF
+    /// of every band without its own, instead of set_psf's.
+    void set_psf_field(std::shared_ptr<const PsfField> field);
     /// Band `band`'s own PSF (in arcsec).
     void add_band_psf(const std::string& band, const ShapeletModel& psf_arcsec);
     /// Band `band`'s measured sky-noise correlation (its exact noise take-up).
@@ -80,6 +85,7 @@ private:
     JobSettings settings_;
     StampFiles stamp_files_;
     std::optional<ShapeletModel> psf_arcsec_;
+    std::shared_ptr<const PsfField> psf_field_;
     std::map<double, CartesianModel> psfs_;                             // by pixel scale
     std::map<std::string, ShapeletModel> band_psfs_;                    // arcsec
     std::map<std::pair<std::string, double>, CartesianModel> band_psfs_at_;  // by pixel scale

@@ -729,6 +729,7 @@ std::string field_unit(const std::string& field, const std::string& flux_unit) {
         {"x", "pix"},         {"y", "pix"},            {"a", "pix"},       {"b", "pix"},
         {"fwhm", "pix"},      {"fwhm_moffat", "pix"},  {"r_petro", "pix"},      {"rms_radius", "pix"},
         {"stamp_radius", "pix"}, {"reach", "pix"},     {"beta", "arcsec"}, {"psf_beta", "arcsec"},
+        {"psf_rms_radius", "pix"}, {"shear_sigma", "pix"},
         {"pixel_scale", "arcsec/pix"}, {"mag", "mag"}, {"zero_point", "mag"}};
     if (field == "flux" || field == "flux_err" || field == "clipped_flux" || field == "flux_aper")
         return flux_unit;

@@ -31,6 +31,9 @@ void DecomposeSettings::declare(ProgramOptions& options) {
          "fit each galaxy's intrinsic model through this PSF (a record of the PSF mode below; "
          "forward modelling): the records are marked \"frame\": \"intrinsic\" and "
          "shapesim-render convolves them with its --psf")
+        ("psf-field", po::value(&s.psf_field)->value_name("FILE"),
+         "as --psf, through a PSF that varies across the image: PSFEx's model of it (psfex's "
+         ".psf, in the image's pixels), taken at each source's place")
         ("real-galaxy-catalog", po::value(&s.real_galaxy_catalog)->value_name("FILE"),
          "fit every galaxy of this GalSim RealGalaxyCatalog (the COSMOS training samples' "
          "FITS table) through its own PSF image instead of reading sources; intrinsic models, "
@@ -150,6 +153,10 @@ void DecomposeSettings::check() {
             throw po::error("--psf-analytic: " + e.message());
         }
     }
+    if (!psf_field.empty() && (!psf.empty() || !psf_image.empty() || !psf_analytic.empty() ||
+                               !real_galaxy_catalog.empty()))
+        throw po::error("--psf-field is the PSF: not with --psf, --psf-image, --psf-analytic or "
+                        "--real-galaxy-catalog");
     if (!psf_analytic.empty() && !psf_image.empty())
         throw po::error("--psf-analytic and --psf-image exclude each other");
     if (!real_galaxy_catalog.empty() && !psf_image.empty())
@@ -173,6 +180,8 @@ JobReader DecomposeSettings::job_reader(const ProgramOptions& options) {
     // kept) to each record's pixel scale.
     JobReader reader(std::move(settings));
     if (!psf.empty()) reader.set_psf(read_psf_model(psf, 1.0));
+    if (!psf_field.empty())
+        reader.set_psf_field(std::make_shared<const PsfField>(read_psf_field(psf_field)));
     for (const auto& [band, file] : named_files(band_psfs, "band-psf"))
         reader.add_band_psf(band, read_psf_model(file, 1.0));
     // Measured noise correlations: the exact take-up replaces p·F² (decompose.hpp).

@@ -14,7 +14,7 @@ namespace shapesim::app {
 
 struct DecomposeSettings {
     std::string stamps, models, ids, stars;
-    std::string psf_image, psf, reference_band;
+    std::string psf_image, psf, psf_field, reference_band;
     std::string real_galaxy_catalog, real_galaxy_folder, psf_analytic;
     double psf_tolerance = 0.01;
     int batch = 256;

@@ -4,7 +4,8 @@
 # Stars rendered across the field match psfex's own PSF at their places (FWHM and ellipticity
 # within 1%); psfex's snapshots check that its model is read as psfex evaluates it; the truth
 # records the PSF's shape; measure --shear-estimate --psf-field corrects each galaxy by the PSF
-# at its place; a file that is not a PSFEx model is one line of error, nothing written.
+# at its place, and decompose --psf-field fits each through it; a file that is not a PSFEx
+# model is one line of error, nothing written.
 source "$(dirname "${BASH_SOURCE[0]}")/../lib.sh"
 command -v source-extractor >/dev/null && command -v psfex >/dev/null ||
   fail "source-extractor and psfex are needed (share/scripts/install-deps.sh installs them)"
@@ -215,6 +216,25 @@ print(f"round galaxies: |e| up to {blurred:.4f} through the PSF, {corrected:.4f}
 assert blurred > 0.02 and corrected < 0.005
 PY
 
+# decompose --psf-field: each galaxy's intrinsic model fitted through the PSF at its place
+# gives back the round Gaussian drawn (β 0.4″), wherever it is.
+"$BIN/shapesim-detect" galaxies.fits --stamps stamps.fits -q >sources.jsonl || fail "detect failed"
+"$BIN/shapesim-decompose" --psf-field stars.psf -q <sources.jsonl >models.jsonl ||
+  fail "decompose --psf-field failed"
+/usr/bin/python3 - <<'PY' || fail "decompose --psf-field did not give the galaxies back"
+import json, math
+truth = [json.loads(l) for l in open("truth.jsonl")]
+src = {r["id"]: r for r in map(json.loads, open("sources.jsonl"))}
+betas = []
+for r in map(json.loads, open("models.jsonl")):
+    s = src[r["id"]]
+    if min(math.hypot(s["x"] - t["x"], s["y"] - t["y"]) for t in truth) < 2:
+        assert r["frame"] == "intrinsic" and r["n_max"] <= 2, r
+        betas.append(r["beta"])
+print(f"decompose --psf-field: beta {min(betas):.4f} to {max(betas):.4f} arcsec (0.4 drawn)")
+assert len(betas) == 25 and max(abs(b - 0.4) for b in betas) < 0.004
+PY
+
 # Not a PSFEx model; with --psf: one line, no image.
 rc=0
 "$BIN/shapesim-render" stars.jsonl --like field.fits --psf-field field.fits -o bad.fits 2>err || rc=$?
@@ -225,4 +245,10 @@ rc=0
   -o bad.fits 2>err || rc=$?
 expect_error "$rc" 2 "psf-field"
 [ ! -e bad.fits ] || fail "a refused render wrote its image"
+rc=0
+"$BIN/shapesim-decompose" --psf-field stars.psf --psf-analytic gaussian:0.8 <sources.jsonl >bad.jsonl 2>err || rc=$?
+expect_error "$rc" 2 "psf-field"
+rc=0
+"$BIN/shapesim-measure" galaxies.fits --psf-field stars.psf >bad.jsonl 2>err || rc=$?
+expect_error "$rc" 2 "shear-estimate"
 echo "ok"

@@ -1,7 +1,7 @@
 #!/usr/bin/env bash
 # One set of option names (issue 18): every program takes its input as the first argument or
 # -i/--input and writes its output to stdout or -o/--output (the same bytes); the PSF record is
-# --psf wherever a PSF record is read; the old names (--psf-model, --out, --k) still give the
+# --psf wherever a PSF record is read (--psf-field wherever a PSFEx model is); the old names (--psf-model, --out, --k) still give the
 # same results, with one warning line each on stderr (none under -q).
 source "$(dirname "${BASH_SOURCE[0]}")/../lib.sh"
 cd "$TMPDIR"
@@ -15,6 +15,9 @@ for p in "${programs[@]}"; do
 done
 for p in detect decompose render measure; do
   grep -qE -- '^  --psf FILE' <<<"$("$BIN/shapesim-$p" --help)" || fail "shapesim-$p: no --psf FILE"
+done
+for p in decompose render measure; do
+  grep -qE -- '^  --psf-field FILE' <<<"$("$BIN/shapesim-$p" --help)" || fail "shapesim-$p: no --psf-field FILE"
 done
 for p in detect measure; do
   grep -q -- '--psf-model (now --psf)' <<<"$("$BIN/shapesim-$p" --help)" ||
