@@ -26,6 +26,16 @@
 
 namespace {
 
+// The truth's fields a --bin may name (besides the shape catalogue's columns).
+const std::vector<std::string> truth_bin_fields = {"mag",   "flux",   "rms_radius", "kappa",
+                                                   "mu",    "psf_e1", "psf_e2",
+                                                   "psf_rms_radius"};
+std::string truth_bin_list() {
+    std::string list;
+    for (const std::string& f : truth_bin_fields) list += (list.empty() ? "" : ", ") + f;
+    return list;
+}
+
 using namespace shapesim;
 namespace po = app::po;
 
@@ -127,6 +137,10 @@ std::vector<TrueGalaxy> read_truth(const std::string& path, std::size_t image, b
         if (t.shape->rms_radius) g.fields["rms_radius"] = *t.shape->rms_radius;
         g.fields["kappa"] = t.shape->kappa;
         g.fields["mu"] = t.shape->mu;
+        // The PSF where it was drawn, when the PSF varies (render --psf-field).
+        for (const char* name : {"psf_e1", "psf_e2", "psf_rms_radius"})
+            if (const auto v = t.extra.find(name); v != t.extra.end() && v->is_number())
+                g.fields[name] = v->get<double>();
         out.push_back(std::move(g));
     }
     return out;
@@ -249,8 +263,10 @@ int run(int argc, const char* const argv[]) {
          "e2 is in the sky's frame (east left): turn it into the image's (x right, y up)");
     options.group("Fit").add_options()
         ("bin", po::value(&s.bins)->value_name("NAME[:N]")->composing(),
-         "also fit in N bins (default 4) of equal counts of this column (the shape catalogue's, "
-         "else the truth's: mag, flux, rms_radius, kappa, mu); repeat for more (default: mag)")
+         (std::string("also fit in N bins (default 4) of equal counts of this column (the "
+                      "shape catalogue's, else the truth's: ") +
+          truth_bin_list() + "); repeat for more (default: mag)")
+             .c_str())
         ("bootstrap", po::value(&s.bootstrap)->value_name("N")->default_value(200)
              ->notifier(in_range("bootstrap", 0, 100000)),
          "bootstrap resamples for the errors")
@@ -299,10 +315,12 @@ int run(int argc, const char* const argv[]) {
         auto columns = read_numeric_columns(shapes_path, wanted, optional);
         // A bin's column is the shape catalogue's or one of the truth's fields.
         for (const Bin& b : bins)
-            if (!columns.count(b.name) && b.name != "mag" && b.name != "flux" && b.name != "rms_radius" &&
-                b.name != "kappa" && b.name != "mu")
-                throw Error("--bin " + b.name + ": no such column, nor a truth field (mag, flux, "
-                            "rms_radius, kappa, mu)", shapes_path);
+            if (!columns.count(b.name) &&
+                std::find(truth_bin_fields.begin(), truth_bin_fields.end(), b.name) ==
+                    truth_bin_fields.end())
+                throw Error("--bin " + b.name + ": no such column, nor a truth field (" +
+                                truth_bin_list() + ")",
+                            shapes_path);
         if (e_defaulted && columns.count("shear_e1"))
             log.info("note: ", shapes_path, " has shear_e1, shear_e2 (shapesim-measure --shear-estimate): "
                      "its e1, e2 are the PSF-blurred distortion; calibrate the estimate with --e1 "

@@ -8,6 +8,11 @@
 #   make lensing           (after building; = make -f pipelines/lensing.mk)
 #   make -f pipelines/lensing.mk [OUT=out/lensing] [SEED=1] [AREA=4] [NOISE=0.0005]
 #                          [SHEAR="0.02 -0.01"] [HALO="X Y M200 C Z"] [SOURCE_Z=1]
+#                          [LIKE=image.fits PSF_FIELD=image.psf [ZERO_POINT=…]]
+#
+# LIKE and PSF_FIELD: your own image's field and the PSF varying across it (psfex's model of
+# it): rendered through, and each galaxy's shape corrected by, the PSF at its place; the
+# report adds m and c in bins of the PSF's ellipticity there (the truth's psf_e1, psf_e2).
 #
 # Outputs in $(OUT): objects.jsonl, lensed.jsonl, image.fits, truth.jsonl, shapes.jsonl,
 # calibration.md (the report), calibration.json (its numbers) and figures/calibration.png
@@ -24,12 +29,26 @@ HALO      ?=
 SOURCE_Z  ?= 1
 THREADS   ?= 2
 SCALE     := 0.03
-ZERO_POINT := 25.94
+ZERO_POINT ?= 25.94
 MODEL     := $(R)share/data/models/merged.json
-PSF       := $(R)share/data/psfs/acs-f814w.jsonl
 SPECTRUM  := $(R)share/data/lensing/illustrative-cosmic-shear.txt
-INPUTS    := $(MODEL) $(PSF) $(SPECTRUM)
+LIKE      ?=
+PSF_FIELD ?=
+ifeq ($(PSF_FIELD),)
+PSF       := $(R)share/data/psfs/acs-f814w.jsonl
+PSF_OPT   := --psf $(PSF)
 FIELD     := --area $(AREA) --pixel-scale $(SCALE)
+PSF_BINS  :=
+else
+ifeq ($(LIKE),)
+$(error PSF_FIELD needs LIKE: the image psfex modelled, whose field is drawn)
+endif
+PSF       := $(PSF_FIELD)
+PSF_OPT   := --psf-field $(PSF_FIELD)
+FIELD     := --like $(LIKE)
+PSF_BINS  := --bin psf_e1:4 --bin psf_e2:4
+endif
+INPUTS    := $(MODEL) $(PSF) $(SPECTRUM)
 
 .PHONY: all outputs
 all:
@@ -38,7 +57,7 @@ all:
 outputs: $(OUT)/calibration.md
 
 value_seed := $(SEED)
-value_area := $(AREA)
+value_area := $(AREA) $(LIKE) $(PSF_FIELD)
 value_noise := $(NOISE)
 value_lens := $(SHEAR) $(HALO) $(SOURCE_Z)
 tmp = $@.tmp
@@ -52,13 +71,13 @@ $(OUT)/lensed.jsonl: $(OUT)/objects.jsonl $(SPECTRUM) $(OUT)/params/lens $(call 
 	  $(if $(HALO),--halo $(HALO) --source-z $(SOURCE_Z) --drop-strong) < $< > $(tmp)
 	mv $(tmp) $@
 $(OUT)/image.fits $(OUT)/truth.jsonl &: $(OUT)/lensed.jsonl $(PSF) $(OUT)/params/noise $(call prog,render)
-	$(call prog,render) $(FIELD) --psf $(PSF) --noise-rms $(NOISE) --seed $$(($(SEED) + 2)) -j $(THREADS) \
+	$(call prog,render) $(FIELD) $(PSF_OPT) --noise-rms $(NOISE) --seed $$(($(SEED) + 2)) -j $(THREADS) \
 	  --truth $(OUT)/truth.jsonl -o $(OUT)/image.fits < $<
 $(OUT)/shapes.jsonl: $(OUT)/image.fits $(PSF) $(call prog,measure)
-	$(call prog,measure) $< --zero-point $(ZERO_POINT) --psf $(PSF) --shear-estimate -j $(THREADS) > $(tmp)
+	$(call prog,measure) $< --zero-point $(ZERO_POINT) $(PSF_OPT) --shear-estimate -j $(THREADS) > $(tmp)
 	mv $(tmp) $@
 $(OUT)/calibration.md: $(OUT)/truth.jsonl $(OUT)/shapes.jsonl $(call prog,calibrate)
 	$(call prog,calibrate) $(OUT)/truth.jsonl $(OUT)/shapes.jsonl --e1 shear_e1 --e2 shear_e2 \
-	  --bin snr:4 --bin shear_resolution:4 --bin mag:4 --json $(OUT)/calibration.json \
+	  --bin snr:4 --bin shear_resolution:4 --bin mag:4 $(PSF_BINS) --json $(OUT)/calibration.json \
 	  --figures $(OUT)/figures > $(tmp)
 	mv $(tmp) $@

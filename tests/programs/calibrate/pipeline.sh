@@ -43,5 +43,5 @@ for k in ("g1", "g2"):
     assert abs(low[k]["m"]) < 0.1, low
 PY
 rc=0; "$BIN/shapesim-measure" image.fits --shear-estimate >out 2>err || rc=$?
-expect_error $rc 2 "^shapesim-measure: --shear-estimate: give the image's PSF, --psf or --psf-analytic"
+expect_error $rc 2 "^shapesim-measure: --shear-estimate: give the image's PSF, --psf, --psf-analytic or --psf-field"
 exit 0

@@ -193,4 +193,25 @@ expect_error $rc 1 "^shapesim-calibrate: exact.csv: --bin nosuch: no such column
 [ ! -e r.md ] || fail "a refused run left its report"
 rc=0; "$BIN/shapesim-calibrate" exact.truth.jsonl exact.csv --bin snr:0 >out 2>err || rc=$?
 expect_error $rc 2 "^shapesim-calibrate: --bin snr:0: N must be 1 to 100"
+
+# PSF leakage: a truth drawn through a varying PSF (render --psf-field) carries psf_e1; shapes
+# with c1 = 0.1 psf_e1 give, in two bins of psf_e1, c1 = 0.1 × each bin's mean psf_e1.
+python3 - <<'PY'
+import json
+with open("leak.truth.jsonl", "w") as t, open("leak.csv", "w") as s:
+    s.write("x,y,e1,e2\n")
+    for l in open("exact.truth.jsonl"):
+        r = json.loads(l)
+        r["psf_e1"] = -0.03 if int(r["id"][1:]) % 2 == 0 else 0.03
+        t.write(json.dumps(r) + "\n")
+        s.write("%r,%r,%r,%r\n" % (r["x"], r["y"], r["g1"] + 0.1 * r["psf_e1"], r["g2"]))
+PY
+"$BIN/shapesim-calibrate" -q leak.truth.jsonl leak.csv --bin psf_e1:2 --json leak.json >/dev/null ||
+  fail "--bin psf_e1 failed"
+python3 - <<'PY' || fail "the psf_e1 bins do not show the leakage"
+import json
+b = json.load(open("leak.json"))["bins"]["psf_e1"]
+assert len(b) == 2, b
+assert abs(b[0]["fit"]["g1"]["c"] + 0.003) < 1e-10 and abs(b[1]["fit"]["g1"]["c"] - 0.003) < 1e-10, b
+PY
 exit 0
