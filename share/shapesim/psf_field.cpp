@@ -170,6 +170,8 @@ PsfField fit_psf_field(const PsfexModel& m, const PsfFieldOptions& o) {
     for (int k = 0; k < kk; ++k)
         for (int row = 0; row < h; ++row)
             for (int col = 0; col < w; ++col) data(row * w + col, k) = m.components[std::size_t(k)](row, col);
+    if (!std::isfinite(data.squaredNorm()))
+        throw Error("the PSFEx model's samples are out of range (their squares overflow)");
     // The 3 × 3 places across the stars' range, as term weights (K × 9), and the peak there.
     Eigen::MatrixXd places(kk, 9);
     Eigen::VectorXd peaks(9);
@@ -207,6 +209,8 @@ PsfField fit_psf_field(const PsfexModel& m, const PsfFieldOptions& o) {
         if (at_n.worst <= o.residual_target) break;
     }
     if (best_n < 0) throw Error("the PSFEx stamp is too small for any shapelet order");
+    if (!std::isfinite(best.cost) || best.coeffs.size() == 0)
+        throw Error("the PSFEx model's samples give no finite shapelet fit (values out of range)");
     PsfField f;
     f.degree = m.degree;
     f.x_zero = m.x_zero;

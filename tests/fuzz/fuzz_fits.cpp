@@ -1,13 +1,15 @@
 // libFuzzer harness: the FITS header and image path (issue 15). The input is written to a
 // file and opened as every program opens an image: the first image HDU, its HDU list, its
 // pixels, its WCS (or a --pixel-scale geometry without one), as a stamp file, and as a
-// RealGalaxyCatalog table (its columns read; the files it names are not opened). A
+// RealGalaxyCatalog table (its columns read; the files it names are not opened), and as a
+// PSFEx model (read, not fitted: the fit's cost would starve the readers of runs). A
 // shapesim::Error is a clean refusal; anything else is a bug. cfitsio is a system library
 // without sanitizer instrumentation: only crashes inside it show.
 #include "refused_or_read.hpp"
 #include "shapesim/error.hpp"
 #include "shapesim/fits_io.hpp"
 #include "shapesim/geometry.hpp"
+#include "shapesim/psf_field.hpp"
 #include "shapesim/real_galaxy_catalog.hpp"
 
 #include <cstddef>
@@ -58,5 +60,6 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
         read_stamp(fits, "1");
     });
     refused_or_read([&] { read_real_galaxy_catalog(path); });
+    refused_or_read([&] { read_psfex(path); });
     return 0;
 }

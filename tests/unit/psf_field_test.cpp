@@ -164,3 +164,12 @@ TEST(PsfField, WhatIsNotAPsfexModelIsRefusedNamingTheFile) {
         EXPECT_NE(std::string(e.what()).find("PSF_DATA"), std::string::npos) << e.what();
     }
 }
+
+TEST(PsfField, SamplesOutOfRangeAreAnErrorNotACrash) {
+    PsfexModel m = known_field(1.0, known_parts());
+    m.components[0] *= 1e300;  // finite, but their squares are not
+    EXPECT_THROW(fit_psf_field(m), Error);
+    m = known_field(1.0, known_parts());
+    m.components[0].setZero();  // no light at all
+    EXPECT_THROW(fit_psf_field(m), Error);
+}
