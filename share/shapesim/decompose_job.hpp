@@ -6,9 +6,9 @@
 // write_fit_images() writes its data, model and residual.
 #pragma once
 
-#include "shapesim/bands.hpp"
 #include "shapesim/decompose.hpp"
 #include "shapesim/fits_io.hpp"
+#include "shapesim/joint_bands.hpp"
 #include "shapesim/jsonl.hpp"
 #include "shapesim/model.hpp"
 #include "shapesim/noise.hpp"
