@@ -9,8 +9,8 @@ STRESS_TESTS := $(sort $(wildcard tests/stress/*.cpp))
 UNIT_BIN  := $(BUILD)/tests/unit_tests
 STRESS_BIN := $(BUILD)/tests/stress_tests
 
-# Tests find their fixtures from the source tree, wherever the binary runs.
-$(BUILD)/tests/%.o: CPPFLAGS += -DSHAPESIM_SOURCE_DIR='"$(CURDIR)"'
+# Tests find their fixtures in the source tree above their binary (test_support.hpp
+# source_dir): no absolute path is compiled in, so a compiler cache serves any clone.
 BENCH_BIN := $(BUILD)/tests/benchmarks
 
 $(UNIT_BIN): $(UNIT_TESTS:%.cpp=$(BUILD)/%.o) $(LIB)

@@ -22,6 +22,7 @@ packages=(
   netpbm                    # make reproduce: the figures as PNG (pnmtopng, pnmscale)
   help2man                  # make install: man pages from --help and --version
   clang libclang-rt-14-dev  # make fuzz: libFuzzer harnesses
+  ccache                    # .ci/run: a compiler cache shared by CI's clean clones
 )
 
 missing=()

@@ -77,7 +77,7 @@ using namespace shapesim;
 namespace {
 
 constexpr double nan = std::numeric_limits<double>::quiet_NaN();
-const std::string kSource = SHAPESIM_SOURCE_DIR;  // set by tests/module.mk
+const std::string kSource = shapesim::test::source_dir();
 const std::string kHdfImage = kSource + "/share/data/hdfn/hdfn_f814w_v2.fits";
 const std::string kHdfWeight = kSource + "/share/data/hdfn/hdfn_f814w_v2_weight.fits";
 constexpr int kNoiseRealisations = 4;  // BM_Decompose

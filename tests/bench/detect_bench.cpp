@@ -62,7 +62,7 @@ namespace fs = std::filesystem;
 using Clock = std::chrono::steady_clock;
 constexpr double nan = std::numeric_limits<double>::quiet_NaN();
 
-const std::string kSource = SHAPESIM_SOURCE_DIR;  // set by tests/module.mk
+const std::string kSource = shapesim::test::source_dir();
 const std::string kHdfImage = kSource + "/share/data/hdfn/hdfn_f814w_v2.fits";
 const std::string kHdfWeight = kSource + "/share/data/hdfn/hdfn_f814w_v2_weight.fits";
 const std::string kHdfCatalogue = kSource + "/share/data/hdfn/hdfn_f814w_v2.sextractor.cat";

@@ -95,7 +95,7 @@ BENCHMARK(BM_ExactAperture)
     ->Unit(benchmark::kMicrosecond);
 
 void BM_MorphometryStatmorph(benchmark::State& state) {
-    FitsReader fits(std::string(SHAPESIM_SOURCE_DIR) + "/tests/data/statmorph/slice.fits");
+    FitsReader fits(shapesim::test::source_dir() + "/tests/data/statmorph/slice.fits");
     fits.move_to(0);
     const ImageArray image = fits.read_image();
     fits.move_to(1);

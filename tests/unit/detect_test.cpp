@@ -159,7 +159,7 @@ bool inside_image(const DetectionResult& r, const Detection& d) {
 }
 
 std::string hdf_path(const std::string& file) {
-    return std::string(SHAPESIM_SOURCE_DIR) + "/share/data/hdfn/" + file;
+    return shapesim::test::source_dir() + "/share/data/hdfn/" + file;
 }
 
 }  // namespace

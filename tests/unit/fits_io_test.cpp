@@ -260,7 +260,7 @@ TEST_F(FitsTest, RadesysRoundTrips) {
     FitsReader icrs(path("frames.fits[ICRS]"));
     EXPECT_EQ(read_wcs(icrs).radesys, "ICRS");
     EXPECT_FALSE(icrs.has_key("EQUINOX"));
-    FitsReader bare(SHAPESIM_SOURCE_DIR "/tests/corpus/cases/good.fits");  // no RADESYS card
+    FitsReader bare(shapesim::test::source_dir() + "/tests/corpus/cases/good.fits");  // no RADESYS card
     EXPECT_FALSE(bare.has_key("RADESYS"));
     EXPECT_EQ(read_wcs(bare).radesys, "ICRS");
 }
@@ -556,7 +556,7 @@ TEST_F(FitsTest, StampRoundTrip) {
 // (cfitsio overflowed a buffer on such a TTYPE, and asked calloc for 10^16 bytes on such a
 // NAXIS2: the fuzz corpus keeps both files); a stray byte in another card is left alone.
 TEST_F(FitsTest, LayoutCardsWithNonAsciiBytesAreRefusedBeforeCfitsio) {
-    const std::string root = SHAPESIM_SOURCE_DIR "/tests/fuzz/corpus/fits/";
+    const std::string root = shapesim::test::source_dir() + "/tests/fuzz/corpus/fits/";
     // The third: a NAXIS1 the walk cannot parse ("0     880") before 8-bit TTYPE cards.
     // The fourth ends inside its table's header block: cfitsio reads the cards it holds.
     for (const char* name : {"cfitsio-calloc-naxis2-control-byte", "cfitsio-strcpy-ttype-8bit-byte",
@@ -570,13 +570,13 @@ TEST_F(FitsTest, LayoutCardsWithNonAsciiBytesAreRefusedBeforeCfitsio) {
         }
     }
     // The shipped TinyTim PSF carries a newline in its CREATED card, and opens.
-    EXPECT_NO_THROW(FitsReader(SHAPESIM_SOURCE_DIR "/share/data/hdfn/wfpc2_f814w_tinytim_psf.fits"));
+    EXPECT_NO_THROW(FitsReader(shapesim::test::source_dir() + "/share/data/hdfn/wfpc2_f814w_tinytim_psf.fits"));
 }
 
 // A column name, format or unit must be a quoted string: cfitsio copied an unquoted 70-character
 // TTYPE into its 70-byte column name (a fortify abort, found twice by CI's fuzzing).
 TEST_F(FitsTest, UnquotedTableLayoutTextIsRefusedBeforeCfitsio) {
-    const std::string root = SHAPESIM_SOURCE_DIR "/tests/fuzz/corpus/fits/";
+    const std::string root = shapesim::test::source_dir() + "/tests/fuzz/corpus/fits/";
     for (const char* name : {"cfitsio-strcpy-unquoted-ttype", "cfitsio-strcpy-unquoted-ttype-2"}) {
         try {
             FitsReader fits(root + name);
@@ -587,6 +587,6 @@ TEST_F(FitsTest, UnquotedTableLayoutTextIsRefusedBeforeCfitsio) {
         }
     }
     // GalSim's own COSMOS catalogue table (the shipped layout) opens.
-    EXPECT_NO_THROW(FitsReader(SHAPESIM_SOURCE_DIR
+    EXPECT_NO_THROW(FitsReader(shapesim::test::source_dir() +
                                "/share/data/cosmos_catalog/real_galaxy_catalog_23.5_example.fits"));
 }

@@ -7,6 +7,8 @@
 #include "shapesim/fits_io.hpp"
 
 #include <fitsio.h>
+#include "test_support.hpp"
+
 #include <gtest/gtest.h>
 
 #include <cmath>
@@ -234,7 +236,7 @@ TEST_F(GeometryTest, HeaderConventionsAgree) {
 // the corners): pixel → sky equals astropy 5.2's all_pix2world (origin 1) on the same header to
 // 1e−12°, sky → pixel inverts it to 1e−9 pixel, and the terms survive a write and a re-read.
 TEST_F(GeometryTest, SipDistortionMatchesAstropyAndInverts) {
-    FitsReader fits(SHAPESIM_SOURCE_DIR "/tests/corpus/cases/sip.fits", FitsStart::first_image);
+    FitsReader fits(shapesim::test::source_dir() + "/tests/corpus/cases/sip.fits", FitsStart::first_image);
     const Wcs w = read_wcs(fits);
     ASSERT_TRUE(w.has_sip());
     EXPECT_EQ(w.sip_order, 2);

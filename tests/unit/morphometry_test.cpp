@@ -32,7 +32,7 @@ struct Slice {
 };
 
 Slice read_slice() {
-    FitsReader fits(std::string(SHAPESIM_SOURCE_DIR) + "/tests/data/statmorph/slice.fits");
+    FitsReader fits(shapesim::test::source_dir() + "/tests/data/statmorph/slice.fits");
     Slice s;
     fits.move_to(0);
     s.image = fits.read_image();

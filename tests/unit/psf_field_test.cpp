@@ -7,6 +7,8 @@
 #include "shapesim/error.hpp"
 #include "shapesim/moments.hpp"
 
+#include "test_support.hpp"
+
 #include <gtest/gtest.h>
 
 #include <cmath>
@@ -109,7 +111,7 @@ TEST(PsfField, TermsAreInPsfexOrder) {
 }
 
 TEST(PsfField, PsfexModelOfAGroundFieldIsReadAndFitted) {
-    const std::string file = std::string(SHAPESIM_SOURCE_DIR) + "/tests/data/psfex/ground.psf";
+    const std::string file = shapesim::test::source_dir() + "/tests/data/psfex/ground.psf";
     const PsfexModel m = read_psfex(file);
     EXPECT_EQ(m.degree, 2);
     EXPECT_EQ(m.components.size(), 6u);
@@ -155,7 +157,7 @@ TEST(PsfField, PsfexModelOfAGroundFieldIsReadAndFitted) {
 }
 
 TEST(PsfField, WhatIsNotAPsfexModelIsRefusedNamingTheFile) {
-    const std::string image = std::string(SHAPESIM_SOURCE_DIR) + "/tests/data/statmorph/slice.fits";
+    const std::string image = shapesim::test::source_dir() + "/tests/data/statmorph/slice.fits";
     try {
         read_psfex(image);
         FAIL() << "an image was read as a PSFEx model";

@@ -79,7 +79,7 @@ PixelMoments pixel_moments(const ImageArray& a) {
 }
 
 std::string tinytim_path() {
-    return std::string(SHAPESIM_SOURCE_DIR) + "/share/data/hdfn/wfpc2_f814w_tinytim_psf.fits";
+    return shapesim::test::source_dir() + "/share/data/hdfn/wfpc2_f814w_tinytim_psf.fits";
 }
 
 }  // namespace

@@ -3,6 +3,7 @@
 #include <cstdlib>
 #include <filesystem>
 #include <stdexcept>
+#include <unistd.h>
 
 #include "shapesim/basis1d.hpp"
 #include "shapesim/decompose.hpp"
@@ -38,8 +39,22 @@ bool is_dir(const std::string& path) {
     struct stat st;
     return stat(path.c_str(), &st) == 0 && S_ISDIR(st.st_mode);
 }
-std::string repo_root() { return SHAPESIM_SOURCE_DIR; }  // set by tests/module.mk
+std::string repo_root() { return source_dir(); }
 }  // namespace
+
+const std::string& source_dir() {
+    static const std::string dir = [] {
+        if (const char* env = std::getenv("SHAPESIM_SOURCE_DIR"); env && *env) return std::string(env);
+        std::string exe(4096, '\0');
+        const ssize_t n = readlink("/proc/self/exe", exe.data(), exe.size() - 1);
+        if (n <= 0) throw std::runtime_error("test_support: cannot read /proc/self/exe");
+        exe.resize(std::size_t(n));
+        std::string dir = exe;
+        for (int up = 0; up < 3; ++up) dir = dir.substr(0, dir.find_last_of('/'));
+        return dir;
+    }();
+    return dir;
+}
 
 std::string reference_dir() {
     const std::string in_repo = repo_root() + "/tests/data/reference";

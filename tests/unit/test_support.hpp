@@ -17,6 +17,11 @@
 
 namespace shapesim::test {
 
+/// The repository the test binary was built from: $SHAPESIM_SOURCE_DIR when set, else three
+/// folders up from the binary itself (<root>/build*/tests/<binary>, through /proc/self/exe).
+/// No absolute path is compiled in, so a compiler cache serves every clone alike.
+const std::string& source_dir();
+
 /// Folder of the exact reference fixtures: tests/data/reference in the repository, else
 /// $SHAPESIM_DATA/reference. (The readers below throw, naming it, when files are missing.)
 std::string reference_dir();
