@@ -654,10 +654,13 @@ TruthRecord truth_record(const PreparedObject& object, const ObjectRecord& recor
         }
     }
     if (object.psf) {
-        // The PSF it was drawn with (it varies over the field): its shape and size there.
-        t.extra["psf_e1"] = object.psf->epsilon.real();
-        t.extra["psf_e2"] = object.psf->epsilon.imag();
-        t.extra["psf_rms_radius"] = object.psf->rms_radius;
+        // The PSF it was drawn with (it varies over the field): its shape and size there,
+        // each left out where undefined (moments.hpp: NaN).
+        const std::pair<const char*, double> psf[] = {{"psf_e1", object.psf->epsilon.real()},
+                                                      {"psf_e2", object.psf->epsilon.imag()},
+                                                      {"psf_rms_radius", object.psf->rms_radius}};
+        for (const auto& [name, value] : psf)
+            if (std::isfinite(value)) t.extra[name] = value;
     }
     t.n_max = object.model.n_max;
     t.stamp_radius = object.radius;
