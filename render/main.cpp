@@ -169,6 +169,20 @@ int run(int argc, const char* const argv[]) {
     const std::vector<ObjectRecord> records =
         read_objects(s.input, field.wcs, s.band, placement, o.threads);
     const auto t_prepare = clock::now();
+    if (kernels.field) {
+        // psfex's polynomial holds between its stars; beyond them it is extrapolated.
+        long outside = 0;
+        for (const ObjectRecord& r : records)
+            if (!kernels.field->within_stars(*r.x, *r.y)) ++outside;
+        if (outside > 0) {
+            const PsfField& f = *kernels.field;
+            log.warn(outside, " of ", records.size(), " objects lie beyond the stars the PSF field "
+                     "was fitted to (x ", f.x_zero - 0.5 * f.x_scale, " to ", f.x_zero + 0.5 * f.x_scale,
+                     ", y ", f.y_zero - 0.5 * f.y_scale, " to ", f.y_zero + 0.5 * f.y_scale,
+                     "): their PSF is the polynomial extrapolated; render the image psfex measured "
+                     "(--like it)");
+        }
+    }
     // Lensing acts on light before the PSF: a model that already holds its image's PSF
     // (observed frame) is lensed PSF and all, which a shear calibration must not use.
     long observed_lensed = 0;

@@ -232,6 +232,10 @@ PsfField fit_psf_field(const PsfexModel& m, const PsfFieldOptions& o) {
     return f;
 }
 
+bool PsfField::within_stars(double x, double y) const {
+    return degree == 0 || (std::abs(x - x_zero) <= 0.5 * x_scale && std::abs(y - y_zero) <= 0.5 * y_scale);
+}
+
 CartesianModel PsfField::at(double x, double y) const {
     const std::vector<double> t = terms(x, y);
     CartesianModel c(0.0, 0.0, beta_pix, n_max);

@@ -63,6 +63,9 @@ struct PsfField {
     double max_residual_fraction = 0;     ///< worst |PSFEx − model| / peak over the 3 × 3 places
     bool reached_target = false;
     std::vector<double> terms(double x, double y) const;
+    /// Whether (x, y) lies within the range of the stars the PSF was fitted to, |x̃|, |ỹ| ≤ ½
+    /// (always, for a PSF that does not vary): beyond it the polynomial is extrapolated.
+    bool within_stars(double x, double y) const;
     /// The PSF at (x, y), unit flux, centred at (0, 0). Error when its flux there is not > 0
     /// (a polynomial taken far beyond the stars it was fitted to).
     CartesianModel at(double x, double y) const;

@@ -235,6 +235,22 @@ print(f"decompose --psf-field: beta {min(betas):.4f} to {max(betas):.4f} arcsec 
 assert len(betas) == 25 and max(abs(b - 0.4) for b in betas) < 0.004
 PY
 
+# A field larger than the image psfex measured: render says how many objects lie beyond the
+# stars (their PSF extrapolated); none is said for the image itself.
+! grep -q "beyond the stars" render.err || fail "a warning for objects within the stars: $(cat render.err)"
+/usr/bin/python3 - <<'PY'
+import json
+with open("far.jsonl", "w") as out:
+    for line in open("stars.jsonl"):
+        s = json.loads(line)
+        s["ra"] = 150.0 + (s["ra"] - 150.0) * 1.6  # spread 1.6x about the field's centre
+        out.write(json.dumps(s) + "\n")
+PY
+"$BIN/shapesim-render" far.jsonl --pixels 1800 --pixel-scale 0.2 --ra 150 --dec 2 --psf-field stars.psf \
+  --noise-free -o far.fits 2>far.err || fail "render beyond the stars failed: $(cat far.err)"
+grep -qE "^shapesim-render: warning: [0-9]+ of 25 objects lie beyond the stars the PSF field was fitted to" far.err ||
+  fail "no warning for objects beyond the stars: $(cat far.err)"
+
 # Not a PSFEx model; with --psf: one line, no image.
 rc=0
 "$BIN/shapesim-render" stars.jsonl --like field.fits --psf-field field.fits -o bad.fits 2>err || rc=$?
