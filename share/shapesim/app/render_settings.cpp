@@ -20,15 +20,15 @@ void RenderSettings::check(const ProgramOptions& options) {
     if (bitpix != -32 && bitpix != -64) throw po::error("--bitpix: -32 or -64");
     check_writable(output);
     if (!truth.empty()) check_writable(truth);
-    if (!galaxy_psf.empty() && psf.empty() && psf_analytic.empty())
-        throw po::error("--galaxy-psf needs --psf or --psf-analytic");
-    if (!psf.empty() && !psf_analytic.empty())
-        throw po::error("--psf and --psf-analytic exclude each other");
     if (!psf_field.empty() && (!psf.empty() || !psf_analytic.empty()))
         throw po::error("--psf-field is the PSF: not with --psf or --psf-analytic");
     if (!psf_field.empty() && !galaxy_psf.empty())
         throw po::error("--psf-field with --galaxy-psf: a PSF varying across the field draws "
                         "intrinsic models (shapesim-decompose --psf), not observed-frame ones");
+    if (!galaxy_psf.empty() && psf.empty() && psf_analytic.empty())
+        throw po::error("--galaxy-psf needs --psf or --psf-analytic");
+    if (!psf.empty() && !psf_analytic.empty())
+        throw po::error("--psf and --psf-analytic exclude each other");
     if (!psf_analytic.empty()) {
         try {
             parse_analytic_psf(psf_analytic);

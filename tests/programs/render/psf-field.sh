@@ -262,6 +262,10 @@ rc=0
 expect_error "$rc" 2 "psf-field"
 [ ! -e bad.fits ] || fail "a refused render wrote its image"
 rc=0
+"$BIN/shapesim-render" stars.jsonl --like field.fits --psf-field stars.psf --galaxy-psf stars.psf \
+  -o bad.fits 2>err || rc=$?
+expect_error "$rc" 2 "psf-field with --galaxy-psf"
+rc=0
 "$BIN/shapesim-decompose" --psf-field stars.psf --psf-analytic gaussian:0.8 <sources.jsonl >bad.jsonl 2>err || rc=$?
 expect_error "$rc" 2 "psf-field"
 rc=0
