@@ -147,8 +147,9 @@ int run(int argc, const char* const argv[]) {
     } else if (!s.psf_field.empty()) {
         PsfField psf = read_psf_field(s.psf_field);
         log.info("PSF varying across the field (", s.psf_field, "): ",
-                 psf.degree == 0 ? std::string("constant (psfex's degree 0)")
-                                 : "degree " + std::to_string(psf.degree) + " in x, y",
+                 psf.variation.degree == 0
+                     ? std::string("constant (psfex's degree 0)")
+                     : "degree " + std::to_string(psf.variation.degree) + " in x, y",
                  ", shapelets to n_max ", psf.n_max, ", beta ", psf.beta_pix,
                  " pixels, worst residual ", 100 * psf.max_residual_fraction, "% of the peak");
         if (!psf.reached_target)
@@ -173,9 +174,9 @@ int run(int argc, const char* const argv[]) {
         // psfex's polynomial holds between its stars; beyond them it is extrapolated.
         long outside = 0;
         for (const ObjectRecord& r : records)
-            if (!kernels.field->within_stars(*r.x, *r.y)) ++outside;
+            if (!kernels.field->variation.within_stars(*r.x, *r.y)) ++outside;
         if (outside > 0) {
-            const PsfField& f = *kernels.field;
+            const PsfVariation& f = kernels.field->variation;
             log.warn(outside, " of ", records.size(), " objects lie beyond the stars the PSF field "
                      "was fitted to (x ", f.x_zero - 0.5 * f.x_scale, " to ", f.x_zero + 0.5 * f.x_scale,
                      ", y ", f.y_zero - 0.5 * f.y_scale, " to ", f.y_zero + 0.5 * f.y_scale,

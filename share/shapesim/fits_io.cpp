@@ -427,6 +427,15 @@ int column_of(fitsfile* f, const std::string& name, const std::string& place, in
     return number;
 }
 
+// Column `name` of the current table, which must be numeric: its number and values per row.
+int numeric_column(fitsfile* f, const std::string& name, const std::string& place, long& repeat) {
+    int type = 0;
+    const int number = column_of(f, name, place, type, repeat);
+    if (type == TSTRING || type == TLOGICAL || type == TBIT)
+        throw Error("column " + name + " is not numeric", place, 0, name);
+    return number;
+}
+
 }  // namespace
 
 bool FitsReader::has_column(const std::string& name) {
@@ -445,11 +454,8 @@ bool FitsReader::column_is_text(const std::string& name) {
 
 std::vector<double> FitsReader::read_column(const std::string& name) {
     const long rows = table_rows();
-    int type = 0;
     long repeat = 0;
-    const int number = column_of(impl_->f, name, impl_->place, type, repeat);
-    if (type == TSTRING || type == TLOGICAL || type == TBIT)
-        throw Error("column " + name + " is not numeric", impl_->place, 0, name);
+    const int number = numeric_column(impl_->f, name, impl_->place, repeat);
     if (repeat != 1)
         throw Error("column " + name + " holds " + std::to_string(repeat) +
                         " values per row, not one",
@@ -466,11 +472,8 @@ std::vector<double> FitsReader::read_column(const std::string& name) {
 
 std::vector<double> FitsReader::read_cell(const std::string& name, long row, long max_values) {
     const long rows = table_rows();
-    int type = 0;
     long repeat = 0;
-    const int number = column_of(impl_->f, name, impl_->place, type, repeat);
-    if (type == TSTRING || type == TLOGICAL || type == TBIT)
-        throw Error("column " + name + " is not numeric", impl_->place, 0, name);
+    const int number = numeric_column(impl_->f, name, impl_->place, repeat);
     if (row < 1 || row > rows)
         throw Error("no row " + std::to_string(row) + " (the table has " + std::to_string(rows) +
                         ")",

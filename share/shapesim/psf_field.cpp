@@ -72,12 +72,12 @@ Trial fit_at(const PsfexModel& m, const Eigen::MatrixXd& data, const Eigen::Matr
 
 }  // namespace
 
-std::vector<double> PsfexModel::terms(double x, double y) const {
+std::vector<double> PsfVariation::terms(double x, double y) const {
     return monomials(degree, (x - x_zero) / x_scale, (y - y_zero) / y_scale);
 }
 
-std::vector<double> PsfField::terms(double x, double y) const {
-    return monomials(degree, (x - x_zero) / x_scale, (y - y_zero) / y_scale);
+bool PsfVariation::within_stars(double x, double y) const {
+    return degree == 0 || (std::abs(x - x_zero) <= 0.5 * x_scale && std::abs(y - y_zero) <= 0.5 * y_scale);
 }
 
 PsfexModel read_psfex(const std::string& path) {
@@ -111,18 +111,18 @@ PsfexModel read_psfex(const std::string& path) {
         if (degree < 0 || degree > 10)
             throw Error("POLDEG1 " + std::to_string(degree) + " is not 0 to 10", place, 0,
                         "POLDEG1");
-        m.x_zero = fits.required_double("POLZERO1");
-        m.y_zero = fits.required_double("POLZERO2");
-        m.x_scale = fits.required_double("POLSCAL1");
-        m.y_scale = fits.required_double("POLSCAL2");
+        m.variation.x_zero = fits.required_double("POLZERO1");
+        m.variation.y_zero = fits.required_double("POLZERO2");
+        m.variation.x_scale = fits.required_double("POLSCAL1");
+        m.variation.y_scale = fits.required_double("POLSCAL2");
     }
-    m.degree = int(degree);
+    m.variation.degree = int(degree);
     m.sampling = fits.required_double("PSF_SAMP");
-    for (const auto& [key, value] : {std::pair{"POLSCAL1", m.x_scale}, {"POLSCAL2", m.y_scale},
+    for (const auto& [key, value] : {std::pair{"POLSCAL1", m.variation.x_scale}, {"POLSCAL2", m.variation.y_scale},
                                      {"PSF_SAMP", m.sampling}})
         if (!(std::isfinite(value) && value > 0.0))
             throw Error(std::string(key) + " is not > 0", place, 0, key);
-    if (!std::isfinite(m.x_zero) || !std::isfinite(m.y_zero))
+    if (!std::isfinite(m.variation.x_zero) || !std::isfinite(m.variation.y_zero))
         throw Error("POLZERO1/2 are not finite", place, 0, "POLZERO1");
     if (fits.required_int("PSFNAXIS") != 3)
         throw Error("PSFNAXIS is not 3", place, 0, "PSFNAXIS");
@@ -153,7 +153,7 @@ PsfexModel read_psfex(const std::string& path) {
 }
 
 ImageArray psfex_image(const PsfexModel& model, double x, double y) {
-    const std::vector<double> t = model.terms(x, y);
+    const std::vector<double> t = model.variation.terms(x, y);
     ImageArray out = ImageArray::Zero(model.components[0].rows(), model.components[0].cols());
     for (std::size_t k = 0; k < t.size(); ++k) out += t[k] * model.components[k];
     return out;
@@ -176,7 +176,7 @@ PsfField fit_psf_field(const PsfexModel& m, const PsfFieldOptions& o) {
     Eigen::MatrixXd places(kk, 9);
     Eigen::VectorXd peaks(9);
     for (int p = 0; p < 9; ++p) {
-        const std::vector<double> t = monomials(m.degree, 0.5 * (p % 3 - 1), 0.5 * (p / 3 - 1));
+        const std::vector<double> t = monomials(m.variation.degree, 0.5 * (p % 3 - 1), 0.5 * (p / 3 - 1));
         for (int k = 0; k < kk; ++k) places(k, p) = t[std::size_t(k)];
         peaks(p) = (data * places.col(p)).maxCoeff();
         if (!(peaks(p) > 0))
@@ -212,11 +212,7 @@ PsfField fit_psf_field(const PsfexModel& m, const PsfFieldOptions& o) {
     if (!std::isfinite(best.cost) || best.coeffs.size() == 0)
         throw Error("the PSFEx model's samples give no finite shapelet fit (values out of range)");
     PsfField f;
-    f.degree = m.degree;
-    f.x_zero = m.x_zero;
-    f.y_zero = m.y_zero;
-    f.x_scale = m.x_scale;
-    f.y_scale = m.y_scale;
+    f.variation = m.variation;
     f.n_max = best_n;
     f.beta_pix = best.beta;
     f.max_residual_fraction = best.worst;
@@ -232,12 +228,8 @@ PsfField fit_psf_field(const PsfexModel& m, const PsfFieldOptions& o) {
     return f;
 }
 
-bool PsfField::within_stars(double x, double y) const {
-    return degree == 0 || (std::abs(x - x_zero) <= 0.5 * x_scale && std::abs(y - y_zero) <= 0.5 * y_scale);
-}
-
 CartesianModel PsfField::at(double x, double y) const {
-    const std::vector<double> t = terms(x, y);
+    const std::vector<double> t = variation.terms(x, y);
     CartesianModel c(0.0, 0.0, beta_pix, n_max);
     double total = 0.0;
     for (std::size_t k = 0; k < t.size(); ++k) {

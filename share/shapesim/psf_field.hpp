@@ -24,16 +24,24 @@
 
 namespace shapesim {
 
-/// A PSFEx model as its file holds it (one context group of two image coordinates).
-struct PsfexModel {
-    int degree = 0;                       ///< POLDEG1
+/// How the PSF varies: PSFEx's polynomial in x̃, ỹ (the file comment).
+struct PsfVariation {
+    int degree = 0;                       ///< POLDEG1 (0: one PSF for the field)
     double x_zero = 0, y_zero = 0;        ///< POLZERO1, POLZERO2 (FITS pixels)
     double x_scale = 1, y_scale = 1;      ///< POLSCAL1, POLSCAL2 (pixels)
-    double sampling = 1;                  ///< PSF_SAMP: image pixels per sample
-    std::string x_name, y_name;           ///< POLNAME1, POLNAME2 (X_IMAGE, Y_IMAGE, …)
-    std::vector<ImageArray> components;   ///< B_k, rows along y
     /// The K monomials x̃^i ỹ^j at (x, y), in PSFEx's order.
     std::vector<double> terms(double x, double y) const;
+    /// Whether (x, y) lies within the range of the stars the polynomial was fitted to,
+    /// |x̃|, |ỹ| ≤ ½ (always, for degree 0): beyond it the polynomial is extrapolated.
+    bool within_stars(double x, double y) const;
+};
+
+/// A PSFEx model as its file holds it (one context group of two image coordinates).
+struct PsfexModel {
+    PsfVariation variation;
+    double sampling = 1;                  ///< PSF_SAMP: image pixels per sample
+    std::string x_name, y_name;           ///< POLNAME1, POLNAME2 (X_IMAGE, Y_IMAGE, …)
+    std::vector<ImageArray> components;   ///< B_k, rows along y, one per term
 };
 
 /// The PSFEx model in the PSF_DATA table of `path` (psfex's .psf). Error naming the file and
@@ -54,18 +62,13 @@ struct PsfFieldOptions {
 
 /// The shapelet form of a PSFEx model (see the file comment), in the image's pixels.
 struct PsfField {
-    int degree = 0;
-    double x_zero = 0, y_zero = 0, x_scale = 1, y_scale = 1;
+    PsfVariation variation;               ///< PSFEx's
     int n_max = 0;
     double beta_pix = 1;
     std::vector<Eigen::MatrixXd> b;       ///< Cartesian coefficients of each term
     std::vector<double> flux;             ///< each term's flux
     double max_residual_fraction = 0;     ///< worst |PSFEx − model| / peak over the 3 × 3 places
     bool reached_target = false;
-    std::vector<double> terms(double x, double y) const;
-    /// Whether (x, y) lies within the range of the stars the PSF was fitted to, |x̃|, |ỹ| ≤ ½
-    /// (always, for a PSF that does not vary): beyond it the polynomial is extrapolated.
-    bool within_stars(double x, double y) const;
     /// The PSF at (x, y), unit flux, centred at (0, 0). Error when its flux there is not > 0
     /// (a polynomial taken far beyond the stars it was fitted to).
     CartesianModel at(double x, double y) const;

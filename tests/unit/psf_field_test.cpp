@@ -40,11 +40,11 @@ ImageArray effective_samples(const CartesianModel& c, int w, int h, double step)
 // A degree-1 field of three known PSFs: round, and stretched along x and along y.
 PsfexModel known_field(double step, const std::vector<CartesianModel>& parts) {
     PsfexModel m;
-    m.degree = 1;
-    m.x_zero = 500;
-    m.y_zero = 400;
-    m.x_scale = 900;
-    m.y_scale = 800;
+    m.variation.degree = 1;
+    m.variation.x_zero = 500;
+    m.variation.y_zero = 400;
+    m.variation.x_scale = 900;
+    m.variation.y_scale = 800;
     m.sampling = step;
     m.x_name = "X_IMAGE";
     m.y_name = "Y_IMAGE";
@@ -85,7 +85,7 @@ TEST(PsfField, KnownShapeletPsfsAreFittedBackAtEveryPlace) {
         EXPECT_LT(f.max_residual_fraction, 1e-8) << "step " << step;
         for (double x : {10.0, 500.0, 940.0})
             for (double y : {5.0, 400.0, 790.0}) {
-                const std::vector<double> t = m.terms(x, y);
+                const std::vector<double> t = m.variation.terms(x, y);
                 CartesianModel truth(0, 0, 2.2, 6);
                 for (std::size_t k = 0; k < 3; ++k) truth.b += t[k] * parts[k].b;
                 truth.b /= moments(truth).flux;
@@ -99,12 +99,12 @@ TEST(PsfField, KnownShapeletPsfsAreFittedBackAtEveryPlace) {
 
 TEST(PsfField, TermsAreInPsfexOrder) {
     PsfexModel m;
-    m.degree = 2;
-    m.x_zero = 10;
-    m.y_zero = 20;
-    m.x_scale = 2;
-    m.y_scale = 4;
-    const std::vector<double> t = m.terms(14, 32);  // x̃ = 2, ỹ = 3
+    m.variation.degree = 2;
+    m.variation.x_zero = 10;
+    m.variation.y_zero = 20;
+    m.variation.x_scale = 2;
+    m.variation.y_scale = 4;
+    const std::vector<double> t = m.variation.terms(14, 32);  // x̃ = 2, ỹ = 3
     const std::vector<double> want = {1, 2, 4, 3, 6, 9};
     ASSERT_EQ(t.size(), want.size());
     for (std::size_t k = 0; k < t.size(); ++k) EXPECT_DOUBLE_EQ(t[k], want[k]) << k;
@@ -113,7 +113,7 @@ TEST(PsfField, TermsAreInPsfexOrder) {
 TEST(PsfField, PsfexModelOfAGroundFieldIsReadAndFitted) {
     const std::string file = shapesim::test::source_dir() + "/tests/data/psfex/ground.psf";
     const PsfexModel m = read_psfex(file);
-    EXPECT_EQ(m.degree, 2);
+    EXPECT_EQ(m.variation.degree, 2);
     EXPECT_EQ(m.components.size(), 6u);
     EXPECT_EQ(m.components[0].cols(), 25);
     EXPECT_DOUBLE_EQ(m.sampling, 1.0);
@@ -145,7 +145,7 @@ TEST(PsfField, PsfexModelOfAGroundFieldIsReadAndFitted) {
         for (double y : {60.0, 512.0, 980.0}) {
             const ImageArray want = psfex_image(m, x, y);
             PsfexModel one = m;
-            one.degree = 0;
+            one.variation.degree = 0;
             one.components = {effective_samples(f.at(x, y), 25, 25, 1.0)};
             const ImageArray got = one.components[0] * want.sum() / one.components[0].sum();
             const auto a = shape(want), b = shape(got);

@@ -39,7 +39,6 @@ bool is_dir(const std::string& path) {
     struct stat st;
     return stat(path.c_str(), &st) == 0 && S_ISDIR(st.st_mode);
 }
-std::string repo_root() { return source_dir(); }
 }  // namespace
 
 const std::string& source_dir() {
@@ -57,7 +56,7 @@ const std::string& source_dir() {
 }
 
 std::string reference_dir() {
-    const std::string in_repo = repo_root() + "/tests/data/reference";
+    const std::string in_repo = source_dir() + "/tests/data/reference";
     if (is_dir(in_repo)) return in_repo;
     if (const char* env = std::getenv("SHAPESIM_DATA"))
         if (is_dir(std::string(env) + "/reference")) return std::string(env) + "/reference";
