@@ -86,7 +86,11 @@ int run(int argc, const char* const argv[]) {
          "2.34; beyond, give --noise-model)")
         ("noise-model", po::value(&s.noise_model)->value_name("FILE"),
          "the real sky's measured noise (shapesim-detect --noise-model): its rms and 2-D "
-         "autocorrelation, drawn as white noise through the kernel that has it")
+         "autocorrelation, drawn as white noise through the kernel that has it, each pixel "
+         "then mapped to the sky's measured pixel distribution (its heavier tails)")
+        ("gaussian-noise", po::bool_switch(&s.gaussian_noise),
+         "with --noise-model: Gaussian pixels of its rms and correlation, not its measured "
+         "distribution")
         ("noise-weight", po::value(&s.noise_weight)->value_name("FILE"),
          "the real field's weight map (inverse variance, the rendered field's size): the "
          "background's sigma varies over the field as 1/sqrt(weight), its mean variance kept")

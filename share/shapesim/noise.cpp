@@ -9,6 +9,7 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
+#include <limits>
 #include <ostream>
 
 namespace shapesim {
@@ -49,6 +50,57 @@ double cdf_from_quantiles(const std::vector<double>& q, double x) {
 }  // namespace
 
 // ---------------------------------------------------------------------------------------------
+// The marginal
+
+double SkyMarginal::operator()(double z) const {
+    const std::size_t n = values.size();
+    const double at = (z - z0) / dz;
+    if (at >= 0.0 && at <= double(n - 1)) {
+        const std::size_t k = std::min(std::size_t(at), n - 2);
+        const double t = at - double(k);
+        return values[k] + t * (values[k + 1] - values[k]);
+    }
+    // Beyond the table: along the mean slope of its last tail_steps steps.
+    const std::size_t s = std::size_t(tail_steps);
+    if (at < 0.0) return values[0] + at * (values[s] - values[0]) / double(s);
+    return values[n - 1] + (at - double(n - 1)) * (values[n - 1] - values[n - 1 - s]) / double(s);
+}
+
+void SkyMarginal::validate() const {
+    auto fail = [](const std::string& why) { throw Error(why, {}, 0, "marginal"); };
+    if (!(dz > 0.0 && std::isfinite(dz))) fail("dz must be > 0");
+    if (!(z0 < 0.0 && std::isfinite(z0))) fail("z0 must be < 0");
+    if (values.size() <= std::size_t(tail_steps))
+        fail("must hold more than " + std::to_string(tail_steps) + " values");
+    for (std::size_t k = 0; k < values.size(); ++k)
+        if (!std::isfinite(values[k]) || (k > 0 && !(values[k] > values[k - 1])))
+            fail("values must be finite and ascending");
+}
+
+Json SkyMarginal::to_json() const {
+    validate();
+    Json j;
+    j["z0"] = z0;
+    j["dz"] = dz;
+    j["values"] = values;
+    return j;
+}
+
+SkyMarginal SkyMarginal::from_json(const Json& j) {
+    if (!j.is_object()) throw Error("must be an object {z0, dz, values}", {}, 0, "marginal");
+    SkyMarginal m;
+    try {
+        m.z0 = required_double(j, "z0");
+        m.dz = required_double(j, "dz");
+        for (const Json& v : required_array(j, "values")) m.values.push_back(as_double(v, "values"));
+    } catch (const Error& e) {
+        throw Error("marginal." + e.field() + ": " + e.message(), {}, 0, "marginal");
+    }
+    m.validate();
+    return m;
+}
+
+// ---------------------------------------------------------------------------------------------
 // The record
 
 NoiseRecord NoiseRecord::from_json(const Json& j) {
@@ -69,11 +121,13 @@ NoiseRecord NoiseRecord::from_json(const Json& j) {
     if (const Json* q = optional_array(j, "quantiles"))
         for (const Json& v : *q) r.quantiles.push_back(as_double(v, "quantiles"));
     if (auto n = optional_int(j, "quantile_pixels")) r.quantile_pixels = *n;
+    if (j.contains("marginal")) r.marginal = SkyMarginal::from_json(j["marginal"]);
 
     for (const auto& [key, value] : j.items())
         if (key != "schema" && key != "id" && key != "rms" && key != "mad_sigma" &&
             key != "pixels" && key != "noise_correlation" && key != "correlation_radius" &&
-            key != "correlation" && key != "quantiles" && key != "quantile_pixels")
+            key != "correlation" && key != "quantiles" && key != "quantile_pixels" &&
+            key != "marginal")
             r.extra[key] = value;
     r.validate();
     return r;
@@ -95,6 +149,7 @@ void NoiseRecord::validate() const {
         if (!(std::abs(v) <= 1.0 + 1e-9)) fail("correlation", "values must be within [−1, 1]");
     if (!std::is_sorted(quantiles.begin(), quantiles.end()))
         fail("quantiles", "must be in ascending order");
+    if (!marginal.empty()) marginal.validate();
 }
 
 Json NoiseRecord::to_json() const {
@@ -113,6 +168,7 @@ Json NoiseRecord::to_json() const {
         j["quantile_pixels"] = quantile_pixels;
         j["quantiles"] = quantiles;
     }
+    if (!marginal.empty()) j["marginal"] = marginal.to_json();
     return j;
 }
 
@@ -224,13 +280,63 @@ void sky_quantiles(const ImageArray& image, const std::vector<std::uint8_t>& sky
     }
 }
 
+// The standard normal CDF.
+double normal_cdf(double z) { return 0.5 * std::erfc(-z / std::sqrt(2.0)); }
+
+// The sky's standardised distribution (SkyMarginal): every sky pixel over its own σ, about
+// the median, over the standard deviation; its quantiles at z0 + k·dz out to where
+// `tail_pixels` lie beyond. Empty when the sky is too small for tail_steps levels a side.
+SkyMarginal sky_marginal(const DetectionResult& field, const std::vector<std::uint8_t>& sky,
+                         const SkyNoiseOptions& options) {
+    std::vector<double> u;
+    for (std::size_t k = 0; k < sky.size(); ++k) {
+        const double s = field.sigma.data()[k];
+        if (sky[k] && s > 0.0 && std::isfinite(s)) u.push_back(field.image.data()[k] / s);
+    }
+    SkyMarginal m;
+    if (u.size() < 100) return m;
+    std::sort(u.begin(), u.end());
+    const double n = double(u.size());
+    const double median = 0.5 * (u[(u.size() - 1) / 2] + u[u.size() / 2]);
+    double mean = 0.0;
+    for (double v : u) mean += v;
+    mean /= n;
+    double sum2 = 0.0;
+    for (double v : u) sum2 += (v - mean) * (v - mean);
+    const double sd = std::sqrt(sum2 / n);
+    if (!(sd > 0.0)) return m;
+    // The outermost level: Φ(z0) n ≥ tail_pixels.
+    const double step = options.marginal_step;
+    int levels = 0;
+    while (normal_cdf(-(levels + 1) * step) * n >= double(options.marginal_tail_pixels) &&
+           (levels + 1) * step <= 8.0)
+        ++levels;
+    if (levels <= SkyMarginal::tail_steps) return m;
+    m.z0 = -levels * step;
+    m.dz = step;
+    for (int k = -levels; k <= levels; ++k) {
+        // The quantile at p = Φ(z), pixel i at (i + ½)/n, linear between.
+        const double at = normal_cdf(k * step) * n - 0.5;
+        const std::size_t lo = std::size_t(std::clamp(std::floor(at), 0.0, n - 1.0));
+        const std::size_t hi = std::min(lo + 1, u.size() - 1);
+        const double t = std::clamp(at - double(lo), 0.0, 1.0);
+        m.values.push_back((u[lo] + t * (u[hi] - u[lo]) - median) / sd);
+    }
+    // Ties (a quantised image) would make T flat: such a sky is left Gaussian.
+    for (std::size_t k = 1; k < m.values.size(); ++k)
+        if (!(m.values[k] > m.values[k - 1])) return SkyMarginal{};
+    return m;
+}
+
 }  // namespace
 
 NoiseRecord measure_sky_noise(const DetectionResult& field, const SkyNoiseOptions& options) {
     require(options.radius >= 0 && options.radius <= 64, "sky noise: radius must be in [0, 64]");
     require(options.grow >= 0 && options.decimate >= 1 && options.quantiles >= 2 &&
-                options.mask_snr >= 0.0,
-            "sky noise: grow ≥ 0, decimate ≥ 1, quantiles ≥ 2 and mask_snr ≥ 0");
+                options.mask_snr >= 0.0 && options.marginal_step > 0.0 &&
+                options.marginal_tail_pixels >= 1,
+            "sky noise: grow ≥ 0, decimate ≥ 1, quantiles ≥ 2, mask_snr ≥ 0, marginal_step > 0 "
+            "and marginal_tail_pixels ≥ 1");
     const long nx = field.image.cols(), ny = field.image.rows();
     const std::size_t n = std::size_t(nx * ny);
     std::vector<std::uint8_t> sky = sky_pixels(field, options);
@@ -261,6 +367,7 @@ NoiseRecord measure_sky_noise(const DetectionResult& field, const SkyNoiseOption
     record.noise_correlation = field.noise_correlation;
     record.correlation = sky_autocorrelation(sky, centred, nx, ny, options.radius, variance);
     sky_quantiles(field.image, sky, options, record);
+    record.marginal = sky_marginal(field, sky, options);
     return record;
 }
 
@@ -437,7 +544,25 @@ SkyComparison compare_sky(const NoiseRecord& a, const NoiseRecord& b) {
     const double nb = double(std::max(1L, b.quantile_pixels));
     const double ne = na * nb / (na + nb);
     c.ks_p = kolmogorov_q((std::sqrt(ne) + 0.12 + 0.11 / std::sqrt(ne)) * c.ks_d);
+    const int percents[] = {1, 5, 95, 99};
+    for (std::size_t k = 0; k < 4; ++k)
+        c.percentile_ratio[k] = sky_percentile(b, percents[k]) / sky_percentile(a, percents[k]);
     return c;
+}
+
+double sky_percentile(const NoiseRecord& sky, int percent) {
+    // Φ⁻¹ of 0.01 and 0.05.
+    const double z1 = 2.3263478740408408, z5 = 1.6448536269514722;
+    double z = 0.0;
+    switch (percent) {
+        case 1: z = -z1; break;
+        case 5: z = -z5; break;
+        case 95: z = z5; break;
+        case 99: z = z1; break;
+        default: require(false, "sky_percentile: 1, 5, 95 or 99");
+    }
+    if (sky.marginal.empty()) return std::numeric_limits<double>::quiet_NaN();
+    return sky.rms * sky.marginal(z);
 }
 
 void write_sky_table(std::ostream& out, const std::vector<std::string>& names,
@@ -446,8 +571,9 @@ void write_sky_table(std::ostream& out, const std::vector<std::string>& names,
     static const int lags[][2] = {{1, 0}, {0, 1}, {1, 1}, {2, 0}, {2, 2}, {3, 0}, {3, 3}};
     out << "| sky | rms | MAD σ | rms/MAD σ |";
     for (const auto& l : lags) out << " ξ(" << l[0] << "," << l[1] << ") |";
-    out << " max \\|Δξ\\| (≤ 3 px) | rms / ref | Δ median / rms | KS D | KS p |\n|---|---|---|---|";
-    for (std::size_t k = 0; k < std::size(lags) + 5; ++k) out << "---|";
+    out << " max \\|Δξ\\| (≤ 3 px) | rms / ref | P1 / ref | P5 / ref | P95 / ref | P99 / ref |"
+           " Δ median / rms | KS D | KS p |\n|---|---|---|---|";
+    for (std::size_t k = 0; k < std::size(lags) + 9; ++k) out << "---|";
     out << "\n";
     char buf[64];
     auto put = [&](const char* format, double v) {
@@ -462,12 +588,15 @@ void write_sky_table(std::ostream& out, const std::vector<std::string>& names,
         put("%.4f", s.rms / s.mad_sigma);
         for (const auto& l : lags) put("%.3f", s.correlation.at(l[0], l[1]));
         if (k == 0) {
-            out << " – | – | – | – | – |\n";
+            out << " – | – | – | – | – | – | – | – | – |\n";
             continue;
         }
         const SkyComparison c = compare_sky(skies[0], s);
         put("%.3f", c.max_difference);
         put("%.4f", c.rms_ratio);
+        for (double r : c.percentile_ratio)
+            if (std::isnan(r)) out << " – |";
+            else put("%.4f", r);
         put("%+.3f", c.median_offset / skies[0].rms);
         put("%.4f", c.ks_d);
         put("%.3g", c.ks_p);

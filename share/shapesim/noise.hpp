@@ -23,18 +23,39 @@
 // to Σk² = 1 (the per-pixel variance is the rms²), and stored as the fewest separable terms
 // k = Σ_r c_r ⊗ r_r (SVD) that leave out at most `tolerance`² of it: its correlation is ξ to
 // ≈ 2·tolerance at every lag; the render's cost per pixel is 2 · (2K + 1) · terms
-// multiply-adds.
+// multiply-adds. With a marginal, each correlated deviate z is then mapped to T(z), the sky
+// value of the same probability (SkyMarginal): the field's pixels have the real sky's
+// histogram, tails and all, and nearly its correlation (a monotone map of a Gaussian field
+// near the identity: on the HDF's sky ξ moves by ≤ 0.002 at any lag).
 #pragma once
 
 #include "shapesim/correlation.hpp"
 #include "shapesim/detect.hpp"
 #include "shapesim/jsonl.hpp"
 
+#include <array>
 #include <iosfwd>
 #include <string>
 #include <vector>
 
 namespace shapesim {
+
+/// A sky's standardised pixel distribution as a map from standard normal deviates (see the
+/// header comment): T(z0 + k·dz) = values[k], linear between, and beyond the table along the
+/// mean slope of its last `tail_steps` steps at either end.
+struct SkyMarginal {
+    static constexpr int tail_steps = 10;
+    double z0 = 0.0, dz = 0.0;
+    std::vector<double> values;
+    bool empty() const { return values.empty(); }
+    /// T(z).
+    double operator()(double z) const;
+    /// Error naming the field unless dz > 0, z0 < 0, the values finite and ascending and
+    /// more than tail_steps of them.
+    void validate() const;
+    Json to_json() const;
+    static SkyMarginal from_json(const Json& j);
+};
 
 /// The measured sky noise of an image (`shapesim.noise/1`, from shapesim-detect).
 struct NoiseRecord {
@@ -47,6 +68,7 @@ struct NoiseRecord {
     NoiseCorrelation correlation;
     std::vector<double> quantiles;     ///< of the decimated sky pixels, at (i + ½)/count
     long quantile_pixels = 0;          ///< how many pixels the quantiles summarise
+    SkyMarginal marginal;              ///< empty: Gaussian (a record from before it)
     Json extra = Json::object();
 
     static NoiseRecord from_json(const Json& record);
@@ -64,6 +86,8 @@ struct SkyNoiseOptions {
     int quantiles = 1000;
     /// Only objects of at least this S/N (FLUX_AUTO / FLUXERR_AUTO) are masked (0: all).
     double mask_snr = 4.0;
+    double marginal_step = 0.05;      ///< the marginal's dz
+    long marginal_tail_pixels = 20;   ///< sky pixels beyond its outermost levels, at least
 };
 
 /// Measure the sky noise of a detected field (its background-subtracted image,
@@ -100,14 +124,19 @@ struct SkyComparison {
     /// Two-sample KS of the decimated sky pixels, each about its own median (the noise; a
     /// constant left by background subtraction is not).
     double ks_d = 0.0, ks_p = 1.0;
+    /// Percentiles 1, 5, 95 and 99 of b's sky over a's (each rms × its marginal at the
+    /// percentile's z); NaN where either record lacks a marginal.
+    std::array<double, 4> percentile_ratio{};
 };
+/// The sky value at percentile `percent` (1, 5, 95 or 99): rms × T(z); NaN without a marginal.
+double sky_percentile(const NoiseRecord& sky, int percent);
 /// Errors when a record lacks quantiles.
 SkyComparison compare_sky(const NoiseRecord& a, const NoiseRecord& b);
 
 /// A markdown table of skies against the first (the reference): rms, MAD σ, rms/MAD σ,
 /// ξ at lags (1,0) (0,1) (1,1) (2,0) (2,2) (3,0) (3,3), the largest |Δξ| within 3 pixels,
-/// the rms ratio, the offset of the medians over the reference rms, and the KS D and p of the
-/// pixel histograms about their medians.
+/// the rms ratio, the 1st, 5th, 95th and 99th percentiles' ratios, the offset of the medians
+/// over the reference rms, and the KS D and p of the pixel histograms about their medians.
 void write_sky_table(std::ostream& out, const std::vector<std::string>& names,
                      const std::vector<NoiseRecord>& skies);
 

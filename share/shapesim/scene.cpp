@@ -182,6 +182,7 @@ void use_sky_noise(SceneOptions& options, const NoiseRecord& noise) {
     options.noise_rms = noise.rms;
     options.noise_correlation = std::max(1.0, noise.noise_correlation);
     options.noise_kernel = correlated_noise_kernel(noise.correlation);
+    options.noise_marginal = noise.marginal;
 }
 
 ImageArray read_noise_scale(const std::string& path, long field_nx, long field_ny) {
@@ -506,6 +507,7 @@ void add_noise(ImageArray& image, const Tile& window, long field_nx, const Scene
         if (first >= last) return;
         CorrelatedNoise background(kernel, options.seed, window.x0 - 1, nx);
         const PhotonNoise photon(options.seed);
+        std::vector<float> mapped(options.noise_marginal.empty() ? 0 : std::size_t(nx));
         for (long j = first; j < last; ++j) {
             const long row = window.y0 - 1 + j;  // field 0-based
             double* pixels = &image(j, 0);
@@ -516,6 +518,11 @@ void add_noise(ImageArray& image, const Tile& window, long field_nx, const Scene
             if (!(sigma > 0.0)) continue;
             // The background's local σ: the scale map's, keyed by the field pixel.
             const float* n = background.row(row);
+            if (!mapped.empty()) {
+                for (long i = 0; i < nx; ++i)
+                    mapped[std::size_t(i)] = float(options.noise_marginal(double(n[i])));
+                n = mapped.data();
+            }
             add_background(pixels, n, sigma, scale ? &(*scale)(row, window.x0 - 1) : nullptr, nx);
         }
     });

@@ -32,6 +32,8 @@
 //     [e, 1, e]⊗[e, 1, e] whose 4×4 block sums have the correlated-noise factor F
 //     (shapesim-detect's `noise_correlation`). Each output pixel sums the same white values
 //     in the same order whatever the band or tile: bit-identical across threads and tiles.
+//     With `noise_marginal` (a measured sky's), each deviate z is then T(z): the real sky's
+//     pixel histogram, its heavier tails included.
 //
 // A render end to end (shapesim-render is its options around these): read_objects() places
 // the records through the field's WCS, read_scene_kernels() reads the PSF records,
@@ -67,6 +69,9 @@ struct SceneOptions {
     double noise_correlation = 1.0;  ///< F of the background (1: white; drizzle-like 3×3)
     /// The background's measured correlation (noise.hpp); when set, noise_correlation is unused.
     std::optional<NoiseKernel> noise_kernel;
+    /// The background's measured pixel distribution (noise.hpp SkyMarginal): each correlated
+    /// deviate z becomes T(z). Empty: Gaussian.
+    SkyMarginal noise_marginal;
     /// The background's σ varies over the field as noise_rms × this (whole-field rows ×
     /// columns; from a real field's weight map, noise_scale_from_weight): drizzled depth is
     /// not uniform, and a stationary sky lacks the real one's heavier-tailed histogram.

@@ -42,6 +42,8 @@ void RenderSettings::check(const ProgramOptions& options) {
     if (options.given("noise-model") && (options.given("noise-like") || rms_given))
         throw po::error("--noise-model sets the noise: not with --noise-like, --noise-rms, "
                         "--noise-correlation");
+    if (gaussian_noise && !options.given("noise-model"))
+        throw po::error("--gaussian-noise needs --noise-model");
     if (!shear.empty() && shear.size() != 2) throw po::error("--shear takes two numbers: G1 G2");
     if (!shear.empty() && !(std::hypot(shear[0], shear[1]) < 1.0))
         throw po::error("--shear: |g| must be < 1");
@@ -58,6 +60,10 @@ void RenderSettings::finish_scene(const ProgramOptions& options, const FieldGeom
         o.noise_correlation = noise.correlation;
     }
     if (!noise_model.empty()) use_sky_noise(o, read_noise_record(noise_model));
+    if (gaussian_noise) o.noise_marginal = SkyMarginal{};
+    if (!o.noise_marginal.empty())
+        log.verbose("noise marginal: ", o.noise_marginal.values.size(), " levels, z from ",
+                    o.noise_marginal.z0);
     if (o.noise_kernel)
         log.verbose("noise kernel radius ", o.noise_kernel->radius, ", ",
                     o.noise_kernel->columns.size(), " separable terms");

@@ -25,6 +25,7 @@ struct RenderSettings {
     std::string bunit;     ///< --bunit (BUNIT; empty: the field's)
     int bitpix = -32, difference_order = -1;
     bool keep_negative = false;
+    bool gaussian_noise = false;  ///< --gaussian-noise: the noise record's marginal unused
     SceneOptions scene;
 
     /// Check the options against each other before any work (po::error naming the rule): an

@@ -5,7 +5,11 @@
 # measured alike (its own detection, the HDF's weight map, objects of S/N ≥ 4 masked), the
 # simulated sky has the real one's autocorrelation within 0.02 at every lag up to 3 pixels,
 # its rms within 2% and a pixel histogram the KS test cannot tell apart (p > 0.05)
-# (shapesim-measure --compare-sky). Tiles with the wide kernel equal the whole image, and so
+# (shapesim-measure --compare-sky). The drawn pixels follow the real sky's measured
+# distribution (the noise record's marginal): an empty field's 1st, 5th, 95th and 99th
+# percentiles within 1.5% of the real sky's, where Gaussian pixels of the same rms
+# (--gaussian-noise) fall 3% short at the 99th; the map leaves ξ within 0.003 of the Gaussian
+# field's and keeps the median. Tiles with the wide kernel equal the whole image, and so
 # does the image drawn with narrower lanes (SHAPESIM_SIMD=avx2 where the CPU has AVX-512;
 # SHAPESIM_SIMD=none: the scalar generator); bad
 # noise models fail with one line.
@@ -29,6 +33,16 @@ common=(--psf psf.jsonl --galaxy-psf psf.jsonl --like "$HDF_IMAGE" --noise-model
   fail "detect on the simulation failed"
 "$BIN/shapesim-measure" --compare-sky hdf=hdf.noise.jsonl delta=delta.noise.jsonl >sky.md ||
   fail "measure --compare-sky failed"
+# An empty field, with the measured marginal and with Gaussian pixels.
+for mode in marginal gaussian; do
+  extra=(); [ $mode = gaussian ] && extra=(--gaussian-noise)
+  "$BIN/$prog" "${common[@]}" "${extra[@]}" -q -o empty_$mode.fits </dev/null ||
+    fail "render of an empty field ($mode) failed"
+  "$BIN/shapesim-detect" empty_$mode.fits --weight "$weight" --noise-model empty_$mode.noise.jsonl \
+    -q >/dev/null || fail "detect on the empty field ($mode) failed"
+done
+"$BIN/shapesim-measure" --compare-sky hdf=hdf.noise.jsonl marginal=empty_marginal.noise.jsonl \
+  gaussian=empty_gaussian.noise.jsonl >empty.md || fail "measure --compare-sky (empty) failed"
 for t in "1 1 512 200" "1 201 512 512"; do
   "$BIN/$prog" "${common[@]}" -q --tile $t -o "tile_${t// /_}.fits" <objects.jsonl ||
     fail "--tile $t failed"
@@ -51,11 +65,26 @@ xi = lambda d, dx, dy: d["correlation"][(dy + r) * (2 * r + 1) + dx + r]
 assert 1.5e-5 < real["rms"] < 2.5e-5 and 0.4 < xi(real, 1, 0) < 0.6, real["rms"]
 row = [c.strip() for c in open("sky.md").read().splitlines()[3].split("|")[1:-1]]
 assert row[0] == "delta", row
-max_dxi, ratio, offset, ks_p = float(row[11]), float(row[12]), float(row[13]), float(row[15])
+max_dxi, ratio, offset, ks_p = float(row[11]), float(row[12]), float(row[17]), float(row[19])
 assert max_dxi <= 0.02, f"autocorrelation differs by {max_dxi}"
 assert abs(ratio - 1) <= 0.02, f"rms ratio {ratio}"
 assert ks_p > 0.05, f"KS p {ks_p}"
 assert abs(offset) < 0.1, f"sky levels differ by {offset} rms"
+# The marginal: percentiles 1, 5, 95, 99 of an empty field against the real sky's.
+m = real["marginal"]
+assert m["z0"] < -3.5 and abs(m["dz"] - 0.05) < 1e-12 and len(m["values"]) == 2 * round(-m["z0"] / m["dz"]) + 1, m["z0"]
+lines = open("empty.md").read().splitlines()
+rows = {c[0]: c for c in ([x.strip() for x in l.split("|")[1:-1]] for l in lines[2:])}
+marg, gauss = rows["marginal"], rows["gaussian"]
+for k, name in zip(range(13, 17), ("P1", "P5", "P95", "P99")):
+    assert abs(float(marg[k]) - 1) <= 0.015, f"{name} of the empty field: {marg[k]} of the real sky's"
+assert float(gauss[16]) < 0.975 and float(marg[16]) - float(gauss[16]) > 0.02, \
+    f"P99: marginal {marg[16]}, Gaussian {gauss[16]}: the marginal changed nothing"
+em = json.loads(open("empty_marginal.noise.jsonl").readline())
+eg = json.loads(open("empty_gaussian.noise.jsonl").readline())
+for dx, dy in ((1, 0), (0, 1), (1, 1), (2, 0), (3, 3)):
+    assert abs(xi(em, dx, dy) - xi(eg, dx, dy)) <= 0.003, f"the marginal moved xi({dx},{dy})"
+assert abs(float(marg[17])) < 0.03, f"median offset {marg[17]}"
 cards, nx, ny, whole = read("delta.fits")
 assert cards["NOISEMOD"] == "hdf.noise.jsonl, scaled by the weight map", cards["NOISEMOD"]
 for y0, y1 in ((1, 200), (201, 512)):
@@ -73,6 +102,13 @@ sed 's/"correlation_radius":[0-9]*/"correlation_radius":3/' hdf.noise.jsonl >sho
 rc=0; "$BIN/$prog" --like "$HDF_IMAGE" --psf psf.jsonl --noise-model short.jsonl -o bad.fits \
   <objects.jsonl >out 2>err || rc=$?
 expect_error "$rc" 1 'short.jsonl:1: correlation: must hold'
+rc=0; "$BIN/$prog" --like "$HDF_IMAGE" --psf psf.jsonl --gaussian-noise -o bad.fits \
+  <objects.jsonl >out 2>err || rc=$?
+expect_error "$rc" 2 'gaussian-noise needs --noise-model'
+sed 's/"dz":[0-9.e-]*/"dz":-1/' hdf.noise.jsonl >bad_marginal.jsonl
+rc=0; "$BIN/$prog" --like "$HDF_IMAGE" --psf psf.jsonl --noise-model bad_marginal.jsonl -o bad.fits \
+  <objects.jsonl >out 2>err || rc=$?
+expect_error "$rc" 1 'bad_marginal.jsonl:1: marginal: dz must be > 0'
 [ ! -e bad.fits ] || fail "an image was left after a bad noise model"
 # A weight map of another size than the field, or with no positive weight.
 rc=0; "$BIN/$prog" --size 0.2 --pixel-scale 0.04 --noise-model hdf.noise.jsonl --noise-weight "$weight" \
