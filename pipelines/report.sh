@@ -154,6 +154,13 @@ simulations at five seeds from $(head -1 "$out/seeds.md" | grep -o 'seed [0-9]*'
 
 $(cat "$out/seeds.md")
 
+Their skies, each measured as its real field's is: the rms and the 1st, 5th, 95th and 99th
+percentiles of the sky pixels over the real sky's (each rms × the sky's measured marginal at
+the percentile; the noise record's \`marginal\`), and the seeds' mean of each
+(\`seeds/sky.md\`):
+
+$(cat "$out/seeds/sky.md")
+
 ## The models where they were
 
 Each field's own fits replayed where they were fitted (\`shapesim-sample --replay\`: no draw,

@@ -277,6 +277,26 @@ $(OUT)/seeds.md: $(R)pipelines/seeds.sh $(SEED_FILES) $(OUT)/hdf.morph.jsonl $(O
 	$(R)pipelines/seeds.sh $(OUT)/seeds/hdf $(OUT)/seeds/xdf > $(tmp)
 	mv $(tmp) $@
 
+# The five seeds' skies, each measured as its real field's is (its own detection, the field's
+# weight map), against the real sky (shapesim-measure --compare-sky), and the seeds' mean of
+# each ratio (seeds/sky.md).
+$(OUT)/seeds/hdf_%.noise.jsonl: $(OUT)/seeds/hdf_%.fits $(WEIGHT) $(call prog,detect)
+	$(call prog,detect) -q $< --weight $(WEIGHT) --noise-model $(tmp) > /dev/null
+	mv $(tmp) $@
+$(OUT)/seeds/xdf_%.noise.jsonl: $(OUT)/seeds/xdf_%.fits $(XDF_WEIGHT) $(call prog,detect)
+	$(call prog,detect) -q $< --weight $(XDF_WEIGHT) --pixel-scale $(XDF_SCALE) --noise-model $(tmp) > /dev/null
+	mv $(tmp) $@
+SKY_MEAN = awk -F'|' '{ print } NR > 3 && NF > 20 { n++; for (c = 13; c <= 18; c++) sum[c] += $$c } \
+  END { printf "| mean of the seeds | – | – | – | – | – | – | – | – | – | – |"; \
+        for (c = 13; c <= 18; c++) printf " %.4f |", sum[c] / n; print " – | – | – |" }'
+$(OUT)/seeds/sky.md: $(foreach f,hdf xdf,$(SEEDS:%=$(OUT)/seeds/$(f)_%.noise.jsonl)) $(OUT)/hdf.noise.jsonl $(OUT)/xdf/real.noise.jsonl $(call prog,measure)
+	$(call prog,measure) -q --compare-sky hdf=$(OUT)/hdf.noise.jsonl \
+	  $(foreach s,$(SEEDS),seed$(s)=$(OUT)/seeds/hdf_$(s).noise.jsonl) | $(SKY_MEAN) > $(tmp)
+	echo >> $(tmp)
+	$(call prog,measure) -q --compare-sky xdf=$(OUT)/xdf/real.noise.jsonl \
+	  $(foreach s,$(SEEDS),seed$(s)=$(OUT)/seeds/xdf_$(s).noise.jsonl) | $(SKY_MEAN) >> $(tmp)
+	mv $(tmp) $@
+
 # --- the models where they were: every real galaxy paired with its own fit ---------------
 # Each field's fits replayed where they were fitted (shapesim-sample --replay: no draw), at the
 # five seeds rendered and measured as its δ simulations are, then paired galaxy by galaxy with
@@ -387,7 +407,7 @@ $(OUT)/report.md: $(R)pipelines/report.sh $(OUT)/table.md $(OUT)/sky.md $(OUT)/m
     $(OUT)/xdf/table.md $(OUT)/xdf/sky.md \
     $(FIGURES) $(INPUTS) $(OUT)/sim.truth.jsonl $(OUT)/delta.truth.jsonl $(OUT)/sim6.truth.jsonl \
     $(OUT)/merged.json $(OUT)/merged6.objects.jsonl $(OUT)/sim6.objects.jsonl $(OUT)/merged.shares.txt \
-    $(OUT)/seeds.md $(OUT)/replays/hdf.md $(OUT)/replays/xdf.md
+    $(OUT)/seeds.md $(OUT)/seeds/sky.md $(OUT)/replays/hdf.md $(OUT)/replays/xdf.md
 	$(R)pipelines/report.sh $(OUT) $(INPUTS) > $(tmp)
 	mv $(tmp) $@
 

@@ -54,16 +54,32 @@ double cdf_from_quantiles(const std::vector<double>& q, double x) {
 
 double SkyMarginal::operator()(double z) const {
     const std::size_t n = values.size();
-    const double at = (z - z0) / dz;
-    if (at >= 0.0 && at <= double(n - 1)) {
-        const std::size_t k = std::min(std::size_t(at), n - 2);
-        const double t = at - double(k);
-        return values[k] + t * (values[k + 1] - values[k]);
+    const double at = (z - z0) * (1.0 / dz);
+    if (at >= 0.0 && at < double(n - 1)) {
+        const std::size_t k = std::size_t(at);
+        return values[k] + (at - double(k)) * (values[k + 1] - values[k]);
     }
     // Beyond the table: along the mean slope of its last tail_steps steps.
     const std::size_t s = std::size_t(tail_steps);
     if (at < 0.0) return values[0] + at * (values[s] - values[0]) / double(s);
     return values[n - 1] + (at - double(n - 1)) * (values[n - 1] - values[n - 1 - s]) / double(s);
+}
+
+void SkyMarginal::map(const float* in, float* out, long count) const {
+    // The same arithmetic as operator(), its table's steps taken once.
+    const std::size_t n = values.size();
+    std::vector<double> step(n - 1);
+    for (std::size_t k = 0; k + 1 < n; ++k) step[k] = values[k + 1] - values[k];
+    const double scale = 1.0 / dz, last = double(n - 1);
+    for (long i = 0; i < count; ++i) {
+        const double at = (double(in[i]) - z0) * scale;
+        if (at >= 0.0 && at < last) {
+            const std::size_t k = std::size_t(at);
+            out[i] = float(values[k] + (at - double(k)) * step[k]);
+        } else {
+            out[i] = float((*this)(double(in[i])));
+        }
+    }
 }
 
 void SkyMarginal::validate() const {

@@ -50,6 +50,8 @@ struct SkyMarginal {
     bool empty() const { return values.empty(); }
     /// T(z).
     double operator()(double z) const;
+    /// out[i] = T(in[i]) for i < count (rounded to float), the same values as operator().
+    void map(const float* in, float* out, long count) const;
     /// Error naming the field unless dz > 0, z0 < 0, the values finite and ascending and
     /// more than tail_steps of them.
     void validate() const;

@@ -519,8 +519,7 @@ void add_noise(ImageArray& image, const Tile& window, long field_nx, const Scene
             // The background's local σ: the scale map's, keyed by the field pixel.
             const float* n = background.row(row);
             if (!mapped.empty()) {
-                for (long i = 0; i < nx; ++i)
-                    mapped[std::size_t(i)] = float(options.noise_marginal(double(n[i])));
+                options.noise_marginal.map(n, mapped.data(), nx);
                 n = mapped.data();
             }
             add_background(pixels, n, sigma, scale ? &(*scale)(row, window.x0 - 1) : nullptr, nx);

@@ -87,6 +87,21 @@ for field in hdf xdf; do
     fail "seeds.md lacks the FWHM median row"
 done
 grep -q '^| hdf: statistic | seed 7' "$out/report.md" || fail "report.md lacks the seeds table"
+# Their skies: the seeds' mean rms and 1st, 5th, 95th and 99th percentiles within 1% of the real
+# sky's on both fields (issue 36's sky criterion), every seed within 2.5%.
+python3 - "$out/seeds/sky.md" <<'PY' || fail "the seeds' skies are not the real ones: $(cat "$out/seeds/sky.md")"
+import sys
+tables = open(sys.argv[1]).read().strip().split("\n\n")
+assert len(tables) == 2, len(tables)
+for table in tables:
+    rows = [[c.strip() for c in l.split("|")[1:-1]] for l in table.splitlines()[3:]]
+    assert [r[0] for r in rows] == ["seed7", "seed8", "seed9", "seed10", "seed11", "mean of the seeds"], rows
+    for r in rows:
+        for k, name in zip(range(12, 17), ("rms", "P1", "P5", "P95", "P99")):
+            limit = 0.01 if r[0].startswith("mean") else 0.025
+            assert abs(float(r[k]) - 1) <= limit, f"{r[0]}: {name} ratio {r[k]}"
+PY
+grep -q '^| mean of the seeds |' "$out/report.md" || fail "report.md lacks the seeds' skies"
 # The fits where they were: each field's real galaxies paired with five replays of its fits.
 for field in hdf xdf; do
   grep -q "^| I | galaxies ($field) | found in 5 replays (within 0.1\") | FWHM ratio, geometric mean |" \
