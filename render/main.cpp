@@ -107,7 +107,12 @@ int run(int argc, const char* const argv[]) {
          "(no effect on the noise; default: --exposure when given)")
         ("sky", po::value(&o.sky)->default_value(0.0)->notifier(in_range("sky", -1e30, 1e30)),
          "sky level added, image units")
-        ("noise-free", po::bool_switch(&o.noise_free), "no noise");
+        ("noise-free", po::bool_switch(&o.noise_free), "no noise")
+        ("saturation", po::value(&o.saturation)->value_name("LEVEL")
+             ->notifier(in_range("saturation", 0.0, 1e300)),
+         "full well, image units: pixels above it (sky and noise included) are set to it and "
+         "the header's SATURATE says so, as a detector saturates (default: the --like "
+         "image's SATURATE; 0: none)");
     options.group("Models").add_options()
         ("keep-negative", po::bool_switch(&s.keep_negative),
          "draw each galaxy's shapelet series exactly, negative pixels too (default: a galaxy's "

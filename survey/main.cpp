@@ -58,7 +58,7 @@ struct Settings {
     std::string model = "merged", galaxy_psf, psf, units = "e/s";
     double zero_point = 0.0, exposure = 0.0, gain = 1.0, read_noise = 0.0, sky = 0.0,
            sky_electrons = 0.0, mag_limit = 0.0, faint_limit = 0.0, kappa = 0.0,
-           star_density = 0.0, star_mag_min = 0.0, star_mag_max = 0.0;
+           star_density = 0.0, star_mag_min = 0.0, star_mag_max = 0.0, full_well = 0.0;
     std::vector<double> shear;
     app::FieldOptions field;
     bool dry_run = false, noise_free = false;
@@ -191,6 +191,10 @@ int run_survey(int argc_given, const char* const argv_given[]) {
         ("read-noise", po::value(&s.read_noise)->default_value(0.0)
              ->notifier(in_range("read-noise", 0.0, 1e6)),
          "read noise, electrons rms per pixel (all reads of the exposure)")
+        ("full-well", po::value(&s.full_well)->value_name("ELECTRONS")
+             ->notifier(in_range("full-well", 0.0, 1e15)),
+         "a pixel's full well, electrons (sky included): brighter pixels saturate at it "
+         "(SATURATE in the header, in image units); 0: none")
         ("sky", po::value(&s.sky)->value_name("MAG_ARCSEC2")->notifier(in_range("sky", -100.0, 100.0)),
          "sky brightness, AB mag/arcsec^2 (its photon noise is drawn)")
         ("sky-electrons", po::value(&s.sky_electrons)->notifier(in_range("sky-electrons", 0.0, 1e15)),
@@ -331,6 +335,9 @@ int run_survey(int argc_given, const char* const argv_given[]) {
     } else {
         render.insert(render.end(), {"--noise-rms", app::double_text(read_image), "--gain",
                                      app::double_text(adu ? s.gain : 1.0)});
+        if (s.full_well > 0.0)
+            render.insert(render.end(),
+                          {"--saturation", app::double_text(s.full_well / electrons_per_unit)});
     }
     render.insert(render.end(), {adu ? "--exptime" : "--exposure", app::double_text(T)});
     render.insert(render.end(), {"--sky", app::double_text(sky_image), "--bunit", adu ? "adu" : "electron/s"});

@@ -121,6 +121,8 @@ FieldGeometry read_field_geometry(const std::string& path, std::optional<double>
     }
     g.pixel_scale = g.wcs.pixel_scale_arcsec();
     g.bunit = fits.optional_string("BUNIT").value_or("");
+    if (const auto level = fits.optional_double("SATURATE"); level && *level > 0.0 && std::isfinite(*level))
+        g.saturate = *level;
     return g;
 }
 

@@ -83,6 +83,7 @@ struct FieldGeometry {
     double pixel_scale = 0.0;  ///< arcsec per pixel (√|det CD|)
     Wcs wcs;
     std::string bunit;         ///< BUNIT of a --like image (empty: none, or a made field)
+    double saturate = 0.0;     ///< SATURATE of a --like image, image units (0: none)
 
     /// Area of the field in arcmin².
     double area_arcmin2() const;

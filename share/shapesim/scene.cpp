@@ -86,6 +86,7 @@ void SceneOptions::validate() const {
           "must be in [1e-14, 1)");
     check(threads >= 1, "threads", "must be ≥ 1");
     check(photon_tolerance >= 0.0 && photon_tolerance < 1.0, "photon_tolerance", "must be in [0, 1)");
+    check(saturation >= 0.0 && std::isfinite(saturation), "saturation", "must be ≥ 0");
 }
 
 double stamp_radius(const CartesianModel& model, double threshold) {
@@ -515,14 +516,17 @@ void add_noise(ImageArray& image, const Tile& window, long field_nx, const Scene
             if (options.sky != 0.0)
                 for (long i = 0; i < nx; ++i) pixels[i] += options.sky;
             if (photons) photon.row(row, window.x0 - 1, nx, options.gain, photon_signal, pixels);
-            if (!(sigma > 0.0)) continue;
-            // The background's local σ: the scale map's, keyed by the field pixel.
-            const float* n = background.row(row);
-            if (!mapped.empty()) {
-                options.noise_marginal.map(n, mapped.data(), nx);
-                n = mapped.data();
+            if (sigma > 0.0) {
+                // The background's local σ: the scale map's, keyed by the field pixel.
+                const float* n = background.row(row);
+                if (!mapped.empty()) {
+                    options.noise_marginal.map(n, mapped.data(), nx);
+                    n = mapped.data();
+                }
+                add_background(pixels, n, sigma, scale ? &(*scale)(row, window.x0 - 1) : nullptr, nx);
             }
-            add_background(pixels, n, sigma, scale ? &(*scale)(row, window.x0 - 1) : nullptr, nx);
+            if (options.saturation > 0.0)
+                for (long i = 0; i < nx; ++i) pixels[i] = std::min(pixels[i], options.saturation);
         }
     });
 }
@@ -776,6 +780,8 @@ FitsImageSpec scene_image_spec(const RenderedScene& scene, const std::vector<Obj
         FitsKeyword("FIELDNY", (long long)scene.field.ny, "field height, pixels"),
     };
     if (!labels.band.empty()) spec.keywords.emplace_back("BAND", labels.band, "band of the objects drawn");
+    if (o.saturation > 0.0 && !o.noise_free)
+        spec.keywords.emplace_back("SATURATE", o.saturation, "full well: pixels are at most this");
     if (labels.exposure_time > 0.0)
         spec.keywords.emplace_back("EXPTIME", labels.exposure_time, "exposure time, seconds");
     if (const std::optional<double> zero_point = objects_zero_point(records)) {

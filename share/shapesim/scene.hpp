@@ -34,6 +34,8 @@
 //     in the same order whatever the band or tile: bit-identical across threads and tiles.
 //     With `noise_marginal` (a measured sky's), each deviate z is then T(z): the real sky's
 //     pixel histogram, its heavier tails included.
+//   - then, with `saturation`, every pixel above it is set to it (a full well: flat-topped
+//     bright stars, as shapesim-detect flags them from the header's SATURATE).
 //
 // A render end to end (shapesim-render is its options around these): read_objects() places
 // the records through the field's WCS, read_scene_kernels() reads the PSF records,
@@ -82,6 +84,9 @@ struct SceneOptions {
     /// background variance (everywhere when there is no background).
     double photon_tolerance = 1e-3;
     bool noise_free = false;    ///< no noise at all (the truncation then follows the peak)
+    /// A detector's full well, image units: every pixel above it, sky and noise included, is
+    /// set to it (0: none; a noise-free image is never saturated). The header's SATURATE.
+    double saturation = 0.0;
     /// A galaxy's pixels below zero are set to zero: light is never negative, and a truncated
     /// or noisy shapelet series rings (holes, dipoles). Off: the exact series (the paper's).
     bool clip_negative = false;

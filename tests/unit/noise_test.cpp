@@ -485,3 +485,41 @@ TEST(SceneNoise, MarginalShapesThePixels) {
     add_noise(tile, Tile{31, 81, 100, 140}, n, correlated);
     EXPECT_TRUE((tile == a.block(80, 30, 60, 70)).all());
 }
+
+// A full well: with `saturation`, every pixel above it (sky and noise included) is set to it
+// and every other pixel is the unsaturated image's, bit for bit; a noise-free image is never
+// saturated; a negative level is refused.
+TEST(SceneNoise, SaturationCapsEveryPixel) {
+    const long n = 64;
+    ImageArray light = ImageArray::Zero(n, n);
+    for (long j = 0; j < n; ++j)
+        for (long i = 0; i < n; ++i)
+            light(j, i) = 5e4 * std::exp(-0.5 * (std::pow(i - 31.5, 2) + std::pow(j - 30.0, 2)) / 4.0);
+    SceneOptions o;
+    o.noise_rms = 10.0;
+    o.gain = 2.0;
+    o.sky = 1000.0;
+    o.seed = 44;
+    ImageArray free_image = light, capped = light;
+    add_noise(free_image, Tile{1, 1, n, n}, n, o);
+    o.saturation = 2e4;
+    add_noise(capped, Tile{1, 1, n, n}, n, o);
+    long saturated = 0;
+    for (long k = 0; k < n * n; ++k) {
+        if (free_image.data()[k] >= 2e4) {
+            EXPECT_EQ(capped.data()[k], 2e4);
+            ++saturated;
+        } else {
+            EXPECT_EQ(capped.data()[k], free_image.data()[k]);
+        }
+    }
+    EXPECT_GT(saturated, 5);
+    EXPECT_EQ(capped.maxCoeff(), 2e4);
+    SceneOptions truth = o;
+    truth.noise_free = true;
+    ImageArray clean = light;
+    add_noise(clean, Tile{1, 1, n, n}, n, truth);
+    EXPECT_TRUE((clean == light).all());
+    o.saturation = -1.0;
+    EXPECT_THROW(o.validate(), Error);
+}

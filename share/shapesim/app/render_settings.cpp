@@ -68,6 +68,8 @@ void RenderSettings::finish_scene(const ProgramOptions& options, const FieldGeom
         log.verbose("noise kernel radius ", o.noise_kernel->radius, ", ",
                     o.noise_kernel->columns.size(), " separable terms");
     if (!noise_weight.empty()) o.noise_scale = read_noise_scale(noise_weight, field.nx, field.ny);
+    // A simulation --like a saturating image saturates where it does.
+    if (!options.given("saturation")) o.saturation = field.saturate;
     o.gain *= exposure;
     o.seed = band.empty() ? options.common().seed : band_seed(options.common().seed, band);
     o.threads = options.common().threads;

@@ -20,7 +20,7 @@ cd "$TMPDIR"
 [ "$(wc -l <cmds)" -eq 3 ] || fail "--dry-run: $(cat cmds)"
 grep -q "^$BIN/shapesim-table .*truth.jsonl --like .*image.fits -o .*truth.fits$" cmds || fail "table: $(tail -1 cmds)"
 grep -q "^$BIN/shapesim-sample .*/models/merged.json .*--pixels 1200 " cmds || fail "sample: $(head -1 cmds)"
-grep -q "^$BIN/shapesim-render .*--psf-analytic moffat:0.7,3.5 .*--gain 1.6 --exptime 30 " cmds ||
+grep -q "^$BIN/shapesim-render .*--psf-analytic moffat:0.7,3.5 .*--gain 1.6 --saturation 62500 --exptime 30 " cmds ||
   fail "render: $(sed -n 2p cmds)"
 
 stars=(--pixels 400 --mag-limit 21 --star-density 20 --star-mag-min 17 --star-mag-max 19 --seed 4 -q)
