@@ -84,13 +84,13 @@ void SkyMarginal::map(const float* in, float* out, long count) const {
 
 void SkyMarginal::validate() const {
     auto fail = [](const std::string& why) { throw Error(why, {}, 0, "marginal"); };
-    if (!(dz > 0.0 && std::isfinite(dz))) fail("dz must be > 0");
-    if (!(z0 < 0.0 && std::isfinite(z0))) fail("z0 must be < 0");
-    if (values.size() <= std::size_t(tail_steps))
-        fail("must hold more than " + std::to_string(tail_steps) + " values");
+    if (!(dz >= 1e-3 && dz <= 1.0)) fail("dz must be within [0.001, 1]");
+    if (!(z0 >= -10.0 && z0 < 0.0)) fail("z0 must be within [-10, 0)");
+    if (values.size() <= std::size_t(tail_steps) || values.size() > 20001)
+        fail("must hold more than " + std::to_string(tail_steps) + " and at most 20001 values");
     for (std::size_t k = 0; k < values.size(); ++k)
-        if (!std::isfinite(values[k]) || (k > 0 && !(values[k] > values[k - 1])))
-            fail("values must be finite and ascending");
+        if (!(std::abs(values[k]) <= 100.0) || (k > 0 && !(values[k] > values[k - 1])))
+            fail("values must be ascending, within ±100 (standard deviations)");
 }
 
 Json SkyMarginal::to_json() const {

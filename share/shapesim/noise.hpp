@@ -52,8 +52,8 @@ struct SkyMarginal {
     double operator()(double z) const;
     /// out[i] = T(in[i]) for i < count (rounded to float), the same values as operator().
     void map(const float* in, float* out, long count) const;
-    /// Error naming the field unless dz > 0, z0 < 0, the values finite and ascending and
-    /// more than tail_steps of them.
+    /// Error naming the field unless dz is within [0.001, 1], z0 within [−10, 0), the values
+    /// ascending and within ±100, more than tail_steps and at most 20001 of them.
     void validate() const;
     Json to_json() const;
     static SkyMarginal from_json(const Json& j);

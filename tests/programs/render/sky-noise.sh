@@ -108,7 +108,7 @@ expect_error "$rc" 2 'gaussian-noise needs --noise-model'
 sed 's/"dz":[0-9.e-]*/"dz":-1/' hdf.noise.jsonl >bad_marginal.jsonl
 rc=0; "$BIN/$prog" --like "$HDF_IMAGE" --psf psf.jsonl --noise-model bad_marginal.jsonl -o bad.fits \
   <objects.jsonl >out 2>err || rc=$?
-expect_error "$rc" 1 'bad_marginal.jsonl:1: marginal: dz must be > 0'
+expect_error "$rc" 1 'bad_marginal.jsonl:1: marginal: dz must be within'
 [ ! -e bad.fits ] || fail "an image was left after a bad noise model"
 # A weight map of another size than the field, or with no positive weight.
 rc=0; "$BIN/$prog" --size 0.2 --pixel-scale 0.04 --noise-model hdf.noise.jsonl --noise-weight "$weight" \
