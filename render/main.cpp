@@ -176,7 +176,7 @@ int run(int argc, const char* const argv[]) {
     placement.have_psf = kernels.has_psf();
     placement.galaxy_psf_known = !s.galaxy_psf.empty();
     placement.by_sky = s.place_by_sky;
-    const std::vector<ObjectRecord> records =
+    std::vector<ObjectRecord> records =
         read_objects(s.input, field.wcs, s.band, placement, o.threads);
     const auto t_prepare = clock::now();
     if (kernels.field) {
@@ -204,7 +204,7 @@ int run(int argc, const char* const argv[]) {
         log.info("note: ", observed_lensed, " lensed galaxies are observed-frame models: their "
                  "PSF is lensed with them (for a shear calibration draw intrinsic models, "
                  "shapesim-decompose --psf)");
-    RenderedScene scene = prepare_field(records, field, kernels, o, window, s.input);
+    RenderedScene scene = prepare_field(records, field, kernels, o, window, s.input, ReleaseShapes{});
     s.draw_and_write(options, scene, records, kernels);
     if (const std::string note = clipped_note(summarise_clipped(scene), o.noise_rms); !note.empty())
         log.info(note);

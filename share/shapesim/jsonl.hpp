@@ -23,8 +23,11 @@
 
 #include <nlohmann/json.hpp>
 
+#include <algorithm>
 #include <complex>
+#include <functional>
 #include <iosfwd>
+#include <iterator>
 #include <memory>
 #include <optional>
 #include <string>
@@ -99,38 +102,67 @@ public:
     /// Every remaining record converted by `Record::from_json`, parsed on `threads` threads
     /// (lines are read in order, each parsed alone; the error of the first bad line in line
     /// order is thrown, as next_record would). `lines`, when given, gets each record's line.
+    /// `each`, when given, is called on every record as it is made (on the parsing thread; it
+    /// may drop what its caller will not use). Lines are held a chunk at a time (chunk_lines),
+    /// not the whole input, so the memory is the records' own.
     template <class Record>
-    std::vector<Record> read_all(int threads, std::vector<long>* lines = nullptr) {
+    std::vector<Record> read_all(int threads, std::vector<long>* lines = nullptr,
+                                 const std::function<void(Record&)>& each = {}) {
+        // Chunks of records, joined at the end into one vector of exactly their count, each
+        // chunk freed as it is moved: no doubling of a growing vector (a million records'
+        // worth of it).
+        std::vector<std::vector<Record>> chunks;
+        std::vector<long> all_lines;
         std::vector<std::string> texts;
         std::vector<long> at;
         std::string text;
-        while (next_line(text)) {
-            texts.push_back(std::move(text));
-            at.push_back(line_);
-        }
-        std::vector<Record> records(texts.size());
-        std::vector<std::optional<Error>> errors(texts.size());
-        parallel_for(texts.size(), threads, [&](std::size_t k, int) {
-            try {
-                if constexpr (has_pairs_key<Record>::value) {
-                    // The record's number pairs read straight (Record::from_json(json, pairs)).
-                    NumberPairs pairs{Record::pairs_key, {}, false};
-                    const Json record = parse_line(texts[k], at[k], &pairs);
-                    records[k] = Record::from_json(record, pairs);
-                } else {
-                    records[k] = Record::from_json(parse_line(texts[k], at[k]));
-                }
-            } catch (const Error& e) {
-                errors[k] = e.at(name_, at[k]);
-            } catch (const std::exception& e) {
-                errors[k] = Error(e.what(), name_, at[k]);
+        bool more = true;
+        while (more) {
+            texts.clear();
+            at.clear();
+            while (texts.size() < chunk_lines && (more = next_line(text))) {
+                texts.push_back(std::move(text));
+                at.push_back(line_);
             }
-        });
-        for (auto& error : errors)
-            if (error) throw *error;
-        if (lines) *lines = std::move(at);
+            if (texts.empty()) break;
+            std::vector<Record>& chunk = chunks.emplace_back(texts.size());
+            std::vector<std::optional<Error>> errors(texts.size());
+            parallel_for(texts.size(), threads, [&](std::size_t k, int) {
+                try {
+                    if constexpr (has_pairs_key<Record>::value) {
+                        // The record's number pairs read straight (Record::from_json(json, pairs)).
+                        NumberPairs pairs{Record::pairs_key, {}, false};
+                        const Json record = parse_line(texts[k], at[k], &pairs);
+                        chunk[k] = Record::from_json(record, pairs);
+                    } else {
+                        chunk[k] = Record::from_json(parse_line(texts[k], at[k]));
+                    }
+                    if (each) each(chunk[k]);
+                } catch (const Error& e) {
+                    errors[k] = e.at(name_, at[k]);
+                } catch (const std::exception& e) {
+                    errors[k] = Error(e.what(), name_, at[k]);
+                }
+            });
+            for (auto& error : errors)
+                if (error) throw *error;
+            all_lines.insert(all_lines.end(), at.begin(), at.end());
+        }
+        std::vector<Record> records;
+        if (chunks.size() == 1) {
+            records = std::move(chunks.front());
+        } else {
+            records.reserve(all_lines.size());
+            for (std::vector<Record>& chunk : chunks) {
+                std::move(chunk.begin(), chunk.end(), std::back_inserter(records));
+                std::vector<Record>().swap(chunk);
+            }
+        }
+        if (lines) *lines = std::move(all_lines);
         return records;
     }
+    /// Lines read_all holds at once.
+    static constexpr std::size_t chunk_lines = 16384;
 
     /// `e` placed at the current record (file and line; its field is kept).
     Error locate(const Error& e) const { return e.at(name_, line_); }

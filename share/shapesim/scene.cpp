@@ -13,6 +13,7 @@
 #include "shapesim/rng.hpp"
 
 #include <algorithm>
+#include <map>
 #include <mutex>
 #include <cstring>
 #include <chrono>
@@ -205,7 +206,17 @@ std::vector<ObjectRecord> read_objects(const std::string& path, const Wcs& wcs,
                                        int threads) {
     JsonlReader reader(path, {ObjectRecord::schema});
     std::vector<long> lines;
-    std::vector<ObjectRecord> records = reader.read_all<ObjectRecord>(threads, &lines);
+    // Only what a render reads is kept of each record, as it is read.
+    const auto keep_what_render_reads = [](ObjectRecord& r) {
+        Json kept = Json::object();
+        for (const char* key : render_record_keys)
+            if (const auto it = r.extra.find(key); it != r.extra.end()) kept[key] = *it;
+        r.extra = std::move(kept);
+        r.flags = {};
+        r.parent.reset();
+    };
+    std::vector<ObjectRecord> records =
+        reader.read_all<ObjectRecord>(threads, &lines, keep_what_render_reads);
     for (std::size_t k = 0; k < records.size(); ++k) {
         ObjectRecord& r = records[k];
         if (!band.empty()) {
@@ -236,6 +247,7 @@ std::vector<ObjectRecord> read_objects(const std::string& path, const Wcs& wcs,
                         "field's PSF; give --galaxy-psf that PSF (it is then convolved with the "
                         "difference only), or draw from an intrinsic model",
                         reader.name(), lines[k], "frame");
+        r.bands = {};  // in_band chose its own
     }
     return records;
 }
@@ -261,7 +273,7 @@ PreparedObject prepare_object(const ObjectRecord& record, double field_pixel_sca
         std::optional<CartesianModel> here;  // the PSF where it is, when the PSF varies
         if (kernels.field) {
             here = kernels.field->at(*record.x, *record.y);
-            p.psf = moments(*here);
+            p.psf = ShapeSummary::of(moments(*here));
         }
         const std::optional<CartesianModel>& star = kernels.field ? here : kernels.star;
         const std::optional<CartesianModel>& kernel = kernels.field ? here
@@ -308,8 +320,9 @@ PreparedObject prepare_object(const ObjectRecord& record, double field_pixel_sca
             m = lensed.model;
             p.lensing_error = lensed.relative_error;
         }
-        p.intrinsic = moments(m);
-        p.flux = p.intrinsic->flux;
+        const Moments seen = moments(m);
+        p.intrinsic = ShapeSummary::of(seen);
+        p.flux = seen.flux;
         model = to_cartesian(m);
         if (smoothing) model = smooth(model);
         if (kernel) {
@@ -321,7 +334,7 @@ PreparedObject prepare_object(const ObjectRecord& record, double field_pixel_sca
             throw Error("a point source needs a PSF (--psf)", "", 0, "coeffs");
         if (kernels.field) {
             model = kernels.field->at(*record.x, *record.y);
-            p.psf = moments(model);
+            p.psf = ShapeSummary::of(moments(model));
         } else {
             model = *kernels.star;
         }
@@ -355,27 +368,62 @@ bool stamp_reaches(const PixelWindow& stamp, const Tile& window) {
            stamp.row0 + stamp.ny > window.y0 - 1 && stamp.row0 < window.y1;
 }
 
-std::vector<PreparedObject> prepare_scene(const std::vector<ObjectRecord>& records,
-                                          double field_pixel_scale, const SceneKernels& kernels,
-                                          const SceneOptions& options, const Tile& window) {
+namespace {
+
+// prepare_scene; with `release`, each record keeps only what the truth reads once prepared.
+std::vector<PreparedObject> prepare_records(const std::vector<ObjectRecord>& records,
+                                            std::vector<ObjectRecord>* release,
+                                            double field_pixel_scale, const SceneKernels& kernels,
+                                            const SceneOptions& options, const Tile& window) {
     std::vector<PreparedObject> prepared(records.size());
-    std::vector<std::string> errors(records.size());
+    // Errors are rare: kept by record, the first in record order reported.
+    std::map<std::size_t, std::string> errors;
+    std::mutex errors_lock;
     std::vector<ConvolveWorkspace> workspaces(std::size_t(std::max(1, options.threads)));
     parallel_for(records.size(), options.threads, [&](std::size_t k, int t) {
         try {
             prepared[k] = prepare_object(records[k], field_pixel_scale, kernels, options,
                                          &workspaces[std::size_t(t)]);
             prepared[k].index = k;
+            if (release) keep_for_truth((*release)[k]);
         } catch (const std::exception& e) {
-            errors[k] = e.what();
+            const std::lock_guard<std::mutex> hold(errors_lock);
+            errors.emplace(k, e.what());
         }
     });
-    for (std::size_t k = 0; k < records.size(); ++k)
-        if (!errors[k].empty()) throw Error("object " + records[k].id + ": " + errors[k]);
-    std::vector<PreparedObject> in_window;
-    for (auto& p : prepared)
-        if (p.drawn && stamp_reaches(p.window, window)) in_window.push_back(std::move(p));
-    return in_window;
+    if (!errors.empty()) {
+        const auto& [k, why] = *errors.begin();
+        throw Error("object " + records[k].id + ": " + why);
+    }
+    // Those that reach the window, in place (a second vector would double the peak).
+    prepared.erase(std::remove_if(prepared.begin(), prepared.end(),
+                                  [&](const PreparedObject& p) {
+                                      return !(p.drawn && stamp_reaches(p.window, window));
+                                  }),
+                   prepared.end());
+    return prepared;
+}
+
+}  // namespace
+
+void keep_for_truth(ObjectRecord& record) {
+    std::vector<Complex>().swap(record.coeffs);
+    std::vector<BandCoefficients>().swap(record.bands);
+    const auto ring = record.extra.find("ring");
+    record.extra = ring != record.extra.end() ? Json{{"ring", *ring}} : Json();
+}
+
+std::vector<PreparedObject> prepare_scene(const std::vector<ObjectRecord>& records,
+                                          double field_pixel_scale, const SceneKernels& kernels,
+                                          const SceneOptions& options, const Tile& window) {
+    return prepare_records(records, nullptr, field_pixel_scale, kernels, options, window);
+}
+
+std::vector<PreparedObject> prepare_scene(std::vector<ObjectRecord>& records,
+                                          double field_pixel_scale, const SceneKernels& kernels,
+                                          const SceneOptions& options, const Tile& window,
+                                          ReleaseShapes) {
+    return prepare_records(records, &records, field_pixel_scale, kernels, options, window);
 }
 
 ImageArray paint(const std::vector<PreparedObject>& objects, const Tile& window,
@@ -531,15 +579,19 @@ void add_noise(ImageArray& image, const Tile& window, long field_nx, const Scene
     });
 }
 
-RenderedScene prepare_field(const std::vector<ObjectRecord>& records, const FieldGeometry& field,
-                            const SceneKernels& kernels, const SceneOptions& options,
-                            const Tile& window, const std::string& source) {
+namespace {
+
+// prepare_field; with `release` (the records themselves), prepare_scene(…, ReleaseShapes).
+RenderedScene prepare_window(const std::vector<ObjectRecord>& records,
+                             std::vector<ObjectRecord>* release, const FieldGeometry& field,
+                             const SceneKernels& kernels, const SceneOptions& options,
+                             const Tile& window, const std::string& source) {
     const auto start = Clock::now();
     RenderedScene scene;
     scene.field = field;
     scene.window = window;
     try {
-        scene.objects = prepare_scene(records, field.pixel_scale, kernels, options, window);
+        scene.objects = prepare_records(records, release, field.pixel_scale, kernels, options, window);
     } catch (const Error& e) {
         throw e.at(source);
     }
@@ -552,6 +604,20 @@ RenderedScene prepare_field(const std::vector<ObjectRecord>& records, const Fiel
     scene.clipped.assign(scene.objects.size(), ClippedLight{});
     scene.prepare_seconds = seconds_since(start);
     return scene;
+}
+
+}  // namespace
+
+RenderedScene prepare_field(const std::vector<ObjectRecord>& records, const FieldGeometry& field,
+                            const SceneKernels& kernels, const SceneOptions& options,
+                            const Tile& window, const std::string& source) {
+    return prepare_window(records, nullptr, field, kernels, options, window, source);
+}
+
+RenderedScene prepare_field(std::vector<ObjectRecord>& records, const FieldGeometry& field,
+                            const SceneKernels& kernels, const SceneOptions& options,
+                            const Tile& window, const std::string& source, ReleaseShapes) {
+    return prepare_window(records, &records, field, kernels, options, window, source);
 }
 
 RenderedScene render_field(const std::vector<ObjectRecord>& records, const FieldGeometry& field,

@@ -135,14 +135,22 @@ void use_sky_noise(SceneOptions& options, const NoiseRecord& noise);
 ImageArray read_noise_scale(const std::string& path, long field_nx, long field_ny);
 
 /// One object ready to paint.
+/// What a truth record says of a shape: its ellipticity ε and rms radius (moments.hpp; NaN
+/// where undefined), kept instead of all its moments (a million objects' worth).
+struct ShapeSummary {
+    Complex epsilon;
+    double rms_radius = 0.0;
+    static ShapeSummary of(const Moments& m) { return {m.epsilon, m.rms_radius}; }
+};
+
 struct PreparedObject {
     std::string id, kind;
     CartesianModel model;     ///< final model, centre in field FITS pixels
     PixelWindow window;       ///< its stamp, 0-based field columns/rows (may overhang)
     double radius = 0.0;      ///< R, pixels
     double flux = 0.0;        ///< true flux in the image (after lensing)
-    std::optional<Moments> intrinsic;  ///< moments of the lensed galaxy before the PSF
-    std::optional<Moments> psf;        ///< moments of the PSF it was drawn with, when it varies
+    std::optional<ShapeSummary> intrinsic;  ///< the lensed galaxy before the PSF
+    std::optional<ShapeSummary> psf;        ///< the PSF it was drawn with, when it varies
     std::optional<Complex> unlensed_epsilon;  ///< its ellipticity before lensing (NaN: undefined)
     std::optional<Lensing> lensing;           ///< the lensing applied to it
     double lensing_error = 0.0;        ///< relative truncation of the lensed projection
@@ -183,12 +191,19 @@ struct ObjectPlacement {
     double max_shift = 0.01;
 };
 
+/// The extra fields of an object record a render reads: its frame (observed or intrinsic), the
+/// PSF an intrinsic star was seen through (psf_beta), and the ring it belongs to (the truth).
+inline constexpr const char* render_record_keys[] = {"frame", "psf_beta", "ring"};
+
 /// The object records at `path` (JSON lines; "-": stdin), read on `threads` threads and placed
 /// on the field: each as it is in band `band` (empty: as written), x, y from its ra, dec
 /// through `wcs`. Error at the file, line and field of the first bad record; of the first
 /// star without a PSF; of the first object drawn for another field (ObjectPlacement); of the
 /// first observed-frame galaxy ("frame": "observed": it holds its field's PSF) given a PSF
-/// without --galaxy-psf, which would convolve it twice.
+/// without --galaxy-psf, which would convolve it twice. Each record keeps only what a render
+/// reads (render_record_keys of its extra fields; no flags, parent or other bands): a million
+/// sampled objects carry about 0.7 GB of provenance (parents, weights, rotation) no pixel or
+/// truth needs.
 std::vector<ObjectRecord> read_objects(const std::string& path, const Wcs& wcs,
                                        const std::string& band, const ObjectPlacement& placement,
                                        int threads);
@@ -208,6 +223,17 @@ bool stamp_reaches(const PixelWindow& stamp, const Tile& window);
 std::vector<PreparedObject> prepare_scene(const std::vector<ObjectRecord>& records,
                                           double field_pixel_scale, const SceneKernels& kernels,
                                           const SceneOptions& options, const Tile& window);
+
+/// Leave of `record` only what truth_record reads (its id, kind, place, flux, magnitude and
+/// ring): its shape, bands and other extra fields are released.
+void keep_for_truth(ObjectRecord& record);
+/// Ask prepare_scene / prepare_field to keep_for_truth() each record once it is prepared, so
+/// a field's shapes are not held twice (a million objects' worth).
+struct ReleaseShapes {};
+std::vector<PreparedObject> prepare_scene(std::vector<ObjectRecord>& records,
+                                          double field_pixel_scale, const SceneKernels& kernels,
+                                          const SceneOptions& options, const Tile& window,
+                                          ReleaseShapes);
 
 /// What clip_negative removed from one galaxy's stamp (whole, wherever the window is).
 struct ClippedLight {
@@ -245,6 +271,10 @@ struct RenderedScene {
 RenderedScene prepare_field(const std::vector<ObjectRecord>& records, const FieldGeometry& field,
                             const SceneKernels& kernels, const SceneOptions& options,
                             const Tile& window, const std::string& source);
+/// The same, each record kept for the truth only once prepared (ReleaseShapes).
+RenderedScene prepare_field(std::vector<ObjectRecord>& records, const FieldGeometry& field,
+                            const SceneKernels& kernels, const SceneOptions& options,
+                            const Tile& window, const std::string& source, ReleaseShapes);
 
 /// paint() and add_noise() for a prepared scene, the whole window at once into scene.image.
 void draw_whole(RenderedScene& scene, const SceneOptions& options);

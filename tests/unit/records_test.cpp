@@ -7,6 +7,8 @@
 
 #include <gtest/gtest.h>
 
+#include <atomic>
+
 #include <cmath>
 #include <cstdio>
 #include <fstream>
@@ -585,4 +587,55 @@ TEST(ObjectRecord, ZeroOrDenormalFluxWithAMagnitudeIsRefused) {
     star.erase("mag");
     star["flux"] = 0.0;
     EXPECT_NO_THROW(ObjectRecord::from_json(star));
+}
+
+// read_all holds its lines a chunk at a time: 2.5 chunks of records, blank lines among them,
+// come back whole and in order, each with its own line number, on one thread or three, and
+// `each` sees every record as it is made; the error thrown is the first bad line's, even when
+// a later chunk has another.
+TEST(JsonlReaderTest, ReadAllInChunksKeepsOrderLinesAndFirstError) {
+    const std::size_t n = 5 * JsonlReader::chunk_lines / 2;
+    std::string text;
+    for (std::size_t k = 0; k < n; ++k) {
+        if (k % 1000 == 0) text += "\n";  // a blank line: the line numbers skip it
+        text += R"({"schema":"shapesim.object/1","id":"s)" + std::to_string(k) +
+                R"(","kind":"star","ra":1,"dec":2,"flux":3,"rotation":)" + std::to_string(k) + "}\n";
+    }
+    for (int threads : {1, 3}) {
+        std::istringstream in(text);
+        JsonlReader reader(in, "objects.jsonl", {ObjectRecord::schema});
+        std::vector<long> lines;
+        std::atomic<long> seen{0};
+        const std::vector<ObjectRecord> all =
+            reader.read_all<ObjectRecord>(threads, &lines, [&](ObjectRecord& r) {
+                ++seen;
+                r.extra.erase("rotation");
+            });
+        ASSERT_EQ(all.size(), n);
+        ASSERT_EQ(lines.size(), n);
+        EXPECT_EQ(seen.load(), long(n));
+        for (std::size_t k = 0; k < n; k += 997) {
+            EXPECT_EQ(all[k].id, "s" + std::to_string(k));
+            EXPECT_EQ(lines[k], long(k + k / 1000 + 2));  // k + 1, after k / 1000 + 1 blank lines
+            EXPECT_FALSE(all[k].extra.contains("rotation"));
+        }
+    }
+    // Bad lines at 20 000 (second chunk) and 40 000 (third): the first is reported.
+    std::string bad = text;
+    auto spoil = [&](std::size_t record) {
+        const std::string id = R"("id":"s)" + std::to_string(record) + R"(")";
+        const std::size_t at = bad.find(id);
+        bad.replace(bad.find("\"flux\":3", at), 8, "\"flux\":\"x\"");
+    };
+    spoil(40000);
+    spoil(20000);
+    std::istringstream in(bad);
+    JsonlReader reader(in, "objects.jsonl", {ObjectRecord::schema});
+    try {
+        reader.read_all<ObjectRecord>(2);
+        FAIL() << "a bad record was read";
+    } catch (const Error& e) {
+        EXPECT_NE(std::string(e.what()).find("objects.jsonl:" + std::to_string(20000 + 20 + 2)),
+                  std::string::npos) << e.what();
+    }
 }

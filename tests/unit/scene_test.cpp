@@ -648,6 +648,15 @@ TEST(Scene, ReadObjectsPlacesThemThroughTheWcs) {
     for (auto& c : b.coeffs) c *= 0.5;
     b.flux = 0.5 * g.flux;
     g.bands = {a, b};
+    // Provenance a render never reads (parent, flags, rotation, parents) is dropped as the
+    // records are read; what it reads (frame, psf_beta, ring) stays.
+    g.parent = "p7";
+    g.flags = {"edge"};
+    g.extra["rotation"] = 12.5;
+    g.extra["parents"] = Json::array({"p7", "p9"});
+    g.extra["frame"] = "intrinsic";
+    g.extra["psf_beta"] = 0.05;
+    g.extra["ring"] = Json::object({{"id", "g1"}, {"x", 1.0}, {"y", 2.0}});
     ObjectRecord star;
     star.id = "s1";
     star.kind = "star";
@@ -668,6 +677,10 @@ TEST(Scene, ReadObjectsPlacesThemThroughTheWcs) {
     EXPECT_NEAR(*records[1].x, 50.5, 1e-9);
     EXPECT_NEAR(*records[1].y, 40.5, 1e-9);
     EXPECT_EQ(records[0].coeffs, g.coeffs);
+    EXPECT_EQ(records[0].extra, Json({{"frame", "intrinsic"}, {"psf_beta", 0.05},
+                                      {"ring", g.extra["ring"]}}));
+    EXPECT_FALSE(records[0].parent);
+    EXPECT_TRUE(records[0].flags.empty());
 
     // Band b: only the galaxy has bands, so the star's line is where it fails.
     try {
@@ -881,7 +894,7 @@ TEST(Scene, TruthOfUndefinedShapesIsNull) {
     p.id = "g";
     p.kind = "galaxy";
     p.flux = 2.0;
-    p.intrinsic = Moments{};
+    p.intrinsic = ShapeSummary{};
     p.intrinsic->epsilon = Complex(std::nan(""), 0.1);
     p.intrinsic->rms_radius = std::nan("");
     p.lensing_error = 1e-9;
