@@ -52,34 +52,8 @@ double cdf_from_quantiles(const std::vector<double>& q, double x) {
 // ---------------------------------------------------------------------------------------------
 // The marginal
 
-double SkyMarginal::operator()(double z) const {
-    const std::size_t n = values.size();
-    const double at = (z - z0) * (1.0 / dz);
-    if (at >= 0.0 && at < double(n - 1)) {
-        const std::size_t k = std::size_t(at);
-        return values[k] + (at - double(k)) * (values[k + 1] - values[k]);
-    }
-    // Beyond the table: along the mean slope of its last tail_steps steps.
-    const std::size_t s = std::size_t(tail_steps);
-    if (at < 0.0) return values[0] + at * (values[s] - values[0]) / double(s);
-    return values[n - 1] + (at - double(n - 1)) * (values[n - 1] - values[n - 1 - s]) / double(s);
-}
-
 void SkyMarginal::map(const float* in, float* out, long count) const {
-    // The same arithmetic as operator(), its table's steps taken once.
-    const std::size_t n = values.size();
-    std::vector<double> step(n - 1);
-    for (std::size_t k = 0; k + 1 < n; ++k) step[k] = values[k + 1] - values[k];
-    const double scale = 1.0 / dz, last = double(n - 1);
-    for (long i = 0; i < count; ++i) {
-        const double at = (double(in[i]) - z0) * scale;
-        if (at >= 0.0 && at < last) {
-            const std::size_t k = std::size_t(at);
-            out[i] = float(values[k] + (at - double(k)) * step[k]);
-        } else {
-            out[i] = float((*this)(double(in[i])));
-        }
-    }
+    for (long i = 0; i < count; ++i) out[i] = float((*this)(double(in[i])));
 }
 
 void SkyMarginal::validate() const {
@@ -286,18 +260,10 @@ void sky_quantiles(const ImageArray& image, const std::vector<std::uint8_t>& sky
     record.quantile_pixels = long(sparse.size());
     if (sparse.size() >= 2) {
         const int q = int(std::min<std::size_t>(std::size_t(options.quantiles), sparse.size()));
-        for (int k = 0; k < q; ++k) {
-            const double at = (double(k) + 0.5) / q * double(sparse.size()) - 0.5;
-            const std::size_t lo = std::size_t(std::max(0.0, std::floor(at)));
-            const std::size_t hi = std::min(lo + 1, sparse.size() - 1);
-            const double t = std::clamp(at - double(lo), 0.0, 1.0);
-            record.quantiles.push_back(sparse[lo] + t * (sparse[hi] - sparse[lo]));
-        }
+        for (int k = 0; k < q; ++k)
+            record.quantiles.push_back(sorted_quantile(sparse, (double(k) + 0.5) / q));
     }
 }
-
-// The standard normal CDF.
-double normal_cdf(double z) { return 0.5 * std::erfc(-z / std::sqrt(2.0)); }
 
 // The sky's standardised distribution (SkyMarginal): every sky pixel over its own σ, about
 // the median, over the standard deviation; its quantiles at z0 + k·dz out to where
@@ -314,12 +280,7 @@ SkyMarginal sky_marginal(const DetectionResult& field, const std::vector<std::ui
     std::sort(u.begin(), u.end());
     const double n = double(u.size());
     const double median = 0.5 * (u[(u.size() - 1) / 2] + u[u.size() / 2]);
-    double mean = 0.0;
-    for (double v : u) mean += v;
-    mean /= n;
-    double sum2 = 0.0;
-    for (double v : u) sum2 += (v - mean) * (v - mean);
-    const double sd = std::sqrt(sum2 / n);
+    const double sd = rms_of(u);
     if (!(sd > 0.0)) return m;
     // The outermost level: Φ(z0) n ≥ tail_pixels.
     const double step = options.marginal_step;
@@ -330,14 +291,8 @@ SkyMarginal sky_marginal(const DetectionResult& field, const std::vector<std::ui
     if (levels <= SkyMarginal::tail_steps) return m;
     m.z0 = -levels * step;
     m.dz = step;
-    for (int k = -levels; k <= levels; ++k) {
-        // The quantile at p = Φ(z), pixel i at (i + ½)/n, linear between.
-        const double at = normal_cdf(k * step) * n - 0.5;
-        const std::size_t lo = std::size_t(std::clamp(std::floor(at), 0.0, n - 1.0));
-        const std::size_t hi = std::min(lo + 1, u.size() - 1);
-        const double t = std::clamp(at - double(lo), 0.0, 1.0);
-        m.values.push_back((u[lo] + t * (u[hi] - u[lo]) - median) / sd);
-    }
+    for (int k = -levels; k <= levels; ++k)
+        m.values.push_back((sorted_quantile(u, normal_cdf(k * step)) - median) / sd);
     // Ties (a quantised image) would make T flat: such a sky is left Gaussian.
     for (std::size_t k = 1; k < m.values.size(); ++k)
         if (!(m.values[k] > m.values[k - 1])) return SkyMarginal{};

@@ -48,9 +48,20 @@ struct SkyMarginal {
     double z0 = 0.0, dz = 0.0;
     std::vector<double> values;
     bool empty() const { return values.empty(); }
-    /// T(z).
-    double operator()(double z) const;
-    /// out[i] = T(in[i]) for i < count (rounded to float), the same values as operator().
+    /// T(z) (inline: render maps every pixel through it).
+    double operator()(double z) const {
+        const std::size_t n = values.size();
+        const double at = (z - z0) * (1.0 / dz);
+        if (at >= 0.0 && at < double(n - 1)) {
+            const std::size_t k = std::size_t(at);
+            return values[k] + (at - double(k)) * (values[k + 1] - values[k]);
+        }
+        // Beyond the table: along the mean slope of its last tail_steps steps.
+        const std::size_t s = std::size_t(tail_steps);
+        if (at < 0.0) return values[0] + at * (values[s] - values[0]) / double(s);
+        return values[n - 1] + (at - double(n - 1)) * (values[n - 1] - values[n - 1 - s]) / double(s);
+    }
+    /// out[i] = T(in[i]) for i < count, rounded to float (a row of deviates).
     void map(const float* in, float* out, long count) const;
     /// Error naming the field unless dz is within [0.001, 1], z0 within [−10, 0), the values
     /// ascending and within ±100, more than tail_steps and at most 20001 of them.

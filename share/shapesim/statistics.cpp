@@ -24,6 +24,17 @@ double rms_of(const std::vector<double>& v) {
     return std::sqrt(s / double(v.size()));
 }
 
+double sorted_quantile(const std::vector<double>& sorted, double p) {
+    if (sorted.empty()) return std::numeric_limits<double>::quiet_NaN();
+    const double at = p * double(sorted.size()) - 0.5;
+    const std::size_t lo = std::size_t(std::max(0.0, std::floor(at)));
+    const std::size_t hi = std::min(lo + 1, sorted.size() - 1);
+    const double t = std::clamp(at - double(lo), 0.0, 1.0);
+    return sorted[lo] + t * (sorted[hi] - sorted[lo]);
+}
+
+double normal_cdf(double z) { return 0.5 * std::erfc(-z / std::sqrt(2.0)); }
+
 double median_of_values(std::vector<double> v) {
     if (v.empty()) return std::numeric_limits<double>::quiet_NaN();
     std::sort(v.begin(), v.end());

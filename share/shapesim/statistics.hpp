@@ -18,6 +18,11 @@ double mean_of(const std::vector<double>& v);
 /// Population standard deviation (the paper's "rms").
 double rms_of(const std::vector<double>& v);
 double median_of_values(std::vector<double> v);
+/// The quantile at probability p of the ascending values `sorted`: value i stands at
+/// (i + ½)/n, linear between, the end values beyond. NaN when empty.
+double sorted_quantile(const std::vector<double>& sorted, double p);
+/// The standard normal CDF Φ(z).
+double normal_cdf(double z);
 
 /// Standard deviation of `statistic` over bootstrap resamples of `values`.
 double bootstrap_error(const std::vector<double>& values,

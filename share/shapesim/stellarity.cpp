@@ -4,6 +4,7 @@
 #include "shapesim/error.hpp"
 #include "shapesim/render.hpp"
 #include "shapesim/resample.hpp"
+#include "shapesim/statistics.hpp"
 
 #include <algorithm>
 #include <cmath>
@@ -157,10 +158,9 @@ double stellarity(const CoreFraction& measured, const PointSourceLocus& locus) {
     const double sigma = std::max(measured.error, 1e-6 * star);
     const double s2 = locus.scatter * locus.scatter + sigma * sigma;
     const double l_star = std::exp(-0.5 * (rho - star) * (rho - star) / s2) / std::sqrt(2 * pi * s2);
-    auto phi = [](double t) { return 0.5 * std::erfc(-t / std::sqrt(2.0)); };
     // Galaxies are resolved: their noise-free ρ lies uniformly in [0, ρ★ − 2 s★].
     const double edge = std::max(star - 2.0 * locus.scatter, 0.05 * star);
-    const double l_galaxy = (phi((edge - rho) / sigma) - phi(-rho / sigma)) / edge;
+    const double l_galaxy = (normal_cdf((edge - rho) / sigma) - normal_cdf(-rho / sigma)) / edge;
     const double sum = l_star + l_galaxy;
     if (!(sum > 0.0)) return rho > star ? 1.0 : 0.0;
     return std::clamp(l_star / sum, 0.0, 1.0);
