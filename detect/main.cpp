@@ -15,6 +15,7 @@
 #include "shapesim/records.hpp"
 #include "shapesim/sources.hpp"
 
+#include <cmath>
 #include <memory>
 #include <optional>
 
@@ -83,62 +84,108 @@ int run(int argc, const char* const argv[]) {
         if (!path->empty()) check_writable(*path);
     AtomicTextFile file(options.common().output_or_stdout());
 
-    std::vector<BandRecord> band_list;
-    if (!s.bands.empty()) band_list = BandRecord::read_all(s.bands);
-    app::DetectionRun detected = s.detection.run(options, log);
-    const std::vector<BandField> bands =
-        measure_bands(band_list, detected.field, s.detection.detection);
-    s.stamp.gain = s.detection.detection.gain;  // source photon noise in the stamps' weights
-    SourceContext& context = detected.context;
-    context.stamps = s.stamps;
-    const DetectionResult& field = detected.field;
-    // Measured before any output, so a field without enough sky fails with nothing written.
-    std::optional<NoiseRecord> noise;
-    if (!s.noise_model.empty()) {
-        noise = measure_sky_noise(field, s.noise);
-        noise->extra["image"] = s.detection.image;
-    }
-    const std::vector<std::string> outputs = {"stamps", "stars", "segmentation", "noise-model"};
-    std::unique_ptr<FitsWriter> stamps;
-    if (!s.stamps.empty())
-        stamps = std::make_unique<FitsWriter>(s.stamps, "shapesim-detect",
-                                              app::provenance_keywords(options, outputs));
-    std::unique_ptr<AtomicTextFile> stars_file;
-    std::unique_ptr<JsonlWriter> stars_out;
-    if (!s.stars.empty()) {
-        stars_file = std::make_unique<AtomicTextFile>(s.stars);
-        stars_out = std::make_unique<JsonlWriter>(stars_file->stream(), s.stars);
-    }
-    JsonlWriter out(file.stream(), file.name());
-    const CatalogueTally tally = catalogue_sources(
-        field, detected.locus, context, bands, s.stamp, stamps.get(), stars_out != nullptr,
-        [&](const Detection& object, const SourceRecord& record, bool is_star, double star) {
-            if (!is_star) out.write(record.to_json());
-            else if (stars_out) stars_out->write(record.to_json());
-            log.verbose("object ", object.label, " at (", object.x, ", ", object.y,
-                        ") stellarity ", star);
+    // Stamps, the segmentation map, the sky's noise and other bands are made from the whole
+    // image at once; the catalogue alone is made tile by tile (--tile).
+    const bool whole_image_outputs =
+        !s.stamps.empty() || !s.segmentation.empty() || !s.noise_model.empty() || !s.bands.empty();
+    if (whole_image_outputs && options.given("tile") && s.detection.tile != "none")
+        throw po::error("--tile: --stamps, --segmentation, --noise-model and --bands are made "
+                        "from the whole image (give --tile none, or leave them out)");
+    CatalogueTally tally;
+    std::string locus_note;
+    long written = 0;
+    if (!whole_image_outputs) {
+        JsonlWriter out(file.stream(), file.name());
+        std::unique_ptr<AtomicTextFile> stars_file;
+        std::unique_ptr<JsonlWriter> stars_out;
+        if (!s.stars.empty()) {
+            stars_file = std::make_unique<AtomicTextFile>(s.stars);
+            stars_out = std::make_unique<JsonlWriter>(stars_file->stream(), s.stars);
+        }
+        long id_offset = 0;
+        s.detection.run_tiles(options, log, [&](app::DetectionRun& detected, const TileWindow& tile,
+                                                const std::vector<std::size_t>& owned) {
+            locus_note = detected.locus_note;
+            const CatalogueTally t = catalogue_sources(
+                detected.field, detected.locus, detected.context, {}, s.stamp, nullptr, false,
+                [&](const Detection&, const SourceRecord& record, bool is_star, double star) {
+                    Json json = record.to_json();
+                    app::shift_to_image(json, tile, id_offset);
+                    if (!is_star) out.write(json);
+                    else if (stars_out) stars_out->write(json);
+                    log.verbose("object ", json.at("id").get<std::string>(), " at (",
+                                json.at("x").get<double>(), ", ", json.at("y").get<double>(),
+                                ") stellarity ", star);
+                },
+                &owned);
+            tally.stars += t.stars;
+            tally.saturated += t.saturated;
+            tally.single_pixel_events += t.single_pixel_events;
+            id_offset += long(detected.field.objects.size());
         });
-    if (!s.segmentation.empty()) {
-        FitsWriter seg(s.segmentation, "shapesim-detect",
-                       app::provenance_keywords(options, outputs));
-        FitsImageSpec spec{"SEGMENTATION", 32, {}, context.wcs, {}, {}};
-        seg.write_image(field.segmentation.cast<double>(), spec);
-        seg.commit();
+        if (stars_file) stars_file->commit();
+        file.commit();
+        written = out.count();
+    } else {
+        std::vector<BandRecord> band_list;
+        if (!s.bands.empty()) band_list = BandRecord::read_all(s.bands);
+        app::DetectionRun detected = s.detection.run(options, log);
+        locus_note = detected.locus_note;
+        const std::vector<BandField> bands =
+            measure_bands(band_list, detected.field, s.detection.detection);
+        s.stamp.gain = s.detection.detection.gain;  // source photon noise in the stamps' weights
+        SourceContext& context = detected.context;
+        context.stamps = s.stamps;
+        const DetectionResult& field = detected.field;
+        // Measured before any output, so a field without enough sky fails with nothing written.
+        std::optional<NoiseRecord> noise;
+        if (!s.noise_model.empty()) {
+            noise = measure_sky_noise(field, s.noise);
+            noise->extra["image"] = s.detection.image;
+        }
+        const std::vector<std::string> outputs = {"stamps", "stars", "segmentation", "noise-model"};
+        std::unique_ptr<FitsWriter> stamps;
+        if (!s.stamps.empty())
+            stamps = std::make_unique<FitsWriter>(s.stamps, "shapesim-detect",
+                                                  app::provenance_keywords(options, outputs));
+        std::unique_ptr<AtomicTextFile> stars_file;
+        std::unique_ptr<JsonlWriter> stars_out;
+        if (!s.stars.empty()) {
+            stars_file = std::make_unique<AtomicTextFile>(s.stars);
+            stars_out = std::make_unique<JsonlWriter>(stars_file->stream(), s.stars);
+        }
+        JsonlWriter out(file.stream(), file.name());
+        tally = catalogue_sources(
+            field, detected.locus, context, bands, s.stamp, stamps.get(), stars_out != nullptr,
+            [&](const Detection& object, const SourceRecord& record, bool is_star, double star) {
+                if (!is_star) out.write(record.to_json());
+                else if (stars_out) stars_out->write(record.to_json());
+                log.verbose("object ", object.label, " at (", object.x, ", ", object.y,
+                            ") stellarity ", star);
+            });
+        if (!s.segmentation.empty()) {
+            FitsWriter seg(s.segmentation, "shapesim-detect",
+                           app::provenance_keywords(options, outputs));
+            FitsImageSpec spec{"SEGMENTATION", 32, {}, context.wcs, {}, {}};
+            seg.write_image(field.segmentation.cast<double>(), spec);
+            seg.commit();
+        }
+        if (noise) {
+            AtomicTextFile noise_file(s.noise_model);
+            JsonlWriter(noise_file.stream(), s.noise_model).write(noise->to_json());
+            noise_file.commit();
+            log.info("sky noise: rms ", noise->rms, " (MAD σ ", noise->mad_sigma, ") over ",
+                     noise->pixels, " pixels; autocorrelation at (1,0) ", noise->correlation.at(1, 0),
+                     ", (1,1) ", noise->correlation.at(1, 1), ", (2,0) ", noise->correlation.at(2, 0));
+        }
+        if (stamps) stamps->commit();
+        if (stars_file) stars_file->commit();
+        file.commit();
+        written = out.count();
     }
-    if (noise) {
-        AtomicTextFile noise_file(s.noise_model);
-        JsonlWriter(noise_file.stream(), s.noise_model).write(noise->to_json());
-        noise_file.commit();
-        log.info("sky noise: rms ", noise->rms, " (MAD σ ", noise->mad_sigma, ") over ",
-                 noise->pixels, " pixels; autocorrelation at (1,0) ", noise->correlation.at(1, 0),
-                 ", (1,1) ", noise->correlation.at(1, 1), ", (2,0) ", noise->correlation.at(2, 0));
-    }
-    if (stamps) stamps->commit();
-    if (stars_file) stars_file->commit();
-    file.commit();
-    log.info(out.count(), " galaxies, ", tally.stars, " stars (stellarity > ",
-             context.star_threshold, ", through ", detected.locus_note, ") in ", log.elapsed(),
-             " s");
+    log.info(written, " galaxies, ", tally.stars, " stars (stellarity > ",
+             s.detection.star_threshold, ", through ", locus_note, ") in ", log.elapsed(),
+             " s (peak memory ", std::lround(log.peak_memory_mib()), " MiB)");
     if (tally.saturated > 0)
         log.info(tally.saturated, " saturated objects (a pixel at or above ",
                  s.detection.detection.saturation, ") set aside with the stars");

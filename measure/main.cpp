@@ -16,6 +16,7 @@
 #include "shapesim/psf.hpp"
 #include "shapesim/stellarity.hpp"
 
+#include <cmath>
 
 namespace {
 
@@ -129,74 +130,88 @@ int run(int argc, const char* const argv[]) {
         psf_field.empty())
         throw po::error("--shear-estimate: give the image's PSF, --psf, --psf-analytic or "
                         "--psf-field");
-    const app::DetectionRun detected = detection.run(options, log);
-    const DetectionResult& field = detected.field;
+    measure.fit_star_profile = !no_star_profile;
     if (!psf_field.empty()) {
         PsfField psf = read_psf_field(psf_field);
         log.verbose("shear estimate: the PSF at each galaxy's place from ", psf_field,
                     " (n_max ", psf.n_max, ", worst residual ", 100 * psf.max_residual_fraction,
                     "% of the peak)");
         measure.shear_psf_field = std::make_shared<const PsfField>(std::move(psf));
-    } else if (shear_estimate) {
-        const ShapeletModel psf =
-            !detection.psf_model.empty()
-                ? read_psf_model(detection.psf_model, detected.context.pixel_scale)
-                : analytic_psf_model(parse_analytic_psf(detection.psf_analytic),
-                                     detected.context.pixel_scale).psf.model;
-        measure.shear_psf = psf_adaptive_moments(psf);
-        log.verbose("shear estimate: the PSF's adaptive moments (", measure.shear_psf->m11, ", ",
-                    measure.shear_psf->m22, ", ", measure.shear_psf->m12, ") pixels^2");
     }
-    measure.zero_point = detected.context.zero_point;
-    measure.aperture_radius = aperture / 2.0 / detected.context.pixel_scale;
-    measure.fit_star_profile = !no_star_profile;
-    struct Job {
-        const Detection* object;
-        SourceRecord source;
-        std::optional<MorphRecord> record;
-        std::string error;
-    };
-    std::vector<Job> jobs;
-    long too_faint = 0;
-    for (const Detection& object : field.objects) {
-        if (is_single_pixel_event(object.peak, object.flux_iso)) continue;  // a cosmic ray
-        const CoreFraction core = core_fraction(field, object, detected.locus);
-        const double star = stellarity(core, detected.locus);
-        if (star > detection.star_threshold && !stars) continue;
-        SourceRecord source = source_record(object, core, star, nullptr, detected.context);
-        // Fainter than every cut of the comparison: not worth the statistics (nor a record).
-        if (options.given("mag-limit") && !(source.mag && *source.mag <= mag_limit)) {
-            ++too_faint;
-            continue;
-        }
-        jobs.push_back({&object, std::move(source), {}, {}});
-    }
-    app::Progress progress(log, "measured", "objects", jobs.size());
-    parallel_for(jobs.size(), options.common().threads, [&](std::size_t k, int) {
-        try {
-            jobs[k].record = measure_object(field, *jobs[k].object, jobs[k].source, measure);
-            jobs[k].record->extra["pixel_scale"] = detected.context.pixel_scale;
-        } catch (const std::exception& e) {
-            jobs[k].error = e.what();
-        }
-        progress.done_one();
-    });
-
     JsonlWriter out(file.stream(), file.name());
-    long skipped = 0;
-    for (const Job& job : jobs) {
-        if (!job.record) {
-            ++skipped;
-            log.warn("object ", job.source.id, ": ", job.error);
-            continue;
-        }
-        out.write(job.record->to_json());
-    }
+    long skipped = 0, too_faint = 0, id_offset = 0;
+    std::string locus_note;
+    // Each tile in turn (one, the whole image, unless tiled): its objects are measured and
+    // written before the next tile is read.
+    const app::TiledRun tiled = detection.run_tiles(
+        options, log,
+        [&](app::DetectionRun& detected, const TileWindow& tile,
+            const std::vector<std::size_t>& owned) {
+            const DetectionResult& field = detected.field;
+            locus_note = detected.locus_note;
+            if (shear_estimate && !measure.shear_psf && !measure.shear_psf_field) {
+                const ShapeletModel psf =
+                    !detection.psf_model.empty()
+                        ? read_psf_model(detection.psf_model, detected.context.pixel_scale)
+                        : analytic_psf_model(parse_analytic_psf(detection.psf_analytic),
+                                             detected.context.pixel_scale).psf.model;
+                measure.shear_psf = psf_adaptive_moments(psf);
+                log.verbose("shear estimate: the PSF's adaptive moments (", measure.shear_psf->m11,
+                            ", ", measure.shear_psf->m22, ", ", measure.shear_psf->m12,
+                            ") pixels^2");
+            }
+            measure.zero_point = detected.context.zero_point;
+            measure.aperture_radius = aperture / 2.0 / detected.context.pixel_scale;
+            struct Job {
+                const Detection* object;
+                SourceRecord source;
+                std::optional<MorphRecord> record;
+                std::string error;
+            };
+            std::vector<Job> jobs;
+            for (const std::size_t k : owned) {
+                const Detection& object = field.objects[k];
+                if (is_single_pixel_event(object.peak, object.flux_iso)) continue;  // a cosmic ray
+                const CoreFraction core = core_fraction(field, object, detected.locus);
+                const double star = stellarity(core, detected.locus);
+                if (star > detection.star_threshold && !stars) continue;
+                SourceRecord source = source_record(object, core, star, nullptr, detected.context);
+                // Fainter than every cut of the comparison: not worth the statistics (nor a
+                // record).
+                if (options.given("mag-limit") && !(source.mag && *source.mag <= mag_limit)) {
+                    ++too_faint;
+                    continue;
+                }
+                jobs.push_back({&object, std::move(source), {}, {}});
+            }
+            app::Progress progress(log, "measured", "objects", jobs.size());
+            parallel_for(jobs.size(), options.common().threads, [&](std::size_t k, int) {
+                try {
+                    jobs[k].record = measure_object(field, *jobs[k].object, jobs[k].source, measure);
+                    jobs[k].record->extra["pixel_scale"] = detected.context.pixel_scale;
+                } catch (const std::exception& e) {
+                    jobs[k].error = e.what();
+                }
+                progress.done_one();
+            });
+            for (const Job& job : jobs) {
+                if (!job.record) {
+                    ++skipped;
+                    log.warn("object ", job.source.id, ": ", job.error);
+                    continue;
+                }
+                Json record = job.record->to_json();
+                app::shift_to_image(record, tile, id_offset);
+                out.write(record);
+            }
+            id_offset += long(field.objects.size());
+        });
     file.commit();
     log.info(out.count(), " objects measured", skipped ? ", " + std::to_string(skipped) + " skipped" : "",
              too_faint ? ", " + std::to_string(too_faint) + " fainter than --mag-limit left out" : "",
-             " in ", log.elapsed(), " s; stars (", stars ? "measured" : "left out", ") through ",
-             detected.locus_note);
+             tiled.tiled() ? ", in " + std::to_string(tiled.tiles.size()) + " tiles" : "",
+             " in ", log.elapsed(), " s (peak memory ", std::lround(log.peak_memory_mib()),
+             " MiB); stars (", stars ? "measured" : "left out", ") through ", locus_note);
     return 0;
 }
 

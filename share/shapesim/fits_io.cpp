@@ -380,6 +380,24 @@ ImageArray FitsReader::read_image() {
     return image;
 }
 
+ImageArray FitsReader::read_region(long x0, long y0, long nx, long ny) {
+    const ImageSize size = image_size();
+    if (nx < 1 || ny < 1 || x0 < 1 || y0 < 1 || x0 - 1 > size.nx - nx || y0 - 1 > size.ny - ny)
+        throw Error("the window of " + std::to_string(nx) + "×" + std::to_string(ny) +
+                        " pixels from (" + std::to_string(x0) + ", " + std::to_string(y0) +
+                        ") is not within the image's " + std::to_string(size.nx) + "×" +
+                        std::to_string(size.ny),
+                    impl_->place);
+    ImageArray image = large_image(ny, nx);
+    long first[2] = {x0, y0}, last[2] = {x0 + nx - 1, y0 + ny - 1}, step[2] = {1, 1};
+    double null_value = std::numeric_limits<double>::quiet_NaN();
+    int any_null = 0, status = 0;
+    fits_read_subset(impl_->f, TDOUBLE, first, last, step, &null_value, image.data(), &any_null,
+                     &status);
+    check(status, impl_->place);
+    return image;
+}
+
 // ------------------------------------------------------------------------------- tables
 
 long FitsReader::table_rows() {

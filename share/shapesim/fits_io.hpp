@@ -93,6 +93,9 @@ public:
     ImageSize image_size();
     /// The current HDU's image as doubles (see the file comment for the index convention).
     ImageArray read_image();
+    /// The `nx` × `ny` pixels of the current HDU's image whose first pixel is FITS (`x0`, `y0`),
+    /// as doubles like read_image(); Error unless that window lies within the image.
+    ImageArray read_region(long x0, long y0, long nx, long ny);
 
     /// Rows of the current HDU's table (binary or ASCII); Error unless it is a table, or when
     /// the header declares more rows than the file holds.

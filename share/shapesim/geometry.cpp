@@ -167,6 +167,16 @@ std::vector<Tile> tile_grid(long field_nx, long field_ny, long width, long heigh
     return tiles;
 }
 
+std::vector<TileWindow> tile_windows(long field_nx, long field_ny, long side, long margin) {
+    if (margin < 0) throw Error("a tile margin cannot be negative");
+    std::vector<TileWindow> windows;
+    for (const Tile& core : tile_grid(field_nx, field_ny, side, side))
+        windows.push_back({core, {std::max(core.x0 - margin, 1L), std::max(core.y0 - margin, 1L),
+                                  std::min(core.x1 + margin, field_nx),
+                                  std::min(core.y1 + margin, field_ny)}});
+    return windows;
+}
+
 void write_tile_grid(std::ostream& out, const std::string& name, long field_nx, long field_ny,
                      long width, long height) {
     for (const Tile& t : tile_grid(field_nx, field_ny, width, height))

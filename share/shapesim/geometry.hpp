@@ -109,6 +109,16 @@ struct Tile {
 /// column and row of tiles take what is left. Throws Error unless both sides are ≥ 1.
 std::vector<Tile> tile_grid(long field_nx, long field_ny, long width, long height);
 
+/// A tile of an image processed piece by piece: `core`, the pixels it answers for, and
+/// `window`, the pixels read for it (the core and a margin on each side, within the image).
+struct TileWindow {
+    Tile core, window;
+};
+
+/// The image cut into cores of `side` × `side` pixels (tile_grid()), each read with `margin`
+/// more pixels on every side where the image has them. Error unless side ≥ 1, margin ≥ 0.
+std::vector<TileWindow> tile_windows(long field_nx, long field_ny, long side, long margin);
+
 /// The grid of tile_grid() as lines "IX IY X0 Y0 X1 Y1" (IX, IY from 0: the tile's column and
 /// row; the rest its --tile arguments), flushed; Error naming `name` when `out` fails.
 void write_tile_grid(std::ostream& out, const std::string& name, long field_nx, long field_ny,

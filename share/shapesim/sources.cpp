@@ -76,9 +76,12 @@ SourceRecord source_record(const Detection& object, const CoreFraction& core,
 CatalogueTally catalogue_sources(const DetectionResult& field, const PointSourceLocus& locus,
                                  const SourceContext& context,
                                  const std::vector<BandField>& bands, const StampOptions& stamp,
-                                 FitsWriter* stamps, bool stamp_stars, const SourceSink& sink) {
+                                 FitsWriter* stamps, bool stamp_stars, const SourceSink& sink,
+                                 const std::vector<std::size_t>* only) {
     CatalogueTally tally;
-    for (const Detection& object : field.objects) {
+    const std::size_t n = only ? only->size() : field.objects.size();
+    for (std::size_t k = 0; k < n; ++k) {
+        const Detection& object = field.objects[only ? (*only)[k] : k];
         if (is_single_pixel_event(object.peak, object.flux_iso)) {  // not a star: no PSF
             ++tally.single_pixel_events;
             continue;

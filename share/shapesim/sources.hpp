@@ -60,10 +60,12 @@ using SourceSink = std::function<void(const Detection& object, const SourceRecor
 /// `locus`, a stamp in `stamps` (when given; a star's only with `stamp_stars`, since nobody
 /// reads it otherwise), its `bands` (measure_bands(), in the same boxes) and a record to
 /// `sink`. `stamp` are the stamps' options; `context.stamps` names the file in the records.
+/// With `only`, just those objects (indices into field.objects, in that order): a tile's own.
 CatalogueTally catalogue_sources(const DetectionResult& field, const PointSourceLocus& locus,
                                  const SourceContext& context,
                                  const std::vector<BandField>& bands, const StampOptions& stamp,
-                                 FitsWriter* stamps, bool stamp_stars, const SourceSink& sink);
+                                 FitsWriter* stamps, bool stamp_stars, const SourceSink& sink,
+                                 const std::vector<std::size_t>* only = nullptr);
 
 /// A field's background noise as shapesim-detect measured it.
 struct FieldNoise {

@@ -1,6 +1,7 @@
 // Program plumbing: app/options (common options, --config, --print-params, range checks),
 // app/run_main (exceptions → one stderr line and an exit code) and app/log.
 #include "shapesim/app/decompose_options.hpp"
+#include "shapesim/app/detection_run.hpp"
 #include "shapesim/app/log.hpp"
 #include "shapesim/app/options.hpp"
 #include "shapesim/app/progress.hpp"
@@ -467,4 +468,27 @@ TEST(SourceFields, ReadsTheFieldOptions) {
         EXPECT_THROW(app::read_source_fields("", std::nullopt, std::nullopt, bad), po::error)
             << bad[0];
     EXPECT_THROW(app::read_source_fields("", 1.0, std::nullopt, {"a.fits=1"}), po::error);
+}
+
+// A record found in a tile's window moves to the image's pixels: positions by the window's
+// origin (integers stay integers), the id by the offset; other fields untouched.
+TEST(DetectionRun, ShiftToImageMovesPositionsAndIds) {
+    const TileWindow tile{{2049, 1, 4096, 2048}, {1793, 1, 4352, 2304}};
+    Json r = {{"id", "17"}, {"x", 10.25}, {"y", 3.5}, {"x_peak", 10}, {"y_peak", 4},
+              {"x_asym", 10.5}, {"y_asym", 3.25}, {"a", 2.0}, {"ra", 150.1}};
+    app::shift_to_image(r, tile, 1000);
+    EXPECT_EQ(r["id"], "1017");
+    EXPECT_EQ(r["x"].get<double>(), 1802.25);
+    EXPECT_EQ(r["y"].get<double>(), 3.5);
+    EXPECT_TRUE(r["x_peak"].is_number_integer());
+    EXPECT_EQ(r["x_peak"].get<long>(), 1802);
+    EXPECT_EQ(r["y_peak"].get<long>(), 4);
+    EXPECT_EQ(r["x_asym"].get<double>(), 1802.5);
+    EXPECT_EQ(r["a"].get<double>(), 2.0);
+    EXPECT_EQ(r["ra"].get<double>(), 150.1);
+    // The first tile of an untiled run: nothing moves, bit for bit (−0 stays −0).
+    Json same = {{"id", "3"}, {"x", -0.0}};
+    app::shift_to_image(same, {{1, 1, 100, 100}, {1, 1, 100, 100}}, 0);
+    EXPECT_TRUE(std::signbit(same["x"].get<double>()));
+    EXPECT_EQ(same["id"], "3");
 }

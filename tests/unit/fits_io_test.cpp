@@ -10,6 +10,8 @@
 #include <fitsio.h>
 #include <gtest/gtest.h>
 
+#include <array>
+
 #include <cmath>
 #include <cstring>
 #include <cstdlib>
@@ -164,6 +166,28 @@ TEST_F(FitsTest, PixelConventionRowIsYColumnIsX) {
     ASSERT_EQ(status, 0);
     EXPECT_EQ(value, image(1, 2));
     EXPECT_EQ(value, 1002.125);
+}
+
+// A window of the image (what a tiled detection reads) is exactly its block of the whole, and
+// a window reaching beyond the image is refused, naming the file.
+TEST_F(FitsTest, RegionIsItsBlockOfTheWholeImage) {
+    const ImageArray image = index_image(9, 13);
+    FitsWriter out(path("region.fits"), "test");
+    out.write_image(image, {"SCI", -32, "", {}, {}, {}});
+    out.commit();
+    FitsReader fits(path("region.fits"), FitsStart::first_image);
+    const ImageArray whole = fits.read_image();
+    const ImageArray region = fits.read_region(4, 3, 6, 5);  // x 4–9, y 3–7
+    ASSERT_EQ(region.rows(), 5);
+    ASSERT_EQ(region.cols(), 6);
+    EXPECT_TRUE((region == whole.block(2, 3, 5, 6)).all());
+    EXPECT_TRUE((fits.read_region(1, 1, 13, 9) == whole).all());
+    EXPECT_TRUE((fits.read_region(13, 9, 1, 1) == whole.block(8, 12, 1, 1)).all());
+    for (const auto& [x0, y0, nx, ny] : {std::array<long, 4>{0, 1, 2, 2}, {1, 0, 2, 2},
+                                         {12, 1, 3, 1}, {1, 9, 1, 2}, {1, 1, 0, 1}})
+        EXPECT_EQ(error_of([&] { fits.read_region(x0, y0, nx, ny); }).file(),
+                  path("region.fits") + "[SCI]")
+            << x0 << " " << y0 << " " << nx << " " << ny;
 }
 
 TEST_F(FitsTest, MefRoundTripWithKeywordsWcsAndHistory) {

@@ -11,6 +11,7 @@
 
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
 #include <cstdlib>
 #include <filesystem>
@@ -332,4 +333,28 @@ TEST(Wcs, CutoutSeesTheSameSkyAtItsOwnPixels) {
         EXPECT_EQ(same.crpix1, w.crpix1);
         EXPECT_EQ(same.crpix2, w.crpix2);
     }
+}
+
+// A tiled detection's windows: the cores partition the image (tile_grid), each window is its
+// core grown by the margin on every side and clipped to the image.
+TEST(TileWindows, CoresPartitionWindowsPadThemWithinTheImage) {
+    const std::vector<TileWindow> tiles = tile_windows(1000, 700, 384, 64);
+    ASSERT_EQ(tiles.size(), 6u);
+    std::vector<int> covered(1000 * 700, 0);
+    for (const TileWindow& t : tiles) {
+        for (long y = t.core.y0; y <= t.core.y1; ++y)
+            for (long x = t.core.x0; x <= t.core.x1; ++x)
+                ++covered[std::size_t((y - 1) * 1000 + (x - 1))];
+        EXPECT_EQ(t.window.x0, std::max(t.core.x0 - 64, 1L));
+        EXPECT_EQ(t.window.y0, std::max(t.core.y0 - 64, 1L));
+        EXPECT_EQ(t.window.x1, std::min(t.core.x1 + 64, 1000L));
+        EXPECT_EQ(t.window.y1, std::min(t.core.y1 + 64, 700L));
+    }
+    EXPECT_TRUE(std::all_of(covered.begin(), covered.end(), [](int c) { return c == 1; }));
+    EXPECT_EQ(tiles[4].window.x0, 385 - 64);
+    EXPECT_EQ(tiles[4].window.x1, 768 + 64);
+    EXPECT_EQ(tiles[4].window.y1, 700);
+    EXPECT_EQ(tile_windows(1000, 700, 2000, 64).size(), 1u);
+    EXPECT_THROW(tile_windows(10, 10, 4, -1), Error);
+    EXPECT_THROW(tile_windows(10, 10, 0, 2), Error);
 }

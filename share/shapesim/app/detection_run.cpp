@@ -65,7 +65,15 @@ void DetectionSettings::declare(ProgramOptions& options, bool image_required) {
         ("saturation", po::value(&s.saturation)->value_name("LEVEL")
              ->notifier(in_range("saturation", 0.0, 1e300)),
          "SATUR_LEVEL, image units as read: objects reaching it are flagged 'saturated' and set "
-         "aside with the stars (default: the header's SATURATE; 0: none)");
+         "aside with the stars (default: the header's SATURATE; 0: none)")
+        ("tile", po::value(&s.tile)->value_name("SIDE")->default_value("auto"),
+         "detect in tiles of SIDE² pixels (rounded up to whole --back-size cells), one at a "
+         "time, so that memory is bounded by the tile; auto: tiles of 2048² when the image has "
+         "more than 4096² pixels; none: the whole image at once")
+        ("tile-margin", po::value(&s.tile_margin)->value_name("PIXELS")->default_value(256)
+             ->notifier(in_range("tile-margin", 0L, 1L << 20)),
+         "pixels read beyond each tile on every side (rounded up to whole --back-size cells): "
+         "more than the largest object's half-size");
     options.group("Stars").add_options()
         ("psf-fwhm", po::value(&s.psf_fwhm)->value_name("ARCSEC")->default_value(0.15)
              ->notifier(in_range("psf-fwhm", 1e-6, 3600.0)),
@@ -117,7 +125,7 @@ void check_options(DetectionSettings& s, const ProgramOptions& options) {
 // The image's geometry (its WCS, else --pixel-scale and --ra/--dec) and zero point (given,
 // else the header's, else 0) into `context`.
 void read_geometry(const DetectionSettings& s, const ProgramOptions& options, const Log& log,
-                   FitsReader& fits, const ImageArray& image, SourceContext& context) {
+                   FitsReader& fits, const ImageSize& size, SourceContext& context) {
     if (has_wcs(fits)) {
         context.wcs = read_wcs(fits);
         context.pixel_scale = context.wcs->pixel_scale_arcsec();
@@ -128,8 +136,8 @@ void read_geometry(const DetectionSettings& s, const ProgramOptions& options, co
     } else if (options.given("pixel-scale")) {
         context.pixel_scale = s.pixel_scale;
         if (options.given("ra"))
-            context.wcs = tan_wcs(s.ra, s.dec, s.pixel_scale, (image.cols() + 1) / 2.0,
-                                  (image.rows() + 1) / 2.0);
+            context.wcs = tan_wcs(s.ra, s.dec, s.pixel_scale, (size.nx + 1) / 2.0,
+                                  (size.ny + 1) / 2.0);
     } else {
         throw Error("no WCS in the header: give --pixel-scale (and --ra/--dec for sky "
                     "positions)", fits.place());
@@ -139,19 +147,30 @@ void read_geometry(const DetectionSettings& s, const ProgramOptions& options, co
     else log.info("no zero point given or in the header: magnitudes use zero point 0");
 }
 
-// The --weight map as inverse variance (null without one); Error unless it is the image's size.
-std::unique_ptr<ImageArray> read_inverse_variance(const DetectionSettings& s,
-                                                  const ImageArray& image) {
-    if (s.weight.empty()) return nullptr;
+// The --weight map, opened, its size checked against the image's (Error otherwise).
+std::optional<FitsReader> open_weight(const DetectionSettings& s, const ImageSize& image) {
+    if (s.weight.empty()) return std::nullopt;
     FitsReader weight_fits(s.weight, FitsStart::first_image);
-    auto inverse_variance = std::make_unique<ImageArray>(inverse_variance_from(
-        weight_fits.read_image(), parse_noise_map_type(s.weight_type), weight_fits.place()));
-    if (inverse_variance->rows() != image.rows() || inverse_variance->cols() != image.cols())
-        throw Error("weight map is " + std::to_string(inverse_variance->cols()) + "×" +
-                        std::to_string(inverse_variance->rows()) + " pixels, the image " +
-                        std::to_string(image.cols()) + "×" + std::to_string(image.rows()),
+    const ImageSize size = weight_fits.image_size();
+    if (size.nx != image.nx || size.ny != image.ny)
+        throw Error("weight map is " + std::to_string(size.nx) + "×" + std::to_string(size.ny) +
+                        " pixels, the image " + std::to_string(image.nx) + "×" +
+                        std::to_string(image.ny),
                     weight_fits.place());
-    return inverse_variance;
+    return weight_fits;
+}
+
+// The weight map's pixels in `window` (all of it: the whole map) as inverse variance.
+std::unique_ptr<ImageArray> read_inverse_variance(const DetectionSettings& s,
+                                                  std::optional<FitsReader>& weight_fits,
+                                                  const Tile* window) {
+    if (!weight_fits) return nullptr;
+    const ImageArray map = window ? weight_fits->read_region(window->x0, window->y0,
+                                                             window->x1 - window->x0 + 1,
+                                                             window->y1 - window->y0 + 1)
+                                  : weight_fits->read_image();
+    return std::make_unique<ImageArray>(
+        inverse_variance_from(map, parse_noise_map_type(s.weight_type), weight_fits->place()));
 }
 
 // The point-source locus for the stellarity, from --psf-image, --psf or the Gaussian of
@@ -208,30 +227,157 @@ void report_detection(const DetectionSettings& s, const Log& log, const Detectio
                  " right?)");
 }
 
-}  // namespace
 
-DetectionRun DetectionSettings::run(const ProgramOptions& options, const Log& log) {
-    check_options(*this, options);
-    FitsReader fits(image, FitsStart::first_image);
-    DetectionRun r;
-    r.image = fits.read_image();
-    r.context.image = image;
-    r.context.star_threshold = star_threshold;
-    read_geometry(*this, options, log, fits, r.image, r.context);
+// What every tile of a run shares: the image and weight map, open; the image's geometry and
+// zero point; the saturation level; the point-source locus.
+struct DetectionInput {
+    FitsReader fits;
+    std::optional<FitsReader> weight;
+    ImageSize size;
+    DetectionRun base;  ///< context and locus of the whole image; no field
+};
+
+DetectionInput open_input(DetectionSettings& s, const ProgramOptions& options, const Log& log) {
+    check_options(s, options);
+    DetectionInput in{FitsReader(s.image, FitsStart::first_image), std::nullopt, {}, {}};
+    in.size = in.fits.image_size();
+    DetectionRun& r = in.base;
+    r.context.image = s.image;
+    r.context.star_threshold = s.star_threshold;
+    read_geometry(s, options, log, in.fits, in.size, r.context);
     // The saturation level: given, else the header's SATURATE (SExtractor's SATUR_KEY).
-    const std::optional<double> level =
-        options.given("saturation") ? std::optional(saturation) : fits.optional_double("SATURATE");
-    if (level && *level > 0.0) detection.saturation = *level;
-    const std::unique_ptr<ImageArray> inverse_variance = read_inverse_variance(*this, r.image);
-    point_source_locus(*this, options, r.context.pixel_scale, r);
+    const std::optional<double> level = options.given("saturation")
+                                            ? std::optional(s.saturation)
+                                            : in.fits.optional_double("SATURATE");
+    if (level && *level > 0.0) s.detection.saturation = *level;
+    in.weight = open_weight(s, in.size);
+    point_source_locus(s, options, r.context.pixel_scale, r);
     const PointSourceLocus& locus = r.locus;
     log.verbose("point-source locus: FWHM ", locus.fwhm, " px, core fraction ", locus.ratio,
                 " ± ", locus.scatter, " (r ", locus.r_core, " / ", locus.r_outer, " px)");
-    r.field = detect_sources(r.image, inverse_variance.get(), detection);
+    return in;
+}
+
+// Detection on `window` of the image (null: all of it), as an image of its own.
+DetectionRun detect_window(const DetectionSettings& s, DetectionInput& in, const Tile* window) {
+    DetectionRun r = in.base;
+    std::unique_ptr<ImageArray> inverse_variance = read_inverse_variance(s, in.weight, window);
+    {
+        const ImageArray image =
+            window ? in.fits.read_region(window->x0, window->y0, window->x1 - window->x0 + 1,
+                                         window->y1 - window->y0 + 1)
+                   : in.fits.read_image();
+        if (window && r.context.wcs) r.context.wcs = r.context.wcs->cutout(window->x0, window->y0);
+        r.field = detect_sources(image, inverse_variance.get(), s.detection);
+    }
     r.context.noise_correlation = r.field.noise_correlation;
     r.context.background_rms = r.field.background_rms;
-    report_detection(*this, log, r.field, inverse_variance != nullptr);
     return r;
+}
+
+// The tiles' side from --tile, rounded up to whole background cells (so that every tile's
+// mesh is the image's); 0: the whole image in one piece.
+long tile_side(const DetectionSettings& s, const ImageSize& size) {
+    long side = 0;
+    if (s.tile == "none") return 0;
+    if (s.tile == "auto") {
+        if (double(size.nx) * double(size.ny) <= 4096.0 * 4096.0) return 0;
+        side = 2048;
+    } else {
+        std::size_t used = 0;
+        try {
+            side = std::stol(s.tile, &used);
+        } catch (const std::exception&) {
+            used = 0;
+        }
+        if (used != s.tile.size() || side < 16 || side > (1L << 30))
+            throw po::error("--tile: must be auto, none or a side of at least 16 pixels, got '" +
+                            s.tile + "'");
+    }
+    const long cell = s.detection.back_size;
+    side = (side + cell - 1) / cell * cell;
+    return side >= size.nx && side >= size.ny ? 0 : side;
+}
+
+}  // namespace
+
+DetectionRun DetectionSettings::run(const ProgramOptions& options, const Log& log) {
+    DetectionInput in = open_input(*this, options, log);
+    DetectionRun r = detect_window(*this, in, nullptr);
+    report_detection(*this, log, r.field, in.weight.has_value());
+    return r;
+}
+
+TiledRun DetectionSettings::run_tiles(const ProgramOptions& options, const Log& log,
+                                      const TileSink& sink) {
+    DetectionInput in = open_input(*this, options, log);
+    const long side = tile_side(*this, in.size);
+    TiledRun tiled;
+    if (side == 0) {
+        DetectionRun r = detect_window(*this, in, nullptr);
+        report_detection(*this, log, r.field, in.weight.has_value());
+        tiled.tiles.push_back({{1, 1, in.size.nx, in.size.ny}, {1, 1, in.size.nx, in.size.ny}});
+        std::vector<std::size_t> all(r.field.objects.size());
+        for (std::size_t k = 0; k < all.size(); ++k) all[k] = k;
+        tiled.objects = long(all.size());
+        sink(r, tiled.tiles.front(), all);
+        return tiled;
+    }
+    const long cell = detection.back_size;
+    const long margin = (tile_margin + cell - 1) / cell * cell;
+    tiled.tiles = tile_windows(in.size.nx, in.size.ny, side, margin);
+    log.info("the ", in.size.nx, "×", in.size.ny, " image in ", tiled.tiles.size(),
+             " tiles of ", side, "² pixels, each read with a margin of ", margin);
+    for (std::size_t t = 0; t < tiled.tiles.size(); ++t) {
+        const TileWindow& tile = tiled.tiles[t];
+        DetectionRun r = detect_window(*this, in, &tile.window);
+        const long nx = tile.window.x1 - tile.window.x0 + 1, ny = tile.window.y1 - tile.window.y0 + 1;
+        std::vector<std::size_t> owned;
+        for (std::size_t k = 0; k < r.field.objects.size(); ++k) {
+            Detection& d = r.field.objects[k];
+            if (!tile.core.owns(d.x + double(tile.window.x0 - 1), d.y + double(tile.window.y0 - 1)))
+                continue;
+            owned.push_back(k);
+            // Reaching the window's edge where the image goes on: the tile cut it.
+            if ((d.xmin <= 1 && tile.window.x0 > 1) || (d.ymin <= 1 && tile.window.y0 > 1) ||
+                (d.xmax >= nx && tile.window.x1 < in.size.nx) ||
+                (d.ymax >= ny && tile.window.y1 < in.size.ny)) {
+                d.flags.push_back("tile_truncated");
+                ++tiled.truncated;
+            }
+        }
+        tiled.objects += long(owned.size());
+        log.info("tile ", t + 1, " of ", tiled.tiles.size(), " (x ", tile.core.x0, "–",
+                 tile.core.x1, ", y ", tile.core.y0, "–", tile.core.y1, "): ", owned.size(),
+                 " objects above ", detection.detect_thresh, "σ (background rms ",
+                 r.field.background_rms, ", weight scale ", r.field.weight_scale,
+                 ", correlated-noise factor ", r.field.noise_correlation, ")");
+        if (r.field.zero_noise_pixels > 0)
+            log.warn("tile ", t + 1, ": ", r.field.zero_noise_pixels,
+                     " pixels with no data (0 with every neighbour 0, or no noise) are treated "
+                     "as bad");
+        sink(r, tile, owned);
+    }
+    if (tiled.truncated > 0)
+        log.warn(tiled.truncated, " objects reach the edge of their tile's window and are cut "
+                 "by it (flag tile_truncated): give a larger --tile-margin than ", margin);
+    return tiled;
+}
+
+void shift_to_image(Json& record, const TileWindow& tile, long id_offset) {
+    if (tile.window.x0 == 1 && tile.window.y0 == 1 && id_offset == 0) return;
+    const double dx = double(tile.window.x0 - 1), dy = double(tile.window.y0 - 1);
+    for (const char* key : {"x", "x_peak", "x_asym"})
+        if (auto it = record.find(key); it != record.end() && it->is_number())
+            *it = it->is_number_integer() ? Json(it->get<long>() + long(dx))
+                                          : Json(it->get<double>() + dx);
+    for (const char* key : {"y", "y_peak", "y_asym"})
+        if (auto it = record.find(key); it != record.end() && it->is_number())
+            *it = it->is_number_integer() ? Json(it->get<long>() + long(dy))
+                                          : Json(it->get<double>() + dy);
+    if (id_offset != 0)
+        if (auto it = record.find("id"); it != record.end() && it->is_string())
+            *it = std::to_string(std::stol(it->get<std::string>()) + id_offset);
 }
 
 void declare_stamp_options(po::options_description_easy_init& add, StampOptions& stamp) {
