@@ -41,26 +41,37 @@ BUILD   := build$(if $(SAN),-san)
 BIN     := $(if $(SAN),$(BUILD)/bin,bin)
 VERSION := $(shell git describe --always --dirty 2>/dev/null || echo unknown)
 
-CPPFLAGS += -Ishare -isystem /usr/include/eigen3
+CPPFLAGS += -Ishare -I. -isystem /usr/include/eigen3
 CXXFLAGS ?= $(OPT) $(if $(SAN),-g1,-g)
 # No fused multiply-adds even where the target has them: the noise and every sum give the same
 # bits on every machine and with every SIMD path (pixel_noise.hpp).
 CXXFLAGS += -std=c++17 $(WARN) $(SANFLAGS) -pthread -ffp-contract=off
 LDFLAGS  += $(SANFLAGS) -pthread
-LDLIBS   := -lcfitsio -lboost_program_options -lsep
+LDLIBS   := -lcfitsio -lsep
+# The programs' plumbing (app/: options, logging, exit codes) is the one user of Boost's
+# compiled part; the library links without it.
+APP_LDLIBS := -lboost_program_options
 
 Q := $(if $(V),,@)
 
 LIB      := $(BUILD)/libshapesim.a
 LIB_OBJS  = $(LIB_SRCS:%.cpp=$(BUILD)/%.o)
+APP_LIB  := $(BUILD)/libshapesim-app.a
+APP_OBJS  = $(APP_SRCS:%.cpp=$(BUILD)/%.o)
+
+# A program's objects: every source of its folder (<prog>/main.cpp, its options, its modes).
+program_objs = $(patsubst %.cpp,$(BUILD)/%.o,$(sort $(wildcard $(1)/*.cpp)))
+PROGRAM_OBJS = $(foreach p,$(PROGRAMS:shapesim-%=%),$(call program_objs,$(p)))
+.SECONDEXPANSION:
 
 # Lists the fragments append to.
 LIB_SRCS   :=
+APP_SRCS   :=
 PROGRAMS   :=
 UNIT_TESTS :=
 BENCH_SRCS :=
 
-include share/module.mk
+include share/module.mk app/module.mk
 include detect/module.mk decompose/module.mk smooth/module.mk sample/module.mk
 include render/module.mk measure/module.mk survey/module.mk table/module.mk lens/module.mk calibrate/module.mk
 include tests/module.mk
@@ -83,14 +94,19 @@ $(LIB): $(LIB_OBJS)
 	$(if $(Q),@echo "  AR   $@")
 	$(Q)rm -f $@.tmp && ar rcs $@.tmp $^ && mv $@.tmp $@
 
-# Each program links its one main.cpp against the library. Naming the objects as targets keeps
-# make from treating them as intermediate files (deleting them, or missing their rebuild).
-PROGRAM_OBJS = $(PROGRAMS:shapesim-%=$(BUILD)/%/main.o)
+$(APP_LIB): $(APP_OBJS)
+	@mkdir -p $(@D)
+	$(if $(Q),@echo "  AR   $@")
+	$(Q)rm -f $@.tmp && ar rcs $@.tmp $^ && mv $@.tmp $@
+
+# Each program links the sources of its own folder (main.cpp and its options, its modes)
+# against the programs' plumbing and the library. Naming the objects as targets keeps make from
+# treating them as intermediate files (deleting them, or missing their rebuild).
 $(PROGRAM_OBJS):
-$(BIN)/shapesim-%: $(BUILD)/%/main.o $(LIB)
+$(BIN)/shapesim-%: $$(call program_objs,$$*) $(APP_LIB) $(LIB)
 	@mkdir -p $(@D)
 	$(if $(Q),@echo "  LD   $@")
-	$(Q)$(CXX) $(LDFLAGS) $^ $(LDLIBS) -o $@.tmp && mv $@.tmp $@
+	$(Q)$(CXX) $(LDFLAGS) $^ $(LDLIBS) $(APP_LDLIBS) -o $@.tmp && mv $@.tmp $@
 
 # The version string lives in version.o alone; its stamp changes only when `git describe` does.
 $(BUILD)/version.stamp: FORCE

@@ -1,9 +1,9 @@
 // shapesim-calibrate: truth catalogues (shapesim-render --truth) and the shape catalogues
 // measured on their images → the shear calibration e = (1 + m) g + c, overall and in bins, as
 // a Markdown report (and JSON). The work is in the library: calibration.hpp, table.hpp.
-#include "shapesim/app/gnuplot.hpp"
-#include "shapesim/app/options.hpp"
-#include "shapesim/app/run_main.hpp"
+#include "app/gnuplot.hpp"
+#include "app/options.hpp"
+#include "app/run_main.hpp"
 #include "shapesim/atomic_file.hpp"
 #include "shapesim/calibration.hpp"
 #include "shapesim/constants.hpp"

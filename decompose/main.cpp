@@ -1,13 +1,13 @@
 // shapesim-decompose: shapesim.source/1 records + their stamps → shapesim.shapelet/1 models
 // with optimised centre, β and n_max (paper §2.2; DESIGN §1–3). The work is in the library:
 // decompose_job.hpp (each source's job), decompose.hpp (the optimiser and the record), lsq.hpp
-// (the linear fit), psf.hpp (PSF mode); the options in app/decompose_options.hpp.
+// (the linear fit), psf.hpp (PSF mode); the options in decompose/options.hpp.
 #include "shapesim/analytic_psf.hpp"
-#include "shapesim/app/decompose_options.hpp"
-#include "shapesim/app/options.hpp"
-#include "shapesim/app/progress.hpp"
-#include "shapesim/app/provenance.hpp"
-#include "shapesim/app/run_main.hpp"
+#include "decompose/options.hpp"
+#include "app/options.hpp"
+#include "app/progress.hpp"
+#include "app/provenance.hpp"
+#include "app/run_main.hpp"
 #include "shapesim/atomic_file.hpp"
 #include "shapesim/decompose_job.hpp"
 #include "shapesim/fits_io.hpp"

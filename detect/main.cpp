@@ -2,10 +2,10 @@
 // stamps in a multi-extension FITS file (paper §2.1; DESIGN §1, §2, §4).
 // The work is in the library: detect.hpp (background, detection, photometry), stellarity.hpp
 // (star/galaxy), stamps.hpp (stamps and local noise), sources.hpp (records).
-#include "shapesim/app/detection_run.hpp"
-#include "shapesim/app/options.hpp"
-#include "shapesim/app/provenance.hpp"
-#include "shapesim/app/run_main.hpp"
+#include "app/detection_run.hpp"
+#include "app/options.hpp"
+#include "app/provenance.hpp"
+#include "app/run_main.hpp"
 #include "shapesim/atomic_file.hpp"
 #include "shapesim/bands.hpp"
 #include "shapesim/detect.hpp"

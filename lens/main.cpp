@@ -1,9 +1,9 @@
 // shapesim-lens: shapesim.object/1 records → the same records, each galaxy carrying the
 // lensing it sees ("lensing": g1, g2, kappa, magnify), which shapesim-render applies in
 // shapelet space before the PSF. The work is in the library: lensing.hpp.
-#include "shapesim/app/field_options.hpp"
-#include "shapesim/app/options.hpp"
-#include "shapesim/app/run_main.hpp"
+#include "app/field_options.hpp"
+#include "app/options.hpp"
+#include "app/run_main.hpp"
 #include "shapesim/atomic_file.hpp"
 #include "shapesim/constants.hpp"
 #include "shapesim/error.hpp"

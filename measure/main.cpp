@@ -1,13 +1,13 @@
 // shapesim-measure: the morphology diagnostics of every galaxy of an image (paper §5,
 // DESIGN §5) as shapesim.morph/1 records. Detection is shapesim-detect's own
 // (app/detection_run.hpp), the statistics are measure.hpp / morphometry.hpp; the comparison
-// modes are app/compare_run.hpp.
+// modes are measure/compare_run.hpp.
 #include "shapesim/analytic_psf.hpp"
-#include "shapesim/app/compare_run.hpp"
-#include "shapesim/app/detection_run.hpp"
-#include "shapesim/app/options.hpp"
-#include "shapesim/app/progress.hpp"
-#include "shapesim/app/run_main.hpp"
+#include "measure/compare_run.hpp"
+#include "app/detection_run.hpp"
+#include "app/options.hpp"
+#include "app/progress.hpp"
+#include "app/run_main.hpp"
 #include "shapesim/atomic_file.hpp"
 #include "shapesim/error.hpp"
 #include "shapesim/jsonl.hpp"

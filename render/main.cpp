@@ -2,9 +2,9 @@
 // DESIGN §3, §6). The work is in the library: scene.hpp (reading and placing the objects,
 // lensing, convolution, stamps, painting, noise, the truth), convolve.hpp, render.hpp.
 #include "shapesim/analytic_psf.hpp"
-#include "shapesim/app/options.hpp"
-#include "shapesim/app/render_settings.hpp"
-#include "shapesim/app/run_main.hpp"
+#include "app/options.hpp"
+#include "render/settings.hpp"
+#include "app/run_main.hpp"
 #include "shapesim/scene.hpp"
 
 #include <chrono>

@@ -1,9 +1,9 @@
 // shapesim-sample: the morphology model (shapesim-smooth) → new objects over a sky field as
 // shapesim.object/1 records on stdout (paper §4.1–4.2; DESIGN §4, §6). The work is in the
 // library: morphology.hpp (the draws), sample.hpp (the field, stars, tiles).
-#include "shapesim/app/field_options.hpp"
-#include "shapesim/app/options.hpp"
-#include "shapesim/app/run_main.hpp"
+#include "app/field_options.hpp"
+#include "app/options.hpp"
+#include "app/run_main.hpp"
 #include "shapesim/atomic_file.hpp"
 #include "shapesim/geometry.hpp"
 #include "shapesim/jsonl.hpp"

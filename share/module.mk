@@ -1,2 +1,3 @@
-# The shared library: every share/shapesim/**/*.cpp goes into build/libshapesim.a.
-LIB_SRCS += $(sort $(wildcard share/shapesim/*.cpp share/shapesim/app/*.cpp))
+# The library: every share/shapesim/*.cpp goes into build/libshapesim.a (installed; no Boost
+# to link, no program code: that is app/ and each program's own folder).
+LIB_SRCS += $(sort $(wildcard share/shapesim/*.cpp))

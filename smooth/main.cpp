@@ -1,8 +1,8 @@
 // shapesim-smooth: shapelet records (shapesim-decompose) → the morphology model, one JSON
 // document (paper §3–4.1; DESIGN §4). The work is in the library: morphology.hpp.
-#include "shapesim/app/options.hpp"
-#include "shapesim/app/run_main.hpp"
-#include "shapesim/app/source_fields.hpp"
+#include "app/options.hpp"
+#include "app/run_main.hpp"
+#include "smooth/source_fields.hpp"
 #include "shapesim/atomic_file.hpp"
 #include "shapesim/error.hpp"
 #include "shapesim/jsonl.hpp"

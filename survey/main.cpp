@@ -4,10 +4,10 @@
 // of 1 e-/s, exposure, gain, read noise, sky in mag/arcsec^2) into their options, finds the
 // installed models, runs the two programs beside it, and writes the commands it ran.
 #include "shapesim/analytic_psf.hpp"
-#include "shapesim/app/field_options.hpp"
-#include "shapesim/app/log.hpp"
-#include "shapesim/app/options.hpp"
-#include "shapesim/app/run_main.hpp"
+#include "app/field_options.hpp"
+#include "app/log.hpp"
+#include "app/options.hpp"
+#include "app/run_main.hpp"
 #include "shapesim/atomic_file.hpp"
 #include "shapesim/error.hpp"
 

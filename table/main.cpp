@@ -1,9 +1,9 @@
 // shapesim-table: a JSON-lines catalogue (any shapesim schema) → a FITS binary table with
 // TUNIT, or ECSV, for TOPCAT, astropy, fv and the tools astronomers open catalogues with.
 // The work is in the library: table.hpp (columns, units, ECSV) and fits_io.hpp (the FITS table).
-#include "shapesim/app/log.hpp"
-#include "shapesim/app/options.hpp"
-#include "shapesim/app/run_main.hpp"
+#include "app/log.hpp"
+#include "app/options.hpp"
+#include "app/run_main.hpp"
 #include "shapesim/atomic_file.hpp"
 #include "shapesim/error.hpp"
 #include "shapesim/fits_io.hpp"

@@ -13,10 +13,12 @@ STRESS_BIN := $(BUILD)/tests/stress_tests
 # source_dir): no absolute path is compiled in, so a compiler cache serves any clone.
 BENCH_BIN := $(BUILD)/tests/benchmarks
 
-$(UNIT_BIN): $(UNIT_TESTS:%.cpp=$(BUILD)/%.o) $(LIB)
+# The unit tests also hold the programs' own option code (every program source but main.cpp).
+UNIT_PROGRAM_OBJS = $(filter-out %/main.o,$(PROGRAM_OBJS))
+$(UNIT_BIN): $(UNIT_TESTS:%.cpp=$(BUILD)/%.o) $(UNIT_PROGRAM_OBJS) $(APP_LIB) $(LIB)
 	@mkdir -p $(@D)
 	$(if $(Q),@echo "  LD   $@")
-	$(Q)$(CXX) $(LDFLAGS) $^ -lgtest -lgtest_main $(LDLIBS) -o $@.tmp && mv $@.tmp $@
+	$(Q)$(CXX) $(LDFLAGS) $^ -lgtest -lgtest_main $(LDLIBS) $(APP_LDLIBS) -o $@.tmp && mv $@.tmp $@
 
 $(STRESS_BIN): $(STRESS_TESTS:%.cpp=$(BUILD)/%.o) $(BUILD)/tests/unit/test_support.o $(LIB)
 	@mkdir -p $(@D)
@@ -36,10 +38,10 @@ EXAMPLE_SRCS := $(sort $(wildcard tests/examples/*.cpp))
 EXAMPLES     := $(EXAMPLE_SRCS:tests/examples/%.cpp=$(BUILD)/examples/%)
 
 $(EXAMPLE_SRCS:%.cpp=$(BUILD)/%.o):
-$(BUILD)/examples/%: $(BUILD)/tests/examples/%.o $(LIB)
+$(BUILD)/examples/%: $(BUILD)/tests/examples/%.o $(APP_LIB) $(LIB)
 	@mkdir -p $(@D)
 	$(if $(Q),@echo "  LD   $@")
-	$(Q)$(CXX) $(LDFLAGS) $^ $(LDLIBS) -o $@.tmp && mv $@.tmp $@
+	$(Q)$(CXX) $(LDFLAGS) $^ $(LDLIBS) $(APP_LDLIBS) -o $@.tmp && mv $@.tmp $@
 
 .PHONY: examples
 examples: $(EXAMPLES)

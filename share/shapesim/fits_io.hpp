@@ -10,7 +10,7 @@
 // would type them, plus the keyword: `hdf.fits[SCI]: NAXIS1: image is empty`. Every cfitsio
 // status passes one helper that turns it into shapesim::Error with cfitsio's own text.
 //
-// Output: FitsWriter writes a multi-extension file atomically (app/atomic_file): HDU 0 is
+// Output: FitsWriter writes a multi-extension file atomically (atomic_file.hpp): HDU 0 is
 // empty and carries provenance (PROGRAM, VERSION, CFITSIO, caller's keywords such as the
 // options; no DATE, so reruns are bit-identical); each image goes into its own extension
 // with EXTNAME, BUNIT, TAN WCS, extra keywords and HISTORY. Float images are BITPIX −32 (or

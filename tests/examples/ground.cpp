@@ -13,7 +13,7 @@
 // GAIN, EXPTIME, SATURATE and MAGZPT, the AB zero point of one ADU. IN's own noise is binned
 // too, but is far below the sky's. FULL_WELL (ADU): pixels above it read it, as a saturated
 // CCD's do, and SATURATE is that level (without: the 16-bit range's top, which nothing reaches).
-#include "shapesim/app/run_main.hpp"
+#include "app/run_main.hpp"
 #include "shapesim/error.hpp"
 #include "shapesim/fits_io.hpp"
 #include "../corpus/tool_support.hpp"

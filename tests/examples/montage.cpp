@@ -6,7 +6,7 @@
 // One row per object; the three panels of a row share one asinh stretch set by the data
 // (sky at 10% grey, the data's peak at white), so a residual that looks like the sky's noise
 // is one the model has taken up completely. Convert with e.g. `convert OUT.pgm OUT.png`.
-#include "shapesim/app/run_main.hpp"
+#include "app/run_main.hpp"
 #include "shapesim/error.hpp"
 #include "shapesim/fits_io.hpp"
 #include "grey_canvas.hpp"

@@ -6,7 +6,7 @@
 // Every panel uses the first image's stretch: asinh(I/σ) with σ from the first image's median
 // absolute deviation, the sky at 10% grey and 1000σ at white. Panels of different sizes are
 // top-aligned. The first image HDU of each file is read (cfitsio syntax allowed).
-#include "shapesim/app/run_main.hpp"
+#include "app/run_main.hpp"
 #include "shapesim/error.hpp"
 #include "shapesim/fits_io.hpp"
 #include "grey_canvas.hpp"

@@ -14,7 +14,7 @@
 // OUT.pgm: one galaxy — the parent of highest n_max whose own model has no hole — in rows of k = 0, 1, 2, 4, 8 and six
 // draws each, turned back to the parent's own orientation, one asinh stretch for all, the
 // background at 30% grey so negative holes show dark.
-#include "shapesim/app/run_main.hpp"
+#include "app/run_main.hpp"
 #include "shapesim/error.hpp"
 #include "shapesim/morphology.hpp"
 #include "shapesim/render.hpp"

@@ -3,7 +3,7 @@
 // β and n_max, and print the fitted record. stderr gets the round-trip error.
 //
 //   render_and_fit MODELS.jsonl ID OUT.fits [NOISE_SIGMA SEED] > fitted.jsonl
-#include "shapesim/app/run_main.hpp"
+#include "app/run_main.hpp"
 #include "shapesim/error.hpp"
 #include "shapesim/fits_io.hpp"
 #include "shapesim/jsonl.hpp"

@@ -9,7 +9,7 @@
 // asinh composite: with I = (r + g + b)/3, every channel times asinh(I/S)/I, so colours keep
 // their ratios while the brightness is stretched; the sky sits at black, S = 3 (noise units)
 // and 400σ of I saturate. Panels of different sizes are top-aligned; 4 black columns between.
-#include "shapesim/app/run_main.hpp"
+#include "app/run_main.hpp"
 #include "shapesim/atomic_file.hpp"
 #include "shapesim/error.hpp"
 #include "shapesim/fits_io.hpp"

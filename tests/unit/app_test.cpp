@@ -1,12 +1,12 @@
 // Program plumbing: app/options (common options, --config, --print-params, range checks),
 // app/run_main (exceptions → one stderr line and an exit code) and app/log.
-#include "shapesim/app/decompose_options.hpp"
-#include "shapesim/app/detection_run.hpp"
-#include "shapesim/app/log.hpp"
-#include "shapesim/app/options.hpp"
-#include "shapesim/app/progress.hpp"
-#include "shapesim/app/run_main.hpp"
-#include "shapesim/app/source_fields.hpp"
+#include "decompose/options.hpp"
+#include "app/detection_run.hpp"
+#include "app/log.hpp"
+#include "app/options.hpp"
+#include "app/progress.hpp"
+#include "app/run_main.hpp"
+#include "smooth/source_fields.hpp"
 #include "shapesim/error.hpp"
 #include "shapesim/version.hpp"
 

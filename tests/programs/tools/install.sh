@@ -49,10 +49,17 @@ for survey in "$usr"/share/shapesim/surveys/*.survey; do
 done
 [ "$(ls "$usr"/share/shapesim/surveys/*.survey | wc -l)" -ge 3 ] || fail "fewer than 3 shipped surveys"
 
-# The public headers, without app/ (program plumbing), and none of them reaching into it.
+# The public headers, without app/ (program plumbing), and none of them reaching into it; the
+# library without program code: no app/ or program object, nothing of Boost.ProgramOptions.
 [ -s "$usr/include/shapesim/render.hpp" ] && [ -s "$usr/lib/libshapesim.a" ] || fail "no library"
 [ ! -e "$usr/include/shapesim/app" ] || fail "app/ headers installed"
-! grep -l 'shapesim/app/' "$usr"/include/shapesim/*.hpp || fail "a public header includes app/"
+! grep -lE '#include "(app|detect|decompose|smooth|sample|render|measure|lens|calibrate|survey|table)/' \
+  "$usr"/include/shapesim/*.hpp || fail "a public header includes program code"
+members=$(ar t "$usr/lib/libshapesim.a")
+! grep -xE '(options|run_main|detection_run|field_options|provenance|gnuplot|compare_run|settings|source_fields|main)\.o' \
+  <<<"$members" || fail "program code in libshapesim.a: $(tr '\n' ' ' <<<"$members")"
+! nm -C "$usr/lib/libshapesim.a" 2>/dev/null | grep -q 'boost::program_options' ||
+  fail "libshapesim.a uses Boost.ProgramOptions"
 
 # The library through pkg-config only. --define-prefix: prefix from where shapesim.pc lies.
 export PKG_CONFIG_PATH=$usr/lib/pkgconfig

@@ -3,9 +3,9 @@
 // noise (--noise-like, --noise-model, --noise-weight), gain × exposure, the band's seed.
 #pragma once
 
-#include "shapesim/app/field_options.hpp"
-#include "shapesim/app/log.hpp"
-#include "shapesim/app/options.hpp"
+#include "app/field_options.hpp"
+#include "app/log.hpp"
+#include "app/options.hpp"
 #include "shapesim/scene.hpp"
 
 #include <string>

@@ -3,7 +3,7 @@
 // window of its pixels. One declaration, one reading, so both programs agree on a field.
 #pragma once
 
-#include "shapesim/app/options.hpp"
+#include "app/options.hpp"
 #include "shapesim/geometry.hpp"
 #include "shapesim/sample.hpp"
 

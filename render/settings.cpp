@@ -1,9 +1,9 @@
-#include "shapesim/app/render_settings.hpp"
+#include "render/settings.hpp"
 
 #include "shapesim/analytic_psf.hpp"
 #include "shapesim/error.hpp"
 
-#include "shapesim/app/provenance.hpp"
+#include "app/provenance.hpp"
 #include "shapesim/atomic_file.hpp"
 #include "shapesim/fits_io.hpp"
 #include "shapesim/sources.hpp"

@@ -1,8 +1,8 @@
-#include "shapesim/app/run_main.hpp"
+#include "app/run_main.hpp"
 
 #include "shapesim/atomic_file.hpp"
 
-#include "shapesim/app/options.hpp"
+#include "app/options.hpp"
 #include "shapesim/error.hpp"
 
 #include <cerrno>

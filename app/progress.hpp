@@ -4,7 +4,7 @@
 // (never under -q); the data on stdout are untouched, so outputs stay bit-identical.
 #pragma once
 
-#include "shapesim/app/log.hpp"
+#include "app/log.hpp"
 
 #include <unistd.h>
 

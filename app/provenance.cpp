@@ -1,4 +1,4 @@
-#include "shapesim/app/provenance.hpp"
+#include "app/provenance.hpp"
 
 #include <algorithm>
 #include <string>

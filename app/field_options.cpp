@@ -1,4 +1,4 @@
-#include "shapesim/app/field_options.hpp"
+#include "app/field_options.hpp"
 
 #include "shapesim/fits_io.hpp"
 

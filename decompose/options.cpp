@@ -1,4 +1,4 @@
-#include "shapesim/app/decompose_options.hpp"
+#include "decompose/options.hpp"
 
 #include "shapesim/analytic_psf.hpp"
 #include "shapesim/error.hpp"

@@ -5,7 +5,7 @@
 // run on more threads, or into another folder, writes the same bytes.
 #pragma once
 
-#include "shapesim/app/options.hpp"
+#include "app/options.hpp"
 #include "shapesim/fits_io.hpp"
 
 #include <string>

@@ -1,4 +1,4 @@
-#include "shapesim/app/detection_run.hpp"
+#include "app/detection_run.hpp"
 
 #include "shapesim/error.hpp"
 #include "shapesim/fits_io.hpp"

@@ -1,5 +1,5 @@
 #include "shapesim/version.hpp"
-#include "shapesim/app/options.hpp"
+#include "app/options.hpp"
 
 #include "shapesim/error.hpp"
 

@@ -4,8 +4,8 @@
 // around the library's work.
 #pragma once
 
-#include "shapesim/app/log.hpp"
-#include "shapesim/app/options.hpp"
+#include "app/log.hpp"
+#include "app/options.hpp"
 #include "shapesim/compare.hpp"
 
 #include <ostream>

@@ -1,6 +1,6 @@
-#include "shapesim/app/compare_run.hpp"
+#include "measure/compare_run.hpp"
 
-#include "shapesim/app/gnuplot.hpp"
+#include "app/gnuplot.hpp"
 #include "shapesim/atomic_file.hpp"
 #include "shapesim/colours.hpp"
 #include "shapesim/error.hpp"

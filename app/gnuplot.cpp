@@ -1,4 +1,4 @@
-#include "shapesim/app/gnuplot.hpp"
+#include "app/gnuplot.hpp"
 
 #include "shapesim/error.hpp"
 

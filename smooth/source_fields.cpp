@@ -1,6 +1,6 @@
-#include "shapesim/app/source_fields.hpp"
+#include "smooth/source_fields.hpp"
 
-#include "shapesim/app/options.hpp"
+#include "app/options.hpp"
 #include "shapesim/fits_io.hpp"
 #include "shapesim/geometry.hpp"
 #include "shapesim/jsonl.hpp"

@@ -3,8 +3,8 @@
 // its WCS, zero point and noise map; build the point-source locus; detect_sources().
 #pragma once
 
-#include "shapesim/app/log.hpp"
-#include "shapesim/app/options.hpp"
+#include "app/log.hpp"
+#include "app/options.hpp"
 #include "shapesim/detect.hpp"
 #include "shapesim/noise.hpp"
 #include "shapesim/sources.hpp"

@@ -2,7 +2,7 @@
 // in --help's order), their checks, and the named inputs they open for the fits (JobReader).
 #pragma once
 
-#include "shapesim/app/options.hpp"
+#include "app/options.hpp"
 #include "shapesim/decompose.hpp"
 #include "shapesim/decompose_job.hpp"
 #include "shapesim/psf.hpp"

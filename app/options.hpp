@@ -13,7 +13,7 @@
 // `program: message (see --help)` and exits 2.
 #pragma once
 
-#include "shapesim/app/log.hpp"
+#include "app/log.hpp"
 
 #include <boost/program_options.hpp>
 
