@@ -206,9 +206,9 @@ int run(int argc, const char* const argv[]) {
                  "shapesim-decompose --psf)");
     RenderedScene scene = prepare_field(records, field, kernels, o, window, s.input, ReleaseShapes{});
     s.draw_and_write(options, scene, records, kernels);
-    if (const std::string note = clipped_note(summarise_clipped(scene), o.noise_rms); !note.empty())
+    if (const std::string note = app::clipped_note(summarise_clipped(scene), o.noise_rms); !note.empty())
         log.info(note);
-    log.info(render_summary(scene, records.size(), window, kernels,
+    log.info(app::render_summary(scene, records.size(), window, kernels,
                             std::chrono::duration<double>(t_prepare - t_read).count()),
              "; peak memory ", app::Log::peak_memory_mib(), " MiB");
     return 0;

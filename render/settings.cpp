@@ -11,8 +11,38 @@
 #include <chrono>
 #include <cmath>
 #include <optional>
+#include <sstream>
 
 namespace shapesim::app {
+
+std::string clipped_note(const ClippedSummary& c, double noise_rms) {
+    if (c.galaxies <= 0) return {};
+    std::ostringstream note;
+    note << c.galaxies << " galaxies had negative model light, set to zero (at most " << c.largest
+         << " of a galaxy's flux; deepest pixel " << c.deepest
+;
+    if (noise_rms > 0.0) note << " = " << c.deepest / noise_rms << " sigma";
+    note << ")";
+    return note.str();
+}
+
+std::string render_summary(const RenderedScene& scene, std::size_t records, const Tile& window,
+                           const SceneKernels& kernels, double read_seconds) {
+    std::ostringstream line;
+    line << scene.objects.size() << " of " << records << " objects drawn into "
+         << window.x1 - window.x0 + 1 << " x " << window.y1 - window.y0 + 1
+         << " pixels; galaxy kernel: " << kernels.galaxy_note << "; read " << read_seconds
+         << " s, prepare (lens, convolve) " << scene.prepare_seconds << " s, paint "
+         << scene.paint_seconds << " s, noise " << scene.noise_seconds << " s, write "
+         << scene.sink_seconds << " s";
+    return line.str();
+}
+
+std::string noise_label(const std::string& noise_model, bool weighted) {
+    std::string label = noise_model.empty() ? "drizzle-like 3x3 (NOISECOR)" : noise_model;
+    if (weighted) label += ", scaled by the weight map";
+    return label;
+}
 
 void RenderSettings::check(const ProgramOptions& options) {
     const std::string& output = options.common().output;

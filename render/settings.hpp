@@ -13,6 +13,23 @@
 
 namespace shapesim::app {
 
+/// The line saying what clip_negative took (`clipped`, summarise_clipped()): how many galaxies,
+/// the largest fraction of a galaxy's flux, the deepest pixel and, when `noise_rms` > 0, that
+/// pixel in σ. Empty when no galaxy lost light (nothing worth saying).
+std::string clipped_note(const ClippedSummary& clipped, double noise_rms);
+
+/// The stage line of a rendered window: objects drawn of `records`, the window's size, the
+/// galaxy kernel in words, and the seconds of each step (`read_seconds` the caller's; prepare,
+/// paint, noise and write the scene's: drawn in strips, paint and noise are summed over the
+/// threads). Timings go to stderr, never into outputs.
+std::string render_summary(const RenderedScene& scene, std::size_t records, const Tile& window,
+                           const SceneKernels& kernels, double read_seconds);
+
+/// SceneLabels::noise (the NOISEMOD card): the background's correlation in words — the measured
+/// noise record at `noise_model` (use_sky_noise), else the drizzle-like 3×3 kernel (NOISECOR) —
+/// and whether a weight map scales it (`weighted`, read_noise_scale).
+std::string noise_label(const std::string& noise_model, bool weighted);
+
 struct RenderSettings {
     std::string input = "-", psf, galaxy_psf, truth, noise_like, noise_model, noise_weight, band;
     std::string psf_analytic;   ///< --psf-analytic SPEC (analytic_psf.hpp)

@@ -276,6 +276,9 @@ struct Morphology {
     void prepare();
 };
 
+/// Σ_{n even} Re c_{n,0} of a packed shape: its flux over 2√π β a_{0,0}.
+double even_sum(const std::vector<Complex>& shape);
+
 /// Multi-band: band b's flux over the reference band's (the point's shape),
 /// s_b = Σ_{n even} c_{b,n,0} / Σ_{n even} c_{n,0} (NaN when the reference's sum is 0).
 double flux_ratio(const MorphologyPoint& p, std::size_t band);

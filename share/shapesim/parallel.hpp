@@ -1,5 +1,5 @@
 // One loop over independent items on several threads, for the programs' per-object work
-// (decompose, render, measure). Items are handed out one at a time, so uneven costs balance;
+// (decompose, render, measure), and image rows in bands. Items are handed out one at a time, so uneven costs balance;
 // results go into slots indexed by the item, so the output order never depends on the threads.
 #pragma once
 
@@ -29,6 +29,25 @@ void parallel_for(std::size_t count, int threads, const Work& work) {
     for (int t = 1; t < n; ++t) pool.emplace_back(run, t);
     run(0);
     for (auto& thread : pool) thread.join();
+}
+
+/// work(first, last) for the rows [first, last) of `rows` split into min(threads, rows)
+/// contiguous bands, one thread a band (the calling thread the first): for image rows whose
+/// work is even, where handing out one row at a time would cost more than it balances.
+/// `work` must not throw.
+template <class Work>
+void parallel_bands(long rows, int threads, const Work& work) {
+    const int parts = int(std::max<long>(1, std::min<long>(threads, rows)));
+    const auto band = [&](int k) { return std::make_pair(rows * k / parts, rows * (k + 1) / parts); };
+    std::vector<std::thread> pool;
+    for (int k = 1; k < parts; ++k)
+        pool.emplace_back([&, k] {
+            const auto [first, last] = band(k);
+            work(first, last);
+        });
+    const auto [first, last] = band(0);
+    work(first, last);
+    for (auto& t : pool) t.join();
 }
 
 /// produce(k) for every k in [0, count) on min(threads, count) threads, and consume(k, item)

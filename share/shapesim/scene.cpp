@@ -34,26 +34,6 @@ double seconds_since(Clock::time_point start) {
 // Cramér's bound |φ_n(u)| ≤ 1.086435 π^{−1/4}, rounded up.
 const double hermite_bound = 1.0865 * std::pow(pi, -0.25);
 
-// Rows [first, last) of `count` split into `parts` contiguous bands: band `k`.
-std::pair<long, long> band(long count, int parts, int k) {
-    const long first = count * k / parts, last = count * (k + 1) / parts;
-    return {first, last};
-}
-
-template <class Work>
-void in_bands(long rows, int threads, const Work& work) {
-    const int parts = int(std::max<long>(1, std::min<long>(threads, rows)));
-    std::vector<std::thread> pool;
-    for (int k = 1; k < parts; ++k)
-        pool.emplace_back([&, k] {
-            const auto [a, b] = band(rows, parts, k);
-            work(a, b);
-        });
-    const auto [a, b] = band(rows, parts, 0);
-    work(a, b);
-    for (auto& t : pool) t.join();
-}
-
 // to[c] += from[c] for c < n, or += max(from[c], 0) when `clip` (negative light left out), four
 // pixels a lane group (each pixel its own sum: the same bits as one at a time).
 __attribute__((target_clones("avx2", "default"))) void add_stamp_row(
@@ -444,7 +424,7 @@ void paint_into(ImageArray& image, const std::vector<PreparedObject>& objects, c
     // other thread (painting on two threads was slower than on one).
     if (image.rows() != ny || image.cols() != nx) image = large_image(ny, nx);
     if (clipped) clipped->assign(objects.size(), ClippedLight{});
-    in_bands(ny, options.threads, [&](long first, long last) {
+    parallel_bands(ny, options.threads, [&](long first, long last) {
         std::fill(&image(first, 0), &image(first, 0) + (last - first) * nx, 0.0);
         RenderWorkspace ws;
         // Band rows in field 0-based coordinates: [window.y0 − 1 + first, … + last).
@@ -552,7 +532,7 @@ void add_noise(ImageArray& image, const Tile& window, long field_nx, const Scene
     // Its variance is s/gain, so the test is s ≥ photon_floor · gain (and s > 0).
     const bool photons = options.gain > 0.0;
     const double photon_signal = options.photon_tolerance * sigma * sigma * options.gain;
-    in_bands(ny, options.threads, [&](long first, long last) {
+    parallel_bands(ny, options.threads, [&](long first, long last) {
         if (first >= last) return;
         CorrelatedNoise background(kernel, options.seed, window.x0 - 1, nx);
         const PhotonNoise photon(options.seed);
@@ -783,35 +763,6 @@ void write_truth_records(std::ostream& out, const std::string& name, const Rende
                          const std::vector<ObjectRecord>& records) {
     JsonlWriter writer(out, name);
     for (const TruthRecord& t : truth_records(scene, records)) writer.write(t.to_json());
-}
-
-std::string clipped_note(const ClippedSummary& c, double noise_rms) {
-    if (c.galaxies <= 0) return {};
-    std::ostringstream note;
-    note << c.galaxies << " galaxies had negative model light, set to zero (at most " << c.largest
-         << " of a galaxy's flux; deepest pixel " << c.deepest
-;
-    if (noise_rms > 0.0) note << " = " << c.deepest / noise_rms << " sigma";
-    note << ")";
-    return note.str();
-}
-
-std::string render_summary(const RenderedScene& scene, std::size_t records, const Tile& window,
-                           const SceneKernels& kernels, double read_seconds) {
-    std::ostringstream line;
-    line << scene.objects.size() << " of " << records << " objects drawn into "
-         << window.x1 - window.x0 + 1 << " x " << window.y1 - window.y0 + 1
-         << " pixels; galaxy kernel: " << kernels.galaxy_note << "; read " << read_seconds
-         << " s, prepare (lens, convolve) " << scene.prepare_seconds << " s, paint "
-         << scene.paint_seconds << " s, noise " << scene.noise_seconds << " s, write "
-         << scene.sink_seconds << " s";
-    return line.str();
-}
-
-std::string noise_label(const std::string& noise_model, bool weighted) {
-    std::string label = noise_model.empty() ? "drizzle-like 3x3 (NOISECOR)" : noise_model;
-    if (weighted) label += ", scaled by the weight map";
-    return label;
 }
 
 FitsImageSpec scene_image_spec(const RenderedScene& scene, const std::vector<ObjectRecord>& records,

@@ -327,18 +327,6 @@ struct ClippedSummary {
 };
 ClippedSummary summarise_clipped(const RenderedScene& scene);
 
-/// The line saying what clip_negative took (`clipped`, summarise_clipped()): how many galaxies,
-/// the largest fraction of a galaxy's flux, the deepest pixel and, when `noise_rms` > 0, that
-/// pixel in σ. Empty when no galaxy lost light (nothing worth saying).
-std::string clipped_note(const ClippedSummary& clipped, double noise_rms);
-
-/// The stage line of a rendered window: objects drawn of `records`, the window's size, the
-/// galaxy kernel in words, and the seconds of each step (`read_seconds` the caller's; prepare,
-/// paint, noise and write the scene's: drawn in strips, paint and noise are summed over the
-/// threads). Timings go to stderr, never into outputs.
-std::string render_summary(const RenderedScene& scene, std::size_t records, const Tile& window,
-                           const SceneKernels& kernels, double read_seconds);
-
 /// What a rendered image's header names besides SceneOptions: the run's seed (a band's noise
 /// seed is drawn from it), the PSF record ("none"), the background's correlation in words, the
 /// band drawn (empty: none).
@@ -348,11 +336,6 @@ struct SceneLabels {
     double exposure_time = 0.0;  ///< EXPTIME, seconds (0: not written)
     std::string bunit;           ///< BUNIT (empty: the field's)
 };
-
-/// SceneLabels::noise: the background's correlation in words — the measured noise record at
-/// `noise_model` (use_sky_noise), else the drizzle-like 3×3 kernel (NOISECOR) — and whether a
-/// weight map scales it (`weighted`, read_noise_scale).
-std::string noise_label(const std::string& noise_model, bool weighted);
 
 /// The image HDU of a rendered scene: EXTNAME SCI, `bitpix`, the field's BUNIT and its WCS moved
 /// to the window, and cards saying how it was made (seed, truncation, noise, gain, sky,

@@ -1,6 +1,7 @@
 // Painting scenes (scene.hpp): exactness against brute force, flux, truncation, tiles and
 // threads bit for bit, noise statistics, shear recovery.
 #include "shapesim/scene.hpp"
+#include "render/settings.hpp"
 
 #include "shapesim/basis1d.hpp"
 #include "shapesim/error.hpp"
@@ -986,13 +987,13 @@ TEST(Scene, ImageSpecCarriesTheWindowsWcsAndTheRunsCards) {
 // The lines shapesim-render says on stderr and the NOISEMOD label, word for word.
 TEST(Scene, ReportTexts) {
     const ClippedSummary clipped{3, 0.25, -0.5};
-    EXPECT_EQ(clipped_note(clipped, 0.0),
+    EXPECT_EQ(app::clipped_note(clipped, 0.0),
               "3 galaxies had negative model light, set to zero (at most 0.25 of a galaxy's "
               "flux; deepest pixel -0.5)");
-    EXPECT_EQ(clipped_note(clipped, 0.25),
+    EXPECT_EQ(app::clipped_note(clipped, 0.25),
               "3 galaxies had negative model light, set to zero (at most 0.25 of a galaxy's "
               "flux; deepest pixel -0.5 = -2 sigma)");
-    EXPECT_EQ(clipped_note(ClippedSummary{}, 1.0), "");
+    EXPECT_EQ(app::clipped_note(ClippedSummary{}, 1.0), "");
 
     RenderedScene scene;
     scene.prepare_seconds = 1.5;
@@ -1001,11 +1002,11 @@ TEST(Scene, ReportTexts) {
     scene.sink_seconds = 0.125;
     SceneKernels kernels;
     kernels.galaxy_note = "the PSF";
-    EXPECT_EQ(render_summary(scene, 4, Tile{11, 21, 210, 170}, kernels, 0.25),
+    EXPECT_EQ(app::render_summary(scene, 4, Tile{11, 21, 210, 170}, kernels, 0.25),
               "0 of 4 objects drawn into 200 x 150 pixels; galaxy kernel: the PSF; read 0.25 s, "
               "prepare (lens, convolve) 1.5 s, paint 2 s, noise 0.5 s, write 0.125 s");
 
-    EXPECT_EQ(noise_label("", false), "drizzle-like 3x3 (NOISECOR)");
-    EXPECT_EQ(noise_label("", true), "drizzle-like 3x3 (NOISECOR), scaled by the weight map");
-    EXPECT_EQ(noise_label("sky.jsonl", true), "sky.jsonl, scaled by the weight map");
+    EXPECT_EQ(app::noise_label("", false), "drizzle-like 3x3 (NOISECOR)");
+    EXPECT_EQ(app::noise_label("", true), "drizzle-like 3x3 (NOISECOR), scaled by the weight map");
+    EXPECT_EQ(app::noise_label("sky.jsonl", true), "sky.jsonl, scaled by the weight map");
 }
