@@ -66,7 +66,7 @@ void DetectionSettings::declare(ProgramOptions& options, bool image_required) {
              ->notifier(in_range("saturation", 0.0, 1e300)),
          "SATUR_LEVEL, image units as read: objects reaching it are flagged 'saturated' and set "
          "aside with the stars (default: the header's SATURATE; 0: none)")
-        ("tile", po::value(&s.tile)->value_name("SIDE")->default_value("auto"),
+        ("tile-side", po::value(&s.tile_side)->value_name("SIDE")->default_value("auto"),
          "detect in tiles of SIDE² pixels (rounded up to whole --back-size cells), one at a "
          "time, so that memory is bounded by the tile; auto: tiles of 2048² when the image has "
          "more than 4096² pixels; none: the whole image at once")
@@ -275,24 +275,24 @@ DetectionRun detect_window(const DetectionSettings& s, DetectionInput& in, const
     return r;
 }
 
-// The tiles' side from --tile, rounded up to whole background cells (so that every tile's
+// The tiles' side from --tile-side, rounded up to whole background cells (so that every tile's
 // mesh is the image's); 0: the whole image in one piece.
-long tile_side(const DetectionSettings& s, const ImageSize& size) {
+long chosen_tile_side(const DetectionSettings& s, const ImageSize& size) {
     long side = 0;
-    if (s.tile == "none") return 0;
-    if (s.tile == "auto") {
+    if (s.tile_side == "none") return 0;
+    if (s.tile_side == "auto") {
         if (double(size.nx) * double(size.ny) <= 4096.0 * 4096.0) return 0;
         side = 2048;
     } else {
         std::size_t used = 0;
         try {
-            side = std::stol(s.tile, &used);
+            side = std::stol(s.tile_side, &used);
         } catch (const std::exception&) {
             used = 0;
         }
-        if (used != s.tile.size() || side < 16 || side > (1L << 30))
-            throw po::error("--tile: must be auto, none or a side of at least 16 pixels, got '" +
-                            s.tile + "'");
+        if (used != s.tile_side.size() || side < 16 || side > (1L << 30))
+            throw po::error("--tile-side: must be auto, none or a side of at least 16 pixels, got '" +
+                            s.tile_side + "'");
     }
     const long cell = s.detection.back_size;
     side = (side + cell - 1) / cell * cell;
@@ -311,7 +311,7 @@ DetectionRun DetectionSettings::run(const ProgramOptions& options, const Log& lo
 TiledRun DetectionSettings::run_tiles(const ProgramOptions& options, const Log& log,
                                       const TileSink& sink) {
     DetectionInput in = open_input(*this, options, log);
-    const long side = tile_side(*this, in.size);
+    const long side = chosen_tile_side(*this, in.size);
     TiledRun tiled;
     if (side == 0) {
         DetectionRun r = detect_window(*this, in, nullptr);

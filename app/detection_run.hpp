@@ -55,9 +55,9 @@ struct DetectionSettings {
     double psf_fwhm = 0.15, psf_pixel_scale = 0.0, star_threshold = 0.97;
     double saturation = 0.0;  ///< --saturation (0: none; not given: the header's SATURATE)
     std::vector<double> psf_box;
-    /// --tile: "auto" (tiles of 2048² when the image has more than 4096² pixels), "none", or
-    /// the tiles' side in pixels; --tile-margin: pixels read beyond each tile's core.
-    std::string tile = "auto";
+    /// --tile-side: "auto" (tiles of 2048² when the image has more than 4096² pixels), "none",
+    /// or the tiles' side in pixels; --tile-margin: pixels read beyond each tile's core.
+    std::string tile_side = "auto";
     long tile_margin = 256;
     bool no_clean = false, no_rescale = false;
     DetectionOptions detection;
@@ -68,7 +68,7 @@ struct DetectionSettings {
     /// Check the values and run the detection on the whole image (Error / po::error on bad
     /// input).
     DetectionRun run(const ProgramOptions& options, const Log& log);
-    /// Check the values and run the detection tile by tile (--tile), handing each tile's run to
+    /// Check the values and run the detection tile by tile (--tile-side), handing each tile's run to
     /// `sink` in turn, so that memory is bounded by the tile, not the image. Each tile is
     /// detected as an image of its own (its own background mesh, aligned with the image's, and
     /// noise statistics); an object belongs to the tile whose core holds its centroid.

@@ -85,12 +85,12 @@ int run(int argc, const char* const argv[]) {
     AtomicTextFile file(options.common().output_or_stdout());
 
     // Stamps, the segmentation map, the sky's noise and other bands are made from the whole
-    // image at once; the catalogue alone is made tile by tile (--tile).
+    // image at once; the catalogue alone is made tile by tile (--tile-side).
     const bool whole_image_outputs =
         !s.stamps.empty() || !s.segmentation.empty() || !s.noise_model.empty() || !s.bands.empty();
-    if (whole_image_outputs && options.given("tile") && s.detection.tile != "none")
-        throw po::error("--tile: --stamps, --segmentation, --noise-model and --bands are made "
-                        "from the whole image (give --tile none, or leave them out)");
+    if (whole_image_outputs && options.given("tile-side") && s.detection.tile_side != "none")
+        throw po::error("--tile-side: --stamps, --segmentation, --noise-model and --bands are made "
+                        "from the whole image (give --tile-side none, or leave them out)");
     CatalogueTally tally;
     std::string locus_note;
     long written = 0;

@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# Detection and measurement tile by tile (--tile, issue 39) give the catalogue of the whole
+# Detection and measurement tile by tile (--tile-side, issue 39) give the catalogue of the whole
 # image: on a 2048² simulated field cut into 16 tiles of 512², the same objects (counts within
 # 1%), at the same places (in image pixels and on the sky), with the same magnitudes for 99% of
 # the objects no neighbour touches (|Δmag| < 1e-3): where blended neighbours meet, libsep's
@@ -16,18 +16,18 @@ field=(--pixels 2048 --pixel-scale 0.03 --ra 150 --dec 2)
 "$BIN/shapesim-render" -q objects.jsonl --psf-analytic gaussian:0.1 "${field[@]}" \
   --noise-rms 0.0003 -j 2 -o image.fits || fail "render failed"
 
-"$BIN/shapesim-detect" image.fits --tile none -q >whole.jsonl || fail "detect --tile none failed"
-"$BIN/shapesim-detect" image.fits --tile 512 >tiled.jsonl 2>err || fail "detect --tile 512: $(cat err)"
+"$BIN/shapesim-detect" image.fits --tile-side none -q >whole.jsonl || fail "detect --tile-side none failed"
+"$BIN/shapesim-detect" image.fits --tile-side 512 >tiled.jsonl 2>err || fail "detect --tile-side 512: $(cat err)"
 grep -q "the 2048×2048 image in 16 tiles of 512² pixels, each read with a margin of 256" err ||
   fail "no tile summary: $(cat err)"
 grep -q "^shapesim-detect: tile 16 of 16 (x 1537–2048, y 1537–2048): " err || fail "no tile lines"
-"$BIN/shapesim-measure" image.fits --tile none --mag-limit 28 -q >whole.morph.jsonl ||
-  fail "measure --tile none failed"
-"$BIN/shapesim-measure" image.fits --tile 512 --mag-limit 28 -j 2 -q >tiled.morph.jsonl ||
-  fail "measure --tile 512 failed"
+"$BIN/shapesim-measure" image.fits --tile-side none --mag-limit 28 -q >whole.morph.jsonl ||
+  fail "measure --tile-side none failed"
+"$BIN/shapesim-measure" image.fits --tile-side 512 --mag-limit 28 -j 2 -q >tiled.morph.jsonl ||
+  fail "measure --tile-side 512 failed"
 # Below 4096² pixels, auto is the whole image: the same bytes.
 "$BIN/shapesim-detect" image.fits -q >auto.jsonl || fail "detect failed"
-cmp -s auto.jsonl whole.jsonl || fail "--tile auto on 2048² is not the whole image"
+cmp -s auto.jsonl whole.jsonl || fail "--tile-side auto on 2048² is not the whole image"
 
 python3 - <<'PY' || fail "the tiled catalogues differ from the whole image's"
 import json, math
@@ -69,7 +69,7 @@ PY
 weight=$HDF_DATA/hdfn_f814w_v2_weight.fits
 "$BIN/shapesim-measure" "$HDF_IMAGE" --weight "$weight" --zero-point 22.08 -q >hdf.whole.jsonl ||
   fail "measure of the HDF failed"
-"$BIN/shapesim-measure" "$HDF_IMAGE" --weight "$weight" --zero-point 22.08 --tile 256 \
+"$BIN/shapesim-measure" "$HDF_IMAGE" --weight "$weight" --zero-point 22.08 --tile-side 256 \
   --tile-margin 128 -q >hdf.tiled.jsonl || fail "measure of the HDF in tiles failed"
 python3 - <<'PY' || fail "the HDF's tiles differ from the whole"
 import json, math
@@ -87,10 +87,10 @@ PY
 
 # Whole-image outputs are refused with tiles; nothing is written.
 rc=0
-"$BIN/shapesim-detect" image.fits --tile 512 --stamps stamps.fits >out.jsonl 2>err || rc=$?
-expect_error "$rc" 2 "^shapesim-detect: --tile: --stamps, --segmentation, --noise-model and --bands"
+"$BIN/shapesim-detect" image.fits --tile-side 512 --stamps stamps.fits >out.jsonl 2>err || rc=$?
+expect_error "$rc" 2 "^shapesim-detect: --tile-side: --stamps, --segmentation, --noise-model and --bands"
 [ ! -e stamps.fits ] || fail "stamps written"
 rc=0
-"$BIN/shapesim-measure" image.fits --tile 8x8 >out.jsonl 2>err || rc=$?
-expect_error "$rc" 2 "^shapesim-measure: --tile: must be auto, none or a side of at least 16 pixels, got '8x8'"
+"$BIN/shapesim-measure" image.fits --tile-side 8x8 >out.jsonl 2>err || rc=$?
+expect_error "$rc" 2 "^shapesim-measure: --tile-side: must be auto, none or a side of at least 16 pixels, got '8x8'"
 exit 0
