@@ -328,6 +328,8 @@ TiledRun DetectionSettings::run_tiles(const ProgramOptions& options, const Log& 
     tiled.tiles = tile_windows(in.size.nx, in.size.ny, side, margin);
     log.info("the ", in.size.nx, "×", in.size.ny, " image in ", tiled.tiles.size(),
              " tiles of ", side, "² pixels, each read with a margin of ", margin);
+    long mis_scaled = 0;  // tiles whose weight map is far from their measured noise
+    double first_factor = 1.0;
     for (std::size_t t = 0; t < tiled.tiles.size(); ++t) {
         const TileWindow& tile = tiled.tiles[t];
         DetectionRun r = detect_window(*this, in, &tile.window);
@@ -356,8 +358,15 @@ TiledRun DetectionSettings::run_tiles(const ProgramOptions& options, const Log& 
             log.warn("tile ", t + 1, ": ", r.field.zero_noise_pixels,
                      " pixels with no data (0 with every neighbour 0, or no noise) are treated "
                      "as bad");
+        if (in.weight && (r.field.weight_scale > 100.0 || r.field.weight_scale < 0.01)) {
+            if (mis_scaled++ == 0) first_factor = 1.0 / std::sqrt(r.field.weight_scale);
+        }
         sink(r, tile, owned);
     }
+    if (mis_scaled > 0)
+        log.warn("in ", mis_scaled, " of ", tiled.tiles.size(), " tiles the weight map's noise "
+                 "differs from the measured rms by a factor such as ", first_factor,
+                 " (is --weight-type ", weight_type, " right?)");
     if (tiled.truncated > 0)
         log.warn(tiled.truncated, " objects reach the edge of their tile's window and are cut "
                  "by it (flag tile_truncated): give a larger --tile-margin than ", margin);

@@ -85,6 +85,13 @@ assert abs(len(tiled) - len(whole)) <= 0.05 * len(whole)
 assert len(bright) >= 15 and off <= 0.1 * len(bright), off
 PY
 
+# A weight map of the wrong type is named once for all the tiles, as for the whole image.
+"$BIN/shapesim-measure" "$HDF_IMAGE" --weight "$weight" --weight-type rms --zero-point 22.08 \
+  --tile-side 256 >/dev/null 2>err || fail "measure with --weight-type rms failed"
+[ "$(grep -c "differs from the measured rms" err)" -eq 1 ] &&
+  grep -q "warning: in 4 of 4 tiles the weight map's noise differs" err ||
+  fail "no single warning for the wrong weight type: $(grep warning err)"
+
 # Whole-image outputs are refused with tiles; nothing is written.
 rc=0
 "$BIN/shapesim-detect" image.fits --tile-side 512 --stamps stamps.fits >out.jsonl 2>err || rc=$?
