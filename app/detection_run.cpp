@@ -210,6 +210,12 @@ void point_source_locus(const DetectionSettings& s, const ProgramOptions& option
     }
 }
 
+// A weight map whose noise is a factor of 10 or more from the measured rms: the wrong
+// --weight-type, more likely than a drizzle's scale.
+bool weight_scale_suspect(const DetectionResult& field) {
+    return field.weight_scale > 100.0 || field.weight_scale < 0.01;
+}
+
 // What the detection found, and what a user should doubt: pixels with no data, a weight map
 // whose scale is far from the measured noise (the wrong --weight-type?).
 void report_detection(const DetectionSettings& s, const Log& log, const DetectionResult& field,
@@ -221,7 +227,7 @@ void report_detection(const DetectionSettings& s, const Log& log, const Detectio
         log.warn(field.zero_noise_pixels, " pixels with no data (0 with every neighbour 0, or "
                  "no noise: a zero-filled border?) are treated as bad; give a weight map to say "
                  "so");
-    if (weighted && (field.weight_scale > 100.0 || field.weight_scale < 0.01))
+    if (weighted && weight_scale_suspect(field))
         log.warn("the weight map's noise differs from the measured rms by a factor ",
                  1.0 / std::sqrt(field.weight_scale), " (is --weight-type ", s.weight_type,
                  " right?)");
@@ -299,13 +305,18 @@ long chosen_tile_side(const DetectionSettings& s, const ImageSize& size) {
     return side >= size.nx && side >= size.ny ? 0 : side;
 }
 
+// The whole image at once, reported.
+DetectionRun detect_whole(const DetectionSettings& s, DetectionInput& in, const Log& log) {
+    DetectionRun r = detect_window(s, in, nullptr);
+    report_detection(s, log, r.field, in.weight.has_value());
+    return r;
+}
+
 }  // namespace
 
 DetectionRun DetectionSettings::run(const ProgramOptions& options, const Log& log) {
     DetectionInput in = open_input(*this, options, log);
-    DetectionRun r = detect_window(*this, in, nullptr);
-    report_detection(*this, log, r.field, in.weight.has_value());
-    return r;
+    return detect_whole(*this, in, log);
 }
 
 TiledRun DetectionSettings::run_tiles(const ProgramOptions& options, const Log& log,
@@ -314,12 +325,10 @@ TiledRun DetectionSettings::run_tiles(const ProgramOptions& options, const Log& 
     const long side = chosen_tile_side(*this, in.size);
     TiledRun tiled;
     if (side == 0) {
-        DetectionRun r = detect_window(*this, in, nullptr);
-        report_detection(*this, log, r.field, in.weight.has_value());
+        DetectionRun r = detect_whole(*this, in, log);
         tiled.tiles.push_back({{1, 1, in.size.nx, in.size.ny}, {1, 1, in.size.nx, in.size.ny}});
         std::vector<std::size_t> all(r.field.objects.size());
         for (std::size_t k = 0; k < all.size(); ++k) all[k] = k;
-        tiled.objects = long(all.size());
         sink(r, tiled.tiles.front(), all);
         return tiled;
     }
@@ -348,7 +357,6 @@ TiledRun DetectionSettings::run_tiles(const ProgramOptions& options, const Log& 
                 ++tiled.truncated;
             }
         }
-        tiled.objects += long(owned.size());
         log.info("tile ", t + 1, " of ", tiled.tiles.size(), " (x ", tile.core.x0, "–",
                  tile.core.x1, ", y ", tile.core.y0, "–", tile.core.y1, "): ", owned.size(),
                  " objects above ", detection.detect_thresh, "σ (background rms ",
@@ -358,9 +366,8 @@ TiledRun DetectionSettings::run_tiles(const ProgramOptions& options, const Log& 
             log.warn("tile ", t + 1, ": ", r.field.zero_noise_pixels,
                      " pixels with no data (0 with every neighbour 0, or no noise) are treated "
                      "as bad");
-        if (in.weight && (r.field.weight_scale > 100.0 || r.field.weight_scale < 0.01)) {
-            if (mis_scaled++ == 0) first_factor = 1.0 / std::sqrt(r.field.weight_scale);
-        }
+        if (in.weight && weight_scale_suspect(r.field) && mis_scaled++ == 0)
+            first_factor = 1.0 / std::sqrt(r.field.weight_scale);
         sink(r, tile, owned);
     }
     if (mis_scaled > 0)
@@ -375,15 +382,13 @@ TiledRun DetectionSettings::run_tiles(const ProgramOptions& options, const Log& 
 
 void shift_to_image(Json& record, const TileWindow& tile, long id_offset) {
     if (tile.window.x0 == 1 && tile.window.y0 == 1 && id_offset == 0) return;
-    const double dx = double(tile.window.x0 - 1), dy = double(tile.window.y0 - 1);
-    for (const char* key : {"x", "x_peak", "x_asym"})
+    const long dx = tile.window.x0 - 1, dy = tile.window.y0 - 1;
+    const std::pair<const char*, long> moves[] = {{"x", dx},      {"x_peak", dx}, {"x_asym", dx},
+                                                  {"y", dy},      {"y_peak", dy}, {"y_asym", dy}};
+    for (const auto& [key, by] : moves)
         if (auto it = record.find(key); it != record.end() && it->is_number())
-            *it = it->is_number_integer() ? Json(it->get<long>() + long(dx))
-                                          : Json(it->get<double>() + dx);
-    for (const char* key : {"y", "y_peak", "y_asym"})
-        if (auto it = record.find(key); it != record.end() && it->is_number())
-            *it = it->is_number_integer() ? Json(it->get<long>() + long(dy))
-                                          : Json(it->get<double>() + dy);
+            *it = it->is_number_integer() ? Json(it->get<long>() + by)
+                                          : Json(it->get<double>() + double(by));
     if (id_offset != 0)
         if (auto it = record.find("id"); it != record.end() && it->is_string())
             *it = std::to_string(std::stol(it->get<std::string>()) + id_offset);

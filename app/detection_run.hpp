@@ -32,8 +32,7 @@ struct DetectionRun {
 /// the edge of its window (cut by the tile: flagged "tile_truncated").
 struct TiledRun {
     std::vector<TileWindow> tiles;  ///< one, the whole image, when not tiled
-    long objects = 0;               ///< objects detected in the tiles' cores
-    long truncated = 0;             ///< of them, cut by their window's edge inside the image
+    long truncated = 0;             ///< objects cut by their window's edge inside the image
     bool tiled() const { return tiles.size() > 1; }
 };
 

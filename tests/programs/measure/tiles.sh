@@ -4,7 +4,7 @@
 # 1%), at the same places (in image pixels and on the sky), with the same magnitudes for 99% of
 # the objects no neighbour touches (|Δmag| < 1e-3): where blended neighbours meet, libsep's
 # single-precision deblending may hand a pixel or two to the other member, since a tile's
-# pixel coordinates round differently. Ids stay unique. On the HDF with its
+# pixel coordinates round differently. Ids stay unique; objects cut by a tile are flagged. On the HDF with its
 # weight map (each tile its own weight scale) the bright isolated galaxies agree too. Outputs
 # made from the whole image (--stamps) are refused with tiles, in one line.
 source "$(dirname "${BASH_SOURCE[0]}")/../lib.sh"
@@ -84,6 +84,16 @@ print(f"HDF: whole {len(whole)}, tiled {len(tiled)}; isolated I < 28.5: {len(bri
 assert abs(len(tiled) - len(whole)) <= 0.05 * len(whole)
 assert len(bright) >= 15 and off <= 0.1 * len(bright), off
 PY
+
+# Without a margin, objects across a tile's edge are cut by it: flagged and counted in one
+# warning; with the default margin none is.
+"$BIN/shapesim-detect" image.fits --tile-side 512 --tile-margin 0 >cut.jsonl 2>err ||
+  fail "detect --tile-margin 0 failed"
+cut=$(grep -c '"tile_truncated"' cut.jsonl) || fail "no object flagged tile_truncated"
+grep -q "warning: [0-9]* objects reach the edge of their tile's window and are cut by it (flag tile_truncated): give a larger --tile-margin than 0" err ||
+  fail "no warning for the cut objects: $(cat err)"
+! grep -q tile_truncated tiled.jsonl || fail "objects cut with the default margin"
+echo "margin 0: $cut objects flagged tile_truncated; default margin: none"
 
 # A weight map of the wrong type is named once for all the tiles, as for the whole image.
 "$BIN/shapesim-measure" "$HDF_IMAGE" --weight "$weight" --weight-type rms --zero-point 22.08 \
