@@ -109,6 +109,17 @@ SHAPESIM_LANES D exp(D x) {
     return y * from_bits(scale);
 }
 
+/// The top 53 bits of each word as a double, exactly (a uniform deviate's 53 bits, rng.hpp).
+/// AVX2 has no 64-bit integer conversion: the top 32 and the next 21 bits each become a double
+/// by the 2⁵² trick, and their sum is exact.
+SHAPESIM_LANES double top53(std::uint64_t w) { return double(w >> 11); }
+SHAPESIM_LANES Doubles4 top53(Words4 w) {
+    constexpr std::uint64_t two52 = 0x4330000000000000ULL;
+    const Doubles4 high = from_bits((w >> 32) | two52) - 0x1.0p52;
+    const Doubles4 low = from_bits(((w >> 11) & 0x1fffffULL) | two52) - 0x1.0p52;
+    return high * 0x1.0p21 + low;
+}
+
 /// One of two values by a condition (a bool, or a comparison's lanes).
 SHAPESIM_LANES double select(bool m, double a, double b) { return m ? a : b; }
 SHAPESIM_LANES Doubles4 select(Mask4 m, Doubles4 a, Doubles4 b) { return m ? a : b; }

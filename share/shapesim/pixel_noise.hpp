@@ -1,35 +1,13 @@
-// The background noise of a simulated field, keyed by the field pixel so that any tile or
-// thread draws the same numbers (DESIGN §2 "Randomness"; issue 16: near the floor of the
-// machine).
-//
-// White noise (WhiteNoise): the standard normal deviate of field pixel (row R, column C),
-// 0-based, −64 ≤ R, C < 2³² − 64, is the ziggurat (rng.hpp) of one 32-bit word of
-// Philox4x32-10 (Salmon et al. 2011; the same generator as Random123's r123::Philox4x32):
-//   key     = (seed mod 2³², ⌊seed / 2³²⌋)
-//   counter = (⌊(C + 64) / 4⌋, R + 64, P mod 2³², ⌊P / 2³²⌋),  P = FNV-1a 64 of "white noise"
-//   word    = (C + 64) mod 4 of the block
-// The word's low 7 bits pick the layer, bit 7 the sign, the top 24 bits the abscissa, times the
-// layer's width in single precision (the noise is written as 32-bit floats). 97.3% of words
-// decide alone; the rest (the wedge and tail tests, Ziggurat::finish) draw from
-// RandomStream(seed, (R + 64)·2³² + C + 64, "white noise retry"): those streams' first blocks
-// computed together, their first two words' tests in lanes (~99% settle there), the others one
-// at a time. With AVX-512 or
-// AVX2 (the widest the CPU has; SHAPESIM_SIMD=avx2 or none asks for narrower) blocks are computed
-// sixteen or eight at a time and words turned into deviates as many at a time (AVX-512 looks the
-// layer tables up in registers, AVX2 gathers them); otherwise one at a time (Random123's own
-// code). Integer arithmetic and one rounded
-// single-precision multiply per deviate, so every machine gives the same bits.
-//
-// Correlated noise (CorrelatedNoise): white noise through a kernel k (noise.hpp; Σk² = 1):
-// n(p) = Σ_d k(d) w(p + d) (the same law as the convolution: ξ is symmetric), summed directly in single precision over the taps in a
-// fixed order, pairing k(d) with k(−d) when they are equal (every kernel noise.hpp builds is
-// point-symmetric), so the cost is about (2K + 1)²/2 multiplies and (2K + 1)² adds per pixel,
-// sixteen pixels at a time with AVX-512 (four sums at once where there are 16 taps or more),
-// eight with AVX2. Each pixel's sum runs over the same white values in the same order
-// whatever the window, so tiles and threads are bit-identical.
+// The background and photon noise of a simulated field, keyed by the field pixel, so that any
+// tile, thread count or SIMD width draws the same bits (DESIGN §2 "Randomness"): white noise is
+// the single-precision ziggurat of one Philox4x32-10 word per pixel (philox.hpp), correlated
+// noise white noise through a kernel (noise.hpp) summed directly, photon noise a Poisson
+// deviate from the pixel's own block. Which words and bits each draw takes, and in what order:
+// docs/library.md, "The pixel noise, bit by bit".
 #pragma once
 
 #include "shapesim/noise.hpp"
+#include "shapesim/philox.hpp"
 
 #include <array>
 #include <cstdint>
@@ -37,12 +15,7 @@
 
 namespace shapesim {
 
-/// `count` Philox4x32-10 blocks with counters (first + b, c1, c2, c3), b = 0 … count − 1,
-/// under `key` (low word first): out[4b + w] = word w of block b.
-void philox4x32_blocks(std::uint64_t key, std::uint32_t first, std::uint32_t c1,
-                       std::uint32_t c2, std::uint32_t c3, std::size_t count, std::uint32_t* out);
-
-/// The white noise of a seed (see the header comment).
+/// The white noise of a seed (docs/library.md, "The pixel noise, bit by bit").
 class WhiteNoise {
 public:
     static constexpr long margin = 64;  ///< rows and columns from −margin are keyed
