@@ -3,6 +3,7 @@
 #include "shapesim/lane_math.hpp"
 
 #include <cstring>
+#include <utility>
 
 #if defined(__x86_64__)
 #include <immintrin.h>
@@ -21,81 +22,55 @@ namespace {
 constexpr std::uint32_t kM0 = 0xD2511F53u, kM1 = 0xCD9E8D57u;
 constexpr std::uint32_t kW0 = 0x9E3779B9u, kW1 = 0xBB67AE85u;
 
-// A lane width: its words V (lane b holds block b), the product (hi, lo) = m · a in each lane,
-// and the store of four registers (x_w: word w of each lane's block) in block-major order.
-// Only these differ with the width; philox_lanes is the same for all. Their methods carry the
-// width's target and are inlined into its caller (which has the same target), not forced:
-// GCC refuses to force a target's code into the target-less template.
+// A lane width: its words V (lane b holds block b) and the little that differs with it: the
+// 32 × 32 → 64-bit multiply of each 64-bit lane's low word (vpmuludq; GCC's vector extensions
+// make a full 64 × 64-bit multiply of it, three times the work), and the last step of the
+// transpose to block-major order, across 128-bit groups. Their methods carry the width's
+// target and are inlined into its caller (which has the same target), not forced: GCC refuses
+// to force a target's code into the target-less templates below.
 struct OneBlock {
     using V = std::uint32_t;
-    static void mulhilo(V a, std::uint32_t m, V& hi, V& lo) {
-        const std::uint64_t p = std::uint64_t(a) * m;
-        hi = std::uint32_t(p >> 32);
-        lo = std::uint32_t(p);
-    }
-    static void store(V x0, V x1, V x2, V x3, std::uint32_t* out) {
-        const V x[4] = {x0, x1, x2, x3};
-        std::memcpy(out, x, sizeof x);
-    }
 };
 
 #ifdef SHAPESIM_PHILOX_SIMD
-// Eight blocks at once. A 64-bit multiply (vpmuludq) takes the even lanes' words, and the
-// odd ones shifted down; the products' halves are blended back in place. (GCC's vector
-// extensions make a full 64 × 64-bit multiply of it: three times the work.)
-struct Avx2Blocks {
-    using V = std::uint32_t __attribute__((vector_size(32)));
-    __attribute__((target("avx2"))) static void mulhilo(V a, std::uint32_t m, V& hi, V& lo) {
-        const __m256i mm = _mm256_set1_epi32(int(m));
-        const __m256i even = _mm256_mul_epu32(__m256i(a), mm);
-        const __m256i odd = _mm256_mul_epu32(_mm256_srli_epi64(__m256i(a), 32), mm);
-        lo = V(_mm256_blend_epi32(even, _mm256_slli_epi64(odd, 32), 0xAA));
-        hi = V(_mm256_blend_epi32(_mm256_srli_epi64(even, 32), odd, 0xAA));
+// Lanes of `bytes`: as words, and as pairs of words.
+template <int bytes>
+struct Lanes {
+    typedef std::uint32_t V __attribute__((vector_size(bytes)));
+    typedef std::uint64_t Pairs __attribute__((vector_size(bytes)));
+};
+
+struct Avx2Blocks : Lanes<32> {
+    __attribute__((target("avx2"))) static V mul_even(V a, std::uint32_t m) {
+        return V(_mm256_mul_epu32(__m256i(a), _mm256_set1_epi32(int(m))));
     }
-    // Transposed per 128-bit half (the low half holds blocks 0 … 3, the high half 4 … 7).
-    __attribute__((target("avx2"))) static void store(V x0, V x1, V x2, V x3,
-                                                      std::uint32_t* out) {
-        const __m256i t0 = _mm256_unpacklo_epi32(__m256i(x0), __m256i(x1));
-        const __m256i t1 = _mm256_unpacklo_epi32(__m256i(x2), __m256i(x3));
-        const __m256i t2 = _mm256_unpackhi_epi32(__m256i(x0), __m256i(x1));
-        const __m256i t3 = _mm256_unpackhi_epi32(__m256i(x2), __m256i(x3));
-        const __m256i s0 = _mm256_unpacklo_epi64(t0, t1), s1 = _mm256_unpackhi_epi64(t0, t1);
-        const __m256i s2 = _mm256_unpacklo_epi64(t2, t3), s3 = _mm256_unpackhi_epi64(t2, t3);
+    // s_j holds block j in its low 128 bits, block 4 + j in its high ones.
+    __attribute__((target("avx2"))) static void store(V s0, V s1, V s2, V s3, std::uint32_t* out) {
         __m256i* o = reinterpret_cast<__m256i*>(out);
-        _mm256_storeu_si256(o + 0, _mm256_permute2x128_si256(s0, s1, 0x20));
-        _mm256_storeu_si256(o + 1, _mm256_permute2x128_si256(s2, s3, 0x20));
-        _mm256_storeu_si256(o + 2, _mm256_permute2x128_si256(s0, s1, 0x31));
-        _mm256_storeu_si256(o + 3, _mm256_permute2x128_si256(s2, s3, 0x31));
+        _mm256_storeu_si256(o + 0, _mm256_permute2x128_si256(__m256i(s0), __m256i(s1), 0x20));
+        _mm256_storeu_si256(o + 1, _mm256_permute2x128_si256(__m256i(s2), __m256i(s3), 0x20));
+        _mm256_storeu_si256(o + 2, _mm256_permute2x128_si256(__m256i(s0), __m256i(s1), 0x31));
+        _mm256_storeu_si256(o + 3, _mm256_permute2x128_si256(__m256i(s2), __m256i(s3), 0x31));
     }
 };
 
-// Sixteen blocks at once, as Avx2Blocks does eight. (GCC 12's AVX-512 intrinsics start from
-// _mm512_undefined_*: a false "may be used uninitialized", GCC bug 105593.)
+// (GCC 12's AVX-512 intrinsics start from _mm512_undefined_*: a false "may be used
+// uninitialized", GCC bug 105593.)
 #pragma GCC diagnostic push
 #ifndef __clang__
 #pragma GCC diagnostic ignored "-Wmaybe-uninitialized"
 #endif
-struct Avx512Blocks {
-    using V = std::uint32_t __attribute__((vector_size(64)));
-    __attribute__((target("avx512f"))) static void mulhilo(V a, std::uint32_t m, V& hi, V& lo) {
-        const __m512i mm = _mm512_set1_epi32(int(m));
-        const __m512i even = _mm512_mul_epu32(__m512i(a), mm);
-        const __m512i odd = _mm512_mul_epu32(_mm512_srli_epi64(__m512i(a), 32), mm);
-        lo = V(_mm512_mask_blend_epi32(0xAAAA, even, _mm512_slli_epi64(odd, 32)));
-        hi = V(_mm512_mask_blend_epi32(0xAAAA, _mm512_srli_epi64(even, 32), odd));
+struct Avx512Blocks : Lanes<64> {
+    __attribute__((target("avx512f"))) static V mul_even(V a, std::uint32_t m) {
+        return V(_mm512_mul_epu32(__m512i(a), _mm512_set1_epi32(int(m))));
     }
-    // Block-major per 128-bit quarter (quarter q of s_j holds block 4q + j), then the quarters
-    // transposed so that each register holds four consecutive blocks.
-    __attribute__((target("avx512f"))) static void store(V x0, V x1, V x2, V x3,
-                                                         std::uint32_t* out) {
-        const __m512i t0 = _mm512_unpacklo_epi32(__m512i(x0), __m512i(x1));
-        const __m512i t1 = _mm512_unpacklo_epi32(__m512i(x2), __m512i(x3));
-        const __m512i t2 = _mm512_unpackhi_epi32(__m512i(x0), __m512i(x1));
-        const __m512i t3 = _mm512_unpackhi_epi32(__m512i(x2), __m512i(x3));
-        const __m512i s0 = _mm512_unpacklo_epi64(t0, t1), s1 = _mm512_unpackhi_epi64(t0, t1);
-        const __m512i s2 = _mm512_unpacklo_epi64(t2, t3), s3 = _mm512_unpackhi_epi64(t2, t3);
-        const __m512i u0 = _mm512_shuffle_i64x2(s0, s1, 0x44), u1 = _mm512_shuffle_i64x2(s0, s1, 0xEE);
-        const __m512i u2 = _mm512_shuffle_i64x2(s2, s3, 0x44), u3 = _mm512_shuffle_i64x2(s2, s3, 0xEE);
+    // Group q of s_j holds block 4q + j: the groups transposed so that each register holds
+    // four consecutive blocks.
+    __attribute__((target("avx512f"))) static void store(V s0, V s1, V s2, V s3, std::uint32_t* out) {
+        const __m512i u0 = _mm512_shuffle_i64x2(__m512i(s0), __m512i(s1), 0x44);
+        const __m512i u1 = _mm512_shuffle_i64x2(__m512i(s0), __m512i(s1), 0xEE);
+        const __m512i u2 = _mm512_shuffle_i64x2(__m512i(s2), __m512i(s3), 0x44);
+        const __m512i u3 = _mm512_shuffle_i64x2(__m512i(s2), __m512i(s3), 0xEE);
         __m512i* o = reinterpret_cast<__m512i*>(out);
         _mm512_storeu_si512(o + 0, _mm512_shuffle_i64x2(u0, u2, 0x88));
         _mm512_storeu_si512(o + 1, _mm512_shuffle_i64x2(u0, u2, 0xDD));
@@ -105,6 +80,60 @@ struct Avx512Blocks {
 };
 #pragma GCC diagnostic pop
 #endif
+
+// Word k of a two-register shuffle of n words (b's numbered from n) that interleaves, within
+// each 128-bit group of four words, a's and b's elements of `size` words from the group's low
+// (half 0) or high half: SSE's unpacklo/unpackhi_epi32 (size 1) and _epi64 (size 2).
+constexpr int unpack_index(int k, int n, int half, int size) {
+    const int group = k / 4 * 4, j = k % 4, element = j / size;
+    return (element % 2 ? n : 0) + group + size * (half * (2 / size) + element / 2) + j % size;
+}
+template <int half, int size, class V, std::size_t... K>
+SHAPESIM_LANES V unpack(V a, V b, std::index_sequence<K...>) {
+    return __builtin_shufflevector(a, b, unpack_index(int(K), int(sizeof...(K)), half, size)...);
+}
+// Even words of a, odd words of b.
+constexpr int odd_from_b(int k, int n) { return k % 2 ? n + k : k; }
+template <class V, std::size_t... K>
+SHAPESIM_LANES V blend_odd(V a, V b, std::index_sequence<K...>) {
+    return __builtin_shufflevector(a, b, odd_from_b(int(K), int(sizeof...(K)))...);
+}
+
+// (hi, lo) = m · a, 32 × 32 → 64 bits, in each lane: in vector lanes the even words' products
+// and the odd ones' (shifted down), their halves blended back in place.
+template <class L>
+SHAPESIM_LANES void mulhilo(typename L::V a, std::uint32_t m, typename L::V& hi, typename L::V& lo) {
+    using V = typename L::V;
+    if constexpr (sizeof(V) == sizeof(std::uint32_t)) {
+        const std::uint64_t p = std::uint64_t(a) * m;
+        hi = std::uint32_t(p >> 32);
+        lo = std::uint32_t(p);
+    } else {
+        using Pairs = typename L::Pairs;
+        constexpr auto words = std::make_index_sequence<sizeof(V) / sizeof(std::uint32_t)>();
+        const V even = L::mul_even(a, m), odd = L::mul_even(V(Pairs(a) >> 32), m);
+        lo = blend_odd(even, V(Pairs(odd) << 32), words);
+        hi = blend_odd(V(Pairs(even) >> 32), odd, words);
+    }
+}
+
+// Lanes are blocks and registers words (x_w: word w of each block): out block-major. In vector
+// lanes, block-major first within each 128-bit group, then across groups (L::store).
+template <class L>
+SHAPESIM_LANES void store_blocks(typename L::V x0, typename L::V x1, typename L::V x2,
+                                 typename L::V x3, std::uint32_t* out) {
+    using V = typename L::V;
+    if constexpr (sizeof(V) == sizeof(std::uint32_t)) {
+        const V x[4] = {x0, x1, x2, x3};
+        std::memcpy(out, x, sizeof x);
+    } else {
+        constexpr auto words = std::make_index_sequence<sizeof(V) / sizeof(std::uint32_t)>();
+        const V t0 = unpack<0, 1>(x0, x1, words), t1 = unpack<0, 1>(x2, x3, words);
+        const V t2 = unpack<1, 1>(x0, x1, words), t3 = unpack<1, 1>(x2, x3, words);
+        L::store(unpack<0, 2>(t0, t1, words), unpack<1, 2>(t0, t1, words),
+                 unpack<0, 2>(t2, t3, words), unpack<1, 2>(t2, t3, words), out);
+    }
+}
 
 // Lane numbers 0, 1, … (one block: 0).
 template <class V>
@@ -133,14 +162,14 @@ SHAPESIM_LANES std::size_t philox_lanes(std::uint64_t key, std::uint32_t first, 
         for (int round = 0; round < 10; ++round) {
             if (round > 0) k0 += kW0, k1 += kW1;
             V hi0, lo0, hi1, lo1;
-            L::mulhilo(x0, kM0, hi0, lo0);
-            L::mulhilo(x2, kM1, hi1, lo1);
+            mulhilo<L>(x0, kM0, hi0, lo0);
+            mulhilo<L>(x2, kM1, hi1, lo1);
             x0 = hi1 ^ x1 ^ k0;
             x1 = lo1;
             x2 = hi0 ^ x3 ^ k1;
             x3 = lo0;
         }
-        L::store(x0, x1, x2, x3, out + 4 * b);
+        store_blocks<L>(x0, x1, x2, x3, out + 4 * b);
     }
     return b;
 }
