@@ -91,7 +91,7 @@ int run(int argc, const char* const argv[]) {
     if (table.rows == 0) throw Error("no record to write", reader.name());
     if (format == "fits") {
         FitsWriter fits(output, "shapesim-table");
-        fits.write_table(table, extname(table.schema));
+        write_fits_table(fits, table, extname(table.schema));
         fits.commit();
     } else {
         AtomicTextFile file(output);

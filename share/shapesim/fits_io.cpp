@@ -17,6 +17,7 @@
 #include <fstream>
 #include <limits>
 #include <sys/stat.h>
+#include <variant>
 
 
 namespace shapesim {
@@ -883,30 +884,42 @@ void FitsWriter::write_rows(const ImageArray& rows) {
     impl_->open_rows_left -= long(rows.rows());
 }
 
-void FitsWriter::write_table(const CatalogueTable& table, const std::string& extname,
+namespace {
+
+// A binary-table column's rows and TFORM.
+long column_rows(const FitsColumn& c) {
+    return std::visit([](const auto& cells) { return long(cells.size()); }, c.cells);
+}
+
+std::string column_form(const FitsColumn& c) {
+    if (std::holds_alternative<std::vector<long long>>(c.cells)) return "1K";
+    if (std::holds_alternative<std::vector<double>>(c.cells)) return "1D";
+    if (std::holds_alternative<std::vector<bool>>(c.cells)) return "1L";
+    std::size_t width = 1;
+    for (const std::string& t : std::get<std::vector<std::string>>(c.cells))
+        width = std::max(width, t.size());
+    return std::to_string(width) + "A";
+}
+
+}  // namespace
+
+void FitsWriter::write_table(const std::vector<FitsColumn>& columns, const std::string& extname,
                              const std::vector<FitsKeyword>& keywords) {
     require(impl_ && impl_->f, "FitsWriter: a table after commit");
     require(impl_->open_rows_left == 0, "FitsWriter: the image begun is not finished");
     const std::string place = path() + "[" + extname + "]";
-    if (table.columns.empty()) throw Error("a table needs at least one column", place);
-    if (table.columns.size() > 999)
+    if (columns.empty()) throw Error("a table needs at least one column", place);
+    if (columns.size() > 999)
         throw Error("a FITS table holds at most 999 columns, not " +
-                    std::to_string(table.columns.size()), place, 0, "TFIELDS");
+                    std::to_string(columns.size()), place, 0, "TFIELDS");
+    const long rows = column_rows(columns.front());
     std::vector<std::string> names, forms, units;
-    for (const CatalogueColumn& c : table.columns) {
+    for (const FitsColumn& c : columns) {
+        if (column_rows(c) != rows)
+            throw Error("columns differ in length", place, 0, c.name);
         names.push_back(c.name);
         units.push_back(c.unit);
-        switch (c.type) {
-        case CatalogueColumn::Type::integer: forms.push_back("1K"); break;
-        case CatalogueColumn::Type::real: forms.push_back("1D"); break;
-        case CatalogueColumn::Type::boolean: forms.push_back("1L"); break;
-        case CatalogueColumn::Type::text: {
-            std::size_t width = 1;
-            for (const std::string& t : c.texts) width = std::max(width, t.size());
-            forms.push_back(std::to_string(width) + "A");
-            break;
-        }
-        }
+        forms.push_back(column_form(c));
     }
     auto pointers = [](std::vector<std::string>& v) {
         std::vector<char*> p;
@@ -915,51 +928,43 @@ void FitsWriter::write_table(const CatalogueTable& table, const std::string& ext
     };
     std::vector<char*> ttype = pointers(names), tform = pointers(forms), tunit = pointers(units);
     int status = 0;
-    fits_create_tbl(impl_->f, BINARY_TBL, LONGLONG(table.rows), int(table.columns.size()),
-                    ttype.data(), tform.data(), tunit.data(),
-                    const_cast<char*>(extname.c_str()), &status);
+    fits_create_tbl(impl_->f, BINARY_TBL, LONGLONG(rows), int(columns.size()), ttype.data(),
+                    tform.data(), tunit.data(), const_cast<char*>(extname.c_str()), &status);
     check(status, place);
-    write_keyword(impl_->f, {"SCHEMA", table.schema, "shapesim record schema"}, place);
     for (const auto& key : keywords) write_keyword(impl_->f, key, place);
-    if (table.rows == 0) return;
+    if (rows == 0) return;
     LONGLONG offset = 0;  // the column's first byte in a row
-    for (std::size_t k = 0; k < table.columns.size(); ++k) {
-        const CatalogueColumn& c = table.columns[k];
+    for (std::size_t k = 0; k < columns.size(); ++k) {
+        const FitsColumn& c = columns[k];
         const int column = int(k) + 1;
-        switch (c.type) {
-        case CatalogueColumn::Type::integer: {
-            std::vector<LONGLONG> v(c.numbers.begin(), c.numbers.end());
-            fits_write_col(impl_->f, TLONGLONG, column, 1, 1, LONGLONG(v.size()), v.data(), &status);
-            break;
-        }
-        case CatalogueColumn::Type::real:
-            fits_write_col(impl_->f, TDOUBLE, column, 1, 1, LONGLONG(c.numbers.size()),
-                           const_cast<double*>(c.numbers.data()), &status);
-            break;
-        case CatalogueColumn::Type::boolean: {
-            std::vector<char> v;
-            for (double x : c.numbers) v.push_back(x != 0.0 ? 1 : 0);
-            fits_write_col(impl_->f, TLOGICAL, column, 1, 1, LONGLONG(v.size()), v.data(), &status);
-            break;
-        }
-        case CatalogueColumn::Type::text: {
+        LONGLONG width = 8;
+        if (const auto* v = std::get_if<std::vector<long long>>(&c.cells)) {
+            fits_write_col(impl_->f, TLONGLONG, column, 1, 1, LONGLONG(v->size()),
+                           const_cast<long long*>(v->data()), &status);
+        } else if (const auto* v = std::get_if<std::vector<double>>(&c.cells)) {
+            fits_write_col(impl_->f, TDOUBLE, column, 1, 1, LONGLONG(v->size()),
+                           const_cast<double*>(v->data()), &status);
+        } else if (const auto* v = std::get_if<std::vector<bool>>(&c.cells)) {
+            std::vector<char> flags(v->begin(), v->end());
+            fits_write_col(impl_->f, TLOGICAL, column, 1, 1, LONGLONG(flags.size()), flags.data(),
+                           &status);
+            width = 1;
+        } else {
             // NUL-padded, as astropy and numpy strip (cfitsio's own writer pads with blanks,
             // which astropy's Table keeps): each cell's bytes at its place in the row.
-            const std::size_t width = std::size_t(std::stoul(forms[k]));
-            std::vector<unsigned char> cell(width);
-            for (long r = 0; r < table.rows && status == 0; ++r) {
+            const auto& texts = std::get<std::vector<std::string>>(c.cells);
+            width = LONGLONG(std::stoul(forms[k]));
+            std::vector<unsigned char> cell(static_cast<std::size_t>(width));
+            for (long r = 0; r < rows && status == 0; ++r) {
                 std::fill(cell.begin(), cell.end(), 0);
-                std::copy(c.texts[std::size_t(r)].begin(), c.texts[std::size_t(r)].end(),
+                std::copy(texts[std::size_t(r)].begin(), texts[std::size_t(r)].end(),
                           cell.begin());
-                fits_write_tblbytes(impl_->f, LONGLONG(r) + 1, offset + 1, LONGLONG(width),
-                                    cell.data(), &status);
+                fits_write_tblbytes(impl_->f, LONGLONG(r) + 1, offset + 1, width, cell.data(),
+                                    &status);
             }
-            break;
-        }
         }
         check(status, place);
-        offset += LONGLONG(c.type == CatalogueColumn::Type::text ? std::stoul(forms[k])
-                           : c.type == CatalogueColumn::Type::boolean ? 1 : 8);
+        offset += width;
     }
 }
 

@@ -27,7 +27,6 @@
 #include "shapesim/error.hpp"
 #include "shapesim/geometry.hpp"
 #include "shapesim/image.hpp"
-#include "shapesim/table.hpp"
 
 #include <memory>
 #include <optional>
@@ -165,6 +164,17 @@ struct FitsKeyword {
 /// magnitude), so BITPIX −32 loses only precision, never a value.
 bool fits_in_float(const ImageArray& image);
 
+/// One column of a binary table to write (FitsWriter::write_table): TTYPE `name`, TUNIT `unit`
+/// (empty: none) and one cell a row, whose type makes TFORM: 1K (64-bit integers), 1D (doubles),
+/// 1L (logicals) or nA (text, n its longest value).
+struct FitsColumn {
+    std::string name;
+    std::string unit;
+    std::variant<std::vector<long long>, std::vector<double>, std::vector<bool>,
+                 std::vector<std::string>>
+        cells;
+};
+
 /// How to write one image HDU.
 struct FitsImageSpec {
     std::string extname;     ///< EXTNAME (empty: none)
@@ -200,10 +210,9 @@ public:
     /// The next rows of the image begun. FloatRangeError when BITPIX is −32 and a value is
     /// beyond a float (write the image whole, with write_image, to have it promoted).
     void write_rows(const ImageArray& rows);
-    /// Append `table` as a binary-table HDU named `extname`: TTYPE the column names, TUNIT
-    /// their units, TFORM K (int64), D (float64), L (logical) or nA (text, n its longest
-    /// value); a SCHEMA card names the records' schema; `keywords` follow.
-    void write_table(const CatalogueTable& table, const std::string& extname,
+    /// Append `columns` (at least one, at most 999, of one length) as a binary-table HDU named
+    /// `extname`, `keywords` in its header; text cells NUL-padded, as astropy and numpy strip.
+    void write_table(const std::vector<FitsColumn>& columns, const std::string& extname,
                      const std::vector<FitsKeyword>& keywords = {});
     /// Close the file and rename it onto `path`. Throws Error; the writer is then finished.
     void commit();

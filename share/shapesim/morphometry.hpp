@@ -37,6 +37,7 @@
 #include "shapesim/image.hpp"
 #include "shapesim/lsq.hpp"
 
+#include <array>
 #include <cstdint>
 #include <string>
 #include <vector>
@@ -87,6 +88,17 @@ using PixelFlags = Eigen::Array<bool, Eigen::Dynamic, Eigen::Dynamic, Eigen::Row
 /// pixels and, for n_sigma > 0, outliers from their eight neighbours. (Exposed for its test.)
 PixelFlags bad_pixels(const ImageArray& image, const LabelArray& labels, int label,
                       const MaskArray* mask, double n_sigma);
+
+/// The asymmetry centre and its A (morphometry_asymmetry.cpp).
+struct AsymmetryCentre {
+    std::array<double, 2> centre;  ///< stamp pixels, 0-based
+    double asymmetry;
+    bool left_stamp;  ///< the search tried a centre off the stamp: `centre` is the start
+};
+/// A(c) in a circle of radius `r` on `z` (bad pixels zeroed, `masked` made symmetric), less
+/// `sky_asymmetry` per unmasked pixel, minimised by Nelder–Mead from `start`.
+AsymmetryCentre minimise_asymmetry(const ImageArray& z, const PixelFlags& masked, double r,
+                                   double sky_asymmetry, const std::array<double, 2>& start);
 }  // namespace detail
 
 }  // namespace shapesim

@@ -209,6 +209,28 @@ void write_ecsv(std::ostream& out, const CatalogueTable& table) {
     }
 }
 
+void write_fits_table(FitsWriter& out, const CatalogueTable& table, const std::string& extname) {
+    std::vector<FitsColumn> columns;
+    for (const CatalogueColumn& c : table.columns) {
+        FitsColumn f{c.name, c.unit, {}};
+        switch (c.type) {
+        case CatalogueColumn::Type::integer:
+            f.cells = std::vector<long long>(c.numbers.begin(), c.numbers.end());
+            break;
+        case CatalogueColumn::Type::real: f.cells = c.numbers; break;
+        case CatalogueColumn::Type::boolean: {
+            std::vector<bool> flags;
+            for (double x : c.numbers) flags.push_back(x != 0.0);
+            f.cells = std::move(flags);
+            break;
+        }
+        case CatalogueColumn::Type::text: f.cells = c.texts; break;
+        }
+        columns.push_back(std::move(f));
+    }
+    out.write_table(columns, extname, {{"SCHEMA", table.schema, "shapesim record schema"}});
+}
+
 // ---------------------------------------------------------------- read_numeric_columns
 
 namespace {

@@ -10,6 +10,8 @@
 // field_unit): degrees, pixels, arcsec, mag, and the image unit for fluxes when it is known.
 #pragma once
 
+#include "shapesim/fits_io.hpp"
+
 #include <iosfwd>
 #include <map>
 #include <string>
@@ -44,6 +46,11 @@ CatalogueTable read_table(JsonlReader& reader, const std::string& flux_unit);
 /// `table` as ECSV 1.0 (astropy's enhanced CSV: a YAML header of names, units and types, then
 /// space-separated rows; reals in shortest round-trip form, null reals as nan).
 void write_ecsv(std::ostream& out, const CatalogueTable& table);
+
+/// `table` as a binary-table HDU named `extname` of `out` (FitsWriter::write_table): integer
+/// columns as 64-bit integers, real as doubles, boolean as logicals, text as text; a SCHEMA card
+/// names the records' schema.
+void write_fits_table(FitsWriter& out, const CatalogueTable& table, const std::string& extname);
 
 /// Numeric columns of any catalogue a user has on disk, by name (case-sensitive; FITS names
 /// case-insensitive, as cfitsio): JSON lines (each line an object; top-level numbers; null or

@@ -175,7 +175,7 @@ TEST(Calibration, CataloguesReadAlikeInEveryFormat) {
         t.columns = {column("x", {1.5, 3}), column("y", {2, 4.25}), column("e1", {0.1, nan}),
                      column("e2", {-0.2, 0.05}), column("snr", {30, nan})};
         FitsWriter w(fits, "calibration_test");
-        w.write_table(t, "SHAPES");
+        write_fits_table(w, t, "SHAPES");
         w.commit();
     }
     for (const std::string& path : {jsonl, csv, sex, fits}) {

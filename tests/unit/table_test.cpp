@@ -93,7 +93,7 @@ TEST(CatalogueTable, FitsTableRoundTrip) {
         "\n");
     const std::string path = ::testing::TempDir() + "table_test.fits";
     FitsWriter w(path, "table_test");
-    w.write_table(t, "TRUTH");
+    write_fits_table(w, t, "TRUTH");
     w.commit();
     FitsReader r(path);
     r.move_to("TRUTH");
