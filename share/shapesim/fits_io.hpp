@@ -171,7 +171,7 @@ struct FitsImageSpec {
     int bitpix = -32;        ///< −32 or −64 (−32 becomes −64 unless fits_in_float); 8, 16 or
                              ///< 32 for masks and labels
     std::string bunit;       ///< BUNIT (empty: none)
-    std::optional<Wcs> wcs;  ///< TAN WCS: CTYPE, CRPIX, CRVAL, CD, CUNIT
+    std::optional<Wcs> wcs;  ///< WCS: CTYPE, CUNIT, CRPIX, CRVAL, CD, RADESYS, PV, SIP
     std::vector<FitsKeyword> keywords;
     std::vector<std::string> history;  ///< HISTORY cards (long lines are wrapped)
 };
@@ -248,8 +248,9 @@ void write_stamp(FitsWriter& out, const Stamp& stamp);
 
 // The FITS side of a WCS (fits_wcs.cpp).
 
-/// Read the WCS of the current HDU: CRPIXi, CRVALi, CTYPEi and the CD matrix (else
-/// PCi_j × CDELTi, else CDELTi with CROTA2). Throws Error naming the file/HDU and keyword.
+/// Read the celestial WCS of the current HDU: CTYPEi, CRPIXi, CRVALi, the CD matrix (else
+/// PCi_j × CDELTi, else CDELTi with CROTA2), PVi_m, LONPOLE, LATPOLE, RADESYS and SIP terms.
+/// Throws Error naming the file/HDU and keyword.
 Wcs read_wcs(FitsReader& fits);
 /// True when the current HDU declares a celestial WCS (CTYPE1 present).
 bool has_wcs(FitsReader& fits);
