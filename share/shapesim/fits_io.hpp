@@ -13,7 +13,7 @@
 // Output: FitsWriter writes a multi-extension file atomically (atomic_file.hpp): HDU 0 is
 // empty and carries provenance (PROGRAM, VERSION, CFITSIO, caller's keywords such as the
 // options; no DATE, so reruns are bit-identical); each image goes into its own extension
-// with EXTNAME, BUNIT, TAN WCS, extra keywords and HISTORY. Float images are BITPIX −32 (or
+// with EXTNAME, BUNIT, WCS, extra keywords and HISTORY. Float images are BITPIX −32 (or
 // −64 where precision is the point).
 //
 // Stamps (DESIGN §2): one MEF file; per object an image HDU `<id>.image`, a weight (inverse
@@ -256,7 +256,7 @@ Wcs read_wcs(FitsReader& fits);
 bool has_wcs(FitsReader& fits);
 
 /// The geometry of the first image HDU of `path` (cfitsio syntax `file.fits[EXT]` allowed).
-/// Its header's TAN WCS when it has one (CTYPE1 present and not blank); otherwise, with
+/// Its header's WCS when it has one (CTYPE1 present and not blank); otherwise, with
 /// `pixel_scale`, a north-up TAN WCS centred on (`ra`, `dec`) as shapesim-detect assumes;
 /// otherwise Error naming the file. Pixels are not read.
 FieldGeometry read_field_geometry(const std::string& path,
