@@ -47,7 +47,7 @@ CXXFLAGS ?= $(OPT) $(if $(SAN),-g1,-g)
 # bits on every machine and with every SIMD path (pixel_noise.hpp).
 CXXFLAGS += -std=c++17 $(WARN) $(SANFLAGS) -pthread -ffp-contract=off
 LDFLAGS  += $(SANFLAGS) -pthread
-LDLIBS   := -lcfitsio -lsep
+LDLIBS   := -lcfitsio -lsep -lwcs
 # The programs' plumbing (app/: options, logging, exit codes) is the one user of Boost's
 # compiled part; the library links without it.
 APP_LDLIBS := -lboost_program_options

@@ -66,17 +66,7 @@ void write_map(const std::string& path, const LensingSources& lenses, const Fiel
             gamma1(j, i) = c.gamma1;
             gamma2(j, i) = c.gamma2;
         }
-    Wcs wcs = field.wcs;
-    wcs.crpix1 = (wcs.crpix1 + 0.5 * double(b - 1)) / double(b);
-    wcs.crpix2 = (wcs.crpix2 + 0.5 * double(b - 1)) / double(b);
-    wcs.cd1_1 *= double(b), wcs.cd1_2 *= double(b), wcs.cd2_1 *= double(b), wcs.cd2_2 *= double(b);
-    wcs.sip_order = 0;
-    wcs.sip_a.clear();
-    wcs.sip_b.clear();
-    if (wcs.ctype1.size() > 4 && wcs.ctype1.substr(wcs.ctype1.size() - 4) == "-SIP") {
-        wcs.ctype1.resize(wcs.ctype1.size() - 4);
-        wcs.ctype2.resize(wcs.ctype2.size() - 4);
-    }
+    const Wcs wcs = field.wcs.binned(int(b));
     FitsWriter out(path, "shapesim-lens");
     const std::vector<FitsKeyword> keywords{FitsKeyword("BINNING", double(b), "field pixels per map pixel")};
     out.write_image(kappa, FitsImageSpec{"KAPPA", -32, "", wcs, keywords, {"convergence"}});

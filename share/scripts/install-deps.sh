@@ -7,6 +7,7 @@ set -euo pipefail
 packages=(
   g++ make pkg-config
   libcfitsio-dev            # FITS I/O
+  wcslib-dev                # world coordinates: every FITS projection, SIP and TPV
   libeigen3-dev             # linear algebra
   libboost-program-options-dev
   nlohmann-json3-dev        # JSON lines

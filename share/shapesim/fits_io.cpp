@@ -635,12 +635,8 @@ void write_history(fitsfile* f, const std::vector<std::string>& lines, const std
     check(status, place, "HISTORY");
 }
 
-void write_wcs(fitsfile* f, const Wcs& wcs, const std::string& place) {
-    try {
-        wcs.validate();
-    } catch (const Error& e) {
-        throw e.at(place);
-    }
+void write_wcs(fitsfile* f, const Wcs& written, const std::string& place) {
+    const WcsKeywords& wcs = written.keywords();
     const std::vector<FitsKeyword> keys = {
         {"CTYPE1", wcs.ctype1},
         {"CTYPE2", wcs.ctype2},
@@ -656,6 +652,10 @@ void write_wcs(fitsfile* f, const Wcs& wcs, const std::string& place) {
         {"CD2_2", wcs.cd2_2},
         {"RADESYS", wcs.radesys, "frame of RA/Dec"}};
     for (const auto& key : keys) write_keyword(f, key, place);
+    if (wcs.lonpole) write_keyword(f, {"LONPOLE", *wcs.lonpole}, place);
+    if (wcs.latpole) write_keyword(f, {"LATPOLE", *wcs.latpole}, place);
+    for (const auto& pv : wcs.pv)  // projection parameters, TPV terms
+        write_keyword(f, {"PV" + std::to_string(pv.i) + "_" + std::to_string(pv.m), pv.value}, place);
     if (wcs.has_sip()) {  // the distortion travels with the WCS (a render --like keeps it)
         for (const char* order : {"A_ORDER", "B_ORDER"})
             write_keyword(f, {order, (long long)wcs.sip_order, "SIP polynomial order"}, place);

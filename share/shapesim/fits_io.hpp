@@ -13,7 +13,7 @@
 // Output: FitsWriter writes a multi-extension file atomically (atomic_file.hpp): HDU 0 is
 // empty and carries provenance (PROGRAM, VERSION, CFITSIO, caller's keywords such as the
 // options; no DATE, so reruns are bit-identical); each image goes into its own extension
-// with EXTNAME, BUNIT, TAN WCS, extra keywords and HISTORY. Float images are BITPIX −32 (or
+// with EXTNAME, BUNIT, WCS, extra keywords and HISTORY. Float images are BITPIX −32 (or
 // −64 where precision is the point).
 //
 // Stamps (DESIGN §2): one MEF file; per object an image HDU `<id>.image`, a weight (inverse
@@ -181,7 +181,7 @@ struct FitsImageSpec {
     int bitpix = -32;        ///< −32 or −64 (−32 becomes −64 unless fits_in_float); 8, 16 or
                              ///< 32 for masks and labels
     std::string bunit;       ///< BUNIT (empty: none)
-    std::optional<Wcs> wcs;  ///< TAN WCS: CTYPE, CRPIX, CRVAL, CD, CUNIT
+    std::optional<Wcs> wcs;  ///< WCS: CTYPE, CUNIT, CRPIX, CRVAL, CD, RADESYS, PV, SIP
     std::vector<FitsKeyword> keywords;
     std::vector<std::string> history;  ///< HISTORY cards (long lines are wrapped)
 };
@@ -257,14 +257,15 @@ void write_stamp(FitsWriter& out, const Stamp& stamp);
 
 // The FITS side of a WCS (fits_wcs.cpp).
 
-/// Read the WCS of the current HDU: CRPIXi, CRVALi, CTYPEi and the CD matrix (else
-/// PCi_j × CDELTi, else CDELTi with CROTA2). Throws Error naming the file/HDU and keyword.
+/// Read the celestial WCS of the current HDU: CTYPEi, CRPIXi, CRVALi, the CD matrix (else
+/// PCi_j × CDELTi, else CDELTi with CROTA2), PVi_m, LONPOLE, LATPOLE, RADESYS and SIP terms.
+/// Throws Error naming the file/HDU and keyword.
 Wcs read_wcs(FitsReader& fits);
 /// True when the current HDU declares a celestial WCS (CTYPE1 present).
 bool has_wcs(FitsReader& fits);
 
 /// The geometry of the first image HDU of `path` (cfitsio syntax `file.fits[EXT]` allowed).
-/// Its header's TAN WCS when it has one (CTYPE1 present and not blank); otherwise, with
+/// Its header's WCS when it has one (CTYPE1 present and not blank); otherwise, with
 /// `pixel_scale`, a north-up TAN WCS centred on (`ra`, `dec`) as shapesim-detect assumes;
 /// otherwise Error naming the file. Pixels are not read.
 FieldGeometry read_field_geometry(const std::string& path,

@@ -1,4 +1,4 @@
-// The FITS side of a WCS: a header's celestial WCS (TAN, with SIP distortion) and the geometry
+// The FITS side of a WCS: a header's celestial WCS keywords (wcslib evaluates them) and the geometry
 // of a `--like` image, read through cfitsio (declared in fits_io.hpp; the WCS itself is
 // geometry.hpp's).
 #include "shapesim/fits_io.hpp"
@@ -21,7 +21,7 @@ std::string trimmed(std::string s) {
 
 // The CD matrix of the current HDU, by the three FITS conventions in order of precedence
 // (Calabretta & Greisen 2002 §2.1.2; CROTA2 as in the AIPS convention).
-void read_cd(FitsReader& fits, Wcs& w) {
+void read_cd(FitsReader& fits, WcsKeywords& w) {
     if (fits.optional_double("CD1_1") || fits.optional_double("CD2_2")) {
         w.cd1_1 = fits.optional_double("CD1_1").value_or(0.0);
         w.cd1_2 = fits.optional_double("CD1_2").value_or(0.0);
@@ -47,7 +47,7 @@ void read_cd(FitsReader& fits, Wcs& w) {
 
 // The SIP keywords of the current HDU: A_ORDER/B_ORDER and every A_p_q/B_p_q with
 // 2 ≤ p + q ≤ order (absent terms are 0).
-void read_sip(FitsReader& fits, Wcs& w) {
+void read_sip(FitsReader& fits, WcsKeywords& w) {
     const auto order_of = [&](const char* key) {
         const long long order = fits.required_int(key);
         if (order < 2 || order > 9)
@@ -73,6 +73,14 @@ void read_sip(FitsReader& fits, Wcs& w) {
     w.sip_b = terms("B", b_order);
 }
 
+// PVi_m, i = 1, 2: the projection's parameters and TPV's terms (m ≤ 99, as FITS allows).
+void read_pv(FitsReader& fits, WcsKeywords& w) {
+    for (int i = 1; i <= 2; ++i)
+        for (int m = 0; m <= 99; ++m)
+            if (auto v = fits.optional_double("PV" + std::to_string(i) + "_" + std::to_string(m)))
+                w.pv.push_back({i, m, *v});
+}
+
 }  // namespace
 
 bool has_wcs(FitsReader& fits) {
@@ -82,7 +90,7 @@ bool has_wcs(FitsReader& fits) {
 }
 
 Wcs read_wcs(FitsReader& fits) {
-    Wcs w;
+    WcsKeywords w;
     w.ctype1 = fits.required_string("CTYPE1");
     w.ctype2 = fits.required_string("CTYPE2");
     w.crpix1 = fits.required_double("CRPIX1");
@@ -91,18 +99,16 @@ Wcs read_wcs(FitsReader& fits) {
     w.crval2 = fits.required_double("CRVAL2");
     read_cd(fits, w);
     if (trimmed(w.ctype1).size() > 8 && trimmed(w.ctype1).substr(8) == "-SIP") read_sip(fits, w);
+    read_pv(fits, w);
+    w.lonpole = fits.optional_double("LONPOLE");
+    w.latpole = fits.optional_double("LATPOLE");
     if (auto radesys = fits.optional_string("RADESYS"); radesys && !trimmed(*radesys).empty())
         w.radesys = trimmed(*radesys);
-    // A non-default LONPOLE would change the formulas: refuse it rather than ignore it.
-    // (Other distortions come with other CTYPEs, e.g. RA---TPV, which validate() refuses.)
-    if (auto lonpole = fits.optional_double("LONPOLE"); lonpole && *lonpole != 180.0)
-        throw Error("only LONPOLE = 180 is supported", fits.place(), 0, "LONPOLE");
     try {
-        w.validate();
+        return Wcs(std::move(w));
     } catch (const Error& e) {
         throw e.at(fits.place());
     }
-    return w;
 }
 
 FieldGeometry read_field_geometry(const std::string& path, std::optional<double> pixel_scale,

@@ -3,7 +3,13 @@
 #include "shapesim/constants.hpp"
 #include "shapesim/error.hpp"
 
+#include <wcslib/wcs.h>
+#include <wcslib/wcserr.h>
+#include <wcslib/wcshdr.h>
+
 #include <algorithm>
+#include <cstdio>
+#include <mutex>
 #include <cmath>
 #include <optional>
 #include <ostream>
@@ -12,107 +18,225 @@ namespace shapesim {
 
 namespace {
 
-double det_cd(const Wcs& w) { return w.cd1_1 * w.cd2_2 - w.cd1_2 * w.cd2_1; }
+double det_cd(const WcsKeywords& w) { return w.cd1_1 * w.cd2_2 - w.cd1_2 * w.cd2_1; }
 
 std::string trimmed(std::string s) {
     while (!s.empty() && s.back() == ' ') s.pop_back();
     return s;
 }
 
-double sip_sum(const std::vector<std::vector<double>>& c, double u, double v) {
-    double sum = 0.0, up = 1.0;
-    for (std::size_t p = 0; p < c.size(); ++p, up *= u) {
-        double vq = 1.0;
-        for (std::size_t q = 0; p + q < c.size(); ++q, vq *= v) sum += c[p][q] * up * vq;
+// One 80-column header card "KEY     = value", as wcspih() reads them.
+void card(std::string& header, const std::string& key, const std::string& value) {
+    char text[81];
+    std::snprintf(text, sizeof text, "%-8.8s= %-70.70s", key.c_str(), value.c_str());
+    header += text;
+}
+
+std::string number(double v) {
+    char text[32];
+    std::snprintf(text, sizeof text, "%.17G", v);
+    return text;
+}
+
+std::string quoted(const std::string& s) { return "'" + s + "'"; }
+
+// The keywords as a FITS header, exactly (every number to 17 significant digits).
+std::string header_of(const WcsKeywords& w) {
+    std::string h;
+    card(h, "WCSAXES", "2");
+    card(h, "CTYPE1", quoted(w.ctype1));
+    card(h, "CTYPE2", quoted(w.ctype2));
+    card(h, "CUNIT1", quoted("deg"));
+    card(h, "CUNIT2", quoted("deg"));
+    card(h, "CRPIX1", number(w.crpix1));
+    card(h, "CRPIX2", number(w.crpix2));
+    card(h, "CRVAL1", number(w.crval1));
+    card(h, "CRVAL2", number(w.crval2));
+    card(h, "CD1_1", number(w.cd1_1));
+    card(h, "CD1_2", number(w.cd1_2));
+    card(h, "CD2_1", number(w.cd2_1));
+    card(h, "CD2_2", number(w.cd2_2));
+    card(h, "RADESYS", quoted(w.radesys));
+    if (w.radesys == "FK5" || w.radesys == "FK4")
+        card(h, "EQUINOX", w.radesys == "FK5" ? "2000.0" : "1950.0");
+    if (w.lonpole) card(h, "LONPOLE", number(*w.lonpole));
+    if (w.latpole) card(h, "LATPOLE", number(*w.latpole));
+    for (const auto& pv : w.pv)
+        card(h, "PV" + std::to_string(pv.i) + "_" + std::to_string(pv.m), number(pv.value));
+    if (w.has_sip()) {
+        card(h, "A_ORDER", std::to_string(w.sip_order));
+        card(h, "B_ORDER", std::to_string(w.sip_order));
+        for (const auto& [prefix, terms] : {std::pair{"A", &w.sip_a}, std::pair{"B", &w.sip_b}})
+            for (std::size_t p = 0; p < terms->size(); ++p)
+                for (std::size_t q = 0; q < (*terms)[p].size(); ++q)
+                    if ((*terms)[p][q] != 0.0)
+                        card(h, std::string(prefix) + "_" + std::to_string(p) + "_" + std::to_string(q),
+                             number((*terms)[p][q]));
     }
-    return sum;
-}
-}  // namespace
-
-std::pair<double, double> Wcs::distort(double u, double v) const {
-    if (!has_sip()) return {u, v};
-    return {u + sip_sum(sip_a, u, v), v + sip_sum(sip_b, u, v)};
+    return h;
 }
 
-SkyPosition Wcs::pixel_to_sky(double x, double y) const {
-    const auto [dx, dy] = distort(x - crpix1, y - crpix2);
-    const double xi = (cd1_1 * dx + cd1_2 * dy) * degree;
-    const double eta = (cd2_1 * dx + cd2_2 * dy) * degree;
-    const double dec0 = crval2 * degree;
-    const double denom = std::cos(dec0) - eta * std::sin(dec0);
-    double ra = crval1 + std::atan2(xi, denom) / degree;
-    const double dec = std::atan2(eta * std::cos(dec0) + std::sin(dec0), std::hypot(xi, denom));
-    ra = std::fmod(ra, 360.0);
-    if (ra < 0.0) ra += 360.0;
-    return {ra, dec / degree};
+// wcslib's words for a failed call: its error message when it kept one, else its status text.
+std::string wcslib_message(const wcsprm& w, int status) {
+    if (w.err && w.err->msg[0]) return std::string("wcslib: ") + w.err->msg;
+    if (status > 0 && status < 14) return std::string("wcslib: ") + wcs_errmsg[status];
+    return "wcslib: status " + std::to_string(status);
 }
 
-PixelPosition Wcs::sky_to_pixel(double ra, double dec) const {
-    const double dra = (ra - crval1) * degree, d = dec * degree, d0 = crval2 * degree;
-    const double cos_c = std::sin(d) * std::sin(d0) + std::cos(d) * std::cos(d0) * std::cos(dra);
-    if (!(cos_c > 0.0))
-        throw Error("(" + std::to_string(ra) + ", " + std::to_string(dec) +
-                    ") is 90 degrees or more from the WCS reference point");
-    const double xi = std::cos(d) * std::sin(dra) / cos_c / degree;
-    const double eta =
-        (std::cos(d0) * std::sin(d) - std::sin(d0) * std::cos(d) * std::cos(dra)) / cos_c / degree;
-    // Invert the 2×2 CD matrix (validated non-singular), then the distortion: Newton on
-    // distort(u, v) = (u′, v′), from (u′, v′); SIP terms are small, so it converges in a few
-    // steps (the Jacobian by central differences of 1e−3 pixel, exact for the quadratic part).
-    const double det = det_cd(*this);
-    const double ud = (cd2_2 * xi - cd1_2 * eta) / det, vd = (-cd2_1 * xi + cd1_1 * eta) / det;
-    double u = ud, v = vd;
-    for (int step = 0; has_sip() && step < 50; ++step) {
-        const auto [fu, fv] = distort(u, v);
-        const double ru = fu - ud, rv = fv - vd;
-        if (std::hypot(ru, rv) < 1e-10) break;
-        constexpr double h = 1e-3;
-        const auto [au, av] = distort(u + h, v);
-        const auto [bu, bv] = distort(u - h, v);
-        const auto [cu, cv] = distort(u, v + h);
-        const auto [du, dv] = distort(u, v - h);
-        const double j11 = (au - bu) / (2 * h), j21 = (av - bv) / (2 * h);
-        const double j12 = (cu - du) / (2 * h), j22 = (cv - dv) / (2 * h);
-        const double jdet = j11 * j22 - j12 * j21;
-        if (!(std::abs(jdet) > 1e-12)) break;
-        u -= (j22 * ru - j12 * rv) / jdet;
-        v -= (-j21 * ru + j11 * rv) / jdet;
+// The field (keyword) an error from wcslib is most likely about.
+const char* suspect_keyword(int status) {
+    switch (status) {
+        case WCSERR_SINGULAR_MTX: return "CD1_1";
+        case WCSERR_BAD_PARAM: return "PV2_1";
+        default: return "CTYPE1";
     }
-    return {crpix1 + u, crpix2 + v};
 }
 
-double Wcs::pixel_scale_arcsec() const { return std::sqrt(std::abs(det_cd(*this))) * 3600.0; }
-
-void Wcs::validate() const {
-    const std::string suffix = has_sip() ? "-SIP" : "";
-    if (trimmed(ctype1) != "RA---TAN" + suffix)
-        throw Error("expected 'RA---TAN" + suffix + "' (TAN, with SIP or without), got '" +
-                        ctype1 + "'",
-                    {}, 0, "CTYPE1");
-    if (trimmed(ctype2) != "DEC--TAN" + suffix)
-        throw Error("expected 'DEC--TAN" + suffix + "', got '" + ctype2 + "'", {}, 0, "CTYPE2");
-    for (const auto* c : {&sip_a, &sip_b})
+void check_keywords(const WcsKeywords& w) {
+    for (const auto* c : {&w.sip_a, &w.sip_b})
         for (const auto& row : *c)
             for (double v : row)
                 if (!std::isfinite(v)) throw Error("SIP term is not finite", {}, 0, "A_ORDER");
-    for (double v : {crpix1, crpix2, crval1, crval2, cd1_1, cd1_2, cd2_1, cd2_2})
+    for (double v : {w.crpix1, w.crpix2, w.crval1, w.crval2, w.cd1_1, w.cd1_2, w.cd2_1, w.cd2_2})
         if (!std::isfinite(v)) throw Error("WCS value is not finite", {}, 0, "CD1_1");
-    if (!(std::abs(crval2) <= 90.0))
+    for (const auto& pv : w.pv)
+        if (!std::isfinite(pv.value))
+            throw Error("is not finite", {}, 0, "PV" + std::to_string(pv.i) + "_" + std::to_string(pv.m));
+    if (!(std::abs(w.crval2) <= 90.0))
         throw Error("must be within [-90, 90] degrees", {}, 0, "CRVAL2");
-    if (det_cd(*this) == 0.0) throw Error("CD matrix is singular", {}, 0, "CD1_1");
+    if (det_cd(w) == 0.0) throw Error("CD matrix is singular", {}, 0, "CD1_1");
+    const std::string c1 = trimmed(w.ctype1), c2 = trimmed(w.ctype2);
+    if (c1.size() < 8 || c1.compare(0, 5, "RA---") != 0)
+        throw Error("expected RA---XXX (a celestial projection, RA first), got '" + w.ctype1 + "'",
+                    {}, 0, "CTYPE1");
+    const bool sip_ctype = c1.size() == 12 && c1.substr(8) == "-SIP";
+    if (sip_ctype != w.has_sip())
+        throw Error(w.has_sip() ? "SIP terms need CTYPEs ending in -SIP, got '" + w.ctype1 + "'"
+                                : "'" + w.ctype1 + "' needs the SIP terms (A_ORDER, B_ORDER)",
+                    {}, 0, "CTYPE1");
+    if (sip_ctype && c1.substr(5, 3) != "TAN")
+        throw Error("SIP distortion goes with TAN only, got '" + w.ctype1 + "'", {}, 0, "CTYPE1");
+    if (c2.size() < 8 || c2.compare(0, 5, "DEC--") != 0 || c2.substr(5) != c1.substr(5))
+        throw Error("expected DEC--" + c1.substr(std::min<std::size_t>(5, c1.size())) +
+                        " (the projection of CTYPE1), got '" + w.ctype2 + "'",
+                    {}, 0, "CTYPE2");
 }
 
+}  // namespace
+
+std::string WcsKeywords::projection() const {
+    const std::string c = trimmed(ctype1);
+    return c.size() >= 8 ? c.substr(5, 3) : std::string();
+}
+
+// wcslib's state for one WCS. Distortions keep scratch space in it, so calls take turns.
+struct Wcs::Engine {
+    mutable wcsprm w{};
+    mutable std::mutex turn;
+
+    explicit Engine(const WcsKeywords& keywords) {
+        static const bool messages = (wcserr_enable(1), true);  // wcslib keeps its reasons
+        (void)messages;
+        // wcspih's header parser is not documented as reentrant: one header at a time.
+        static std::mutex parsing;
+        const std::lock_guard<std::mutex> lock(parsing);
+        std::string header = header_of(keywords);
+        int rejected = 0, count = 0;
+        wcsprm* parsed = nullptr;
+        int status = wcspih(header.data(), int(header.size() / 80), WCSHDR_all, 0, &rejected,
+                            &count, &parsed);
+        if (status != 0 || count < 1)
+            throw Error("wcslib cannot read the WCS keywords (status " + std::to_string(status) + ")",
+                        {}, 0, "CTYPE1");
+        w.flag = -1;
+        status = wcssub(1, parsed, nullptr, nullptr, &w);
+        wcsvfree(&count, &parsed);
+        if (status != 0) throw Error(wcslib_message(w, status), {}, 0, "CTYPE1");
+        status = wcsset(&w);
+        if (status != 0) {
+            const std::string why = wcslib_message(w, status);
+            wcsfree(&w);
+            throw Error(why, {}, 0, suspect_keyword(status));
+        }
+        if (w.naxis != 2 || w.lng != 0 || w.lat != 1) {
+            wcsfree(&w);
+            throw Error("not a celestial WCS with RA first and Dec second", {}, 0, "CTYPE1");
+        }
+    }
+    ~Engine() { wcsfree(&w); }
+    Engine(const Engine&) = delete;
+    Engine& operator=(const Engine&) = delete;
+};
+
+Wcs::Wcs() : Wcs(WcsKeywords{}) {}
+
+Wcs::Wcs(WcsKeywords keywords) : keywords_(std::move(keywords)) {
+    check_keywords(keywords_);
+    engine_ = std::make_shared<const Engine>(keywords_);
+}
+
+SkyPosition Wcs::pixel_to_sky(double x, double y) const {
+    const double pixel[2] = {x, y};
+    double image[2], phi, theta, world[2];
+    int stat = 0, status;
+    {
+        const std::lock_guard<std::mutex> lock(engine_->turn);
+        status = wcsp2s(&engine_->w, 1, 2, pixel, image, &phi, &theta, world, &stat);
+    }
+    if (status != 0)
+        throw Error("pixel (" + std::to_string(x) + ", " + std::to_string(y) +
+                    ") is outside the projection's domain");
+    double ra = std::fmod(world[0], 360.0);
+    if (ra < 0.0) ra += 360.0;
+    return {ra, world[1]};
+}
+
+PixelPosition Wcs::sky_to_pixel(double ra, double dec) const {
+    const double world[2] = {ra, dec};
+    double phi, theta, image[2], pixel[2];
+    int stat = 0, status;
+    {
+        const std::lock_guard<std::mutex> lock(engine_->turn);
+        status = wcss2p(&engine_->w, 1, 2, world, &phi, &theta, image, pixel, &stat);
+    }
+    // TAN reaches only the hemisphere about its reference point (θ > 0).
+    if (status != 0 || (keywords_.projection() == "TAN" && !(theta > 0.0)))
+        throw Error("(" + std::to_string(ra) + ", " + std::to_string(dec) +
+                    ") is 90 degrees or more from the WCS reference point, or beyond the "
+                    "projection's reach");
+    return {pixel[0], pixel[1]};
+}
+
+double Wcs::pixel_scale_arcsec() const { return std::sqrt(std::abs(det_cd(keywords_))) * 3600.0; }
+
 Wcs Wcs::cutout(long x0, long y0) const {
-    Wcs w = *this;
+    WcsKeywords w = keywords_;
     w.crpix1 -= double(x0 - 1);
     w.crpix2 -= double(y0 - 1);
-    return w;
+    return Wcs(std::move(w));
+}
+
+Wcs Wcs::binned(int factor) const {
+    require(factor >= 1, "Wcs::binned: the factor must be at least 1");
+    WcsKeywords w = keywords_;
+    const double b = factor;
+    w.crpix1 = (w.crpix1 + 0.5 * (b - 1.0)) / b;
+    w.crpix2 = (w.crpix2 + 0.5 * (b - 1.0)) / b;
+    w.cd1_1 *= b, w.cd1_2 *= b, w.cd2_1 *= b, w.cd2_2 *= b;
+    if (w.has_sip()) {
+        w.sip_order = 0;
+        w.sip_a.clear();
+        w.sip_b.clear();
+        w.ctype1 = trimmed(w.ctype1).substr(0, 8);
+        w.ctype2 = trimmed(w.ctype2).substr(0, 8);
+    }
+    return Wcs(std::move(w));
 }
 
 Wcs tan_wcs(double ra, double dec, double pixel_scale_arcsec, double crpix1, double crpix2,
             double rotation_deg) {
     require(pixel_scale_arcsec > 0.0, "tan_wcs: pixel scale must be > 0");
-    Wcs w;
+    WcsKeywords w;
     w.crval1 = ra;
     w.crval2 = dec;
     w.crpix1 = crpix1;
@@ -123,8 +247,7 @@ Wcs tan_wcs(double ra, double dec, double pixel_scale_arcsec, double crpix1, dou
     w.cd1_2 = -s * std::sin(rho);
     w.cd2_1 = -s * std::sin(rho);
     w.cd2_2 = s * std::cos(rho);
-    w.validate();
-    return w;
+    return Wcs(std::move(w));
 }
 
 double FieldGeometry::area_arcmin2() const {

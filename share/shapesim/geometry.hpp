@@ -1,24 +1,14 @@
-// Field geometry: the gnomonic (TAN) world coordinate system and `--like IMAGE`.
+// Field geometry: the world coordinate system of a field and `--like IMAGE`.
 //
 // Pixel positions are FITS pixel coordinates (first pixel centred at (1, 1)); sky positions
-// are (RA, Dec) in degrees; the CD matrix is in degrees per pixel. The projection is the
-// FITS "TAN" of Calabretta & Greisen (2002, A&A 395, 1077) with the reference point at the
-// native pole (LONPOLE = 180°), in closed form:
-//   (ξ, η) = CD · (x − CRPIX1, y − CRPIX2)                      (intermediate, radians)
-//   α = α₀ + atan2(ξ, cos δ₀ − η sin δ₀)
-//   δ = atan2(η cos δ₀ + sin δ₀, √(ξ² + (cos δ₀ − η sin δ₀)²))
-// and its exact inverse, with cos c = sin δ sin δ₀ + cos δ cos δ₀ cos(α − α₀) > 0:
-//   ξ = cos δ sin(α − α₀) / cos c,  η = (cos δ₀ sin δ − sin δ₀ cos δ cos(α − α₀)) / cos c.
-// Distortion: the SIP convention (Shupe et al. 2005; CTYPE RA---TAN-SIP / DEC--TAN-SIP), the
-// one HST, Spitzer and most survey pipelines write: before the CD matrix,
-//   u′ = u + Σ A_p_q u^p v^q,  v′ = v + Σ B_p_q u^p v^q   (u, v = x − CRPIX1, y − CRPIX2;
-//   2 ≤ p + q ≤ A_ORDER, B_ORDER),
-// inverted by Newton's method to 1e−10 pixel (the optional AP/BP inverse polynomials are
-// approximations and are not needed). Other projections and distortions (TPV, ZPN, SIN…)
-// are refused by name. The pixel scale of a field is √|det CD| in arcsec.
+// are (RA, Dec) in degrees; the CD matrix is in degrees per pixel. A Wcs is evaluated by
+// wcslib (Calabretta & Greisen 2002, A&A 395, 1077): every celestial projection it knows
+// (TAN, SIN, ZPN, ZEA, ARC, …) and the distortions surveys write (SIP, TPV).
+// docs/library.md "World coordinates" says what is read, written and refused.
 #pragma once
 
 #include <iosfwd>
+#include <memory>
 #include <optional>
 #include <string>
 #include <utility>
@@ -36,39 +26,69 @@ struct PixelPosition {
     double x = 0.0, y = 0.0;
 };
 
-/// A TAN world coordinate system; fields are named after their FITS keywords.
-struct Wcs {
+/// The keywords of a celestial WCS, named after their FITS keywords: what a header holds and
+/// a written image gets back. The linear part is always a CD matrix (read_wcs() converts
+/// PCi_j/CDELTi and CROTA2).
+struct WcsKeywords {
     double crpix1 = 0.0, crpix2 = 0.0;  ///< reference pixel (FITS coordinates)
     double crval1 = 0.0, crval2 = 0.0;  ///< reference point (RA, Dec), degrees
     double cd1_1 = 1.0, cd1_2 = 0.0;    ///< CD matrix, degrees per pixel: CDi_j
     double cd2_1 = 0.0, cd2_2 = 1.0;
     std::string ctype1 = "RA---TAN", ctype2 = "DEC--TAN";
     /// RADESYS: the frame RA/Dec are in, as read (ICRS when the header names none; the
-    /// formulas do not depend on it). Written back with every WCS.
+    /// transformation does not depend on it). Written back with every WCS.
     std::string radesys = "ICRS";
     /// SIP distortion (CTYPEs end in -SIP): sip_a[p][q] = A_p_q for p + q ≤ sip_order (the
     /// larger of A_ORDER and B_ORDER; missing terms 0); empty without distortion.
     int sip_order = 0;
     std::vector<std::vector<double>> sip_a, sip_b;
+    /// PVi_m cards: projection parameters (ZPN's PV2_m, …) and TPV's distortion terms.
+    struct Pv {
+        int i = 0, m = 0;
+        double value = 0.0;
+        bool operator==(const Pv& o) const { return i == o.i && m == o.m && value == o.value; }
+    };
+    std::vector<Pv> pv;
+    std::optional<double> lonpole, latpole;  ///< LONPOLE, LATPOLE when the header sets them
 
     /// True when the WCS carries SIP distortion.
     bool has_sip() const { return sip_order > 0; }
-    /// (u′, v′): the SIP-distorted offsets of (u, v) from CRPIX (the identity without SIP).
-    std::pair<double, double> distort(double u, double v) const;
+    /// The projection's three-letter code: "TAN" for RA---TAN-SIP, "ZPN" for RA---ZPN.
+    std::string projection() const;
+};
 
-    /// Sky position of a pixel position (exact TAN formulas above).
+/// A celestial WCS ready to evaluate: its keywords, checked and set up by wcslib. Immutable:
+/// cutout() and binned() make new ones. Copies share the wcslib state; calls on one Wcs
+/// from several threads are safe.
+class Wcs {
+public:
+    /// The default keywords: a TAN of 1° pixels at (0, 0).
+    Wcs();
+    /// Throws Error (field = the keyword at fault) unless the keywords are finite, the axes
+    /// are RA and Dec, det CD ≠ 0, the CTYPE ends in -SIP exactly when there are SIP terms,
+    /// and wcslib accepts them.
+    explicit Wcs(WcsKeywords keywords);
+
+    const WcsKeywords& keywords() const { return keywords_; }
+    /// Sky position of a pixel position.
     SkyPosition pixel_to_sky(double x, double y) const;
-    /// Pixel position of a sky position; throws Error when it lies 90° or more from CRVAL
-    /// (the TAN projection does not reach it).
+    /// Pixel position of a sky position; throws Error when the projection does not reach it
+    /// (e.g. 90° or more from a TAN reference point).
     PixelPosition sky_to_pixel(double ra, double dec) const;
     /// Pixel scale √|det CD|, arcsec per pixel.
     double pixel_scale_arcsec() const;
     /// The WCS of a cutout whose first pixel is this one's pixel (`x0`, `y0`): CRPIX moved by
     /// (x0 − 1, y0 − 1). SIP terms are in offsets from CRPIX, so they move with it unchanged.
     Wcs cutout(long x0, long y0) const;
-    /// Throws Error (field = keyword) unless finite, CTYPE is RA---TAN/DEC--TAN (with -SIP
-    /// exactly when it has SIP terms) and det CD ≠ 0.
-    void validate() const;
+    /// The WCS of the field binned `factor` × `factor` (pixel (1, 1) of the binned grid covers
+    /// pixels 1…factor): CRPIX and CD rescaled; SIP distortion, which is in pixel offsets, is
+    /// dropped (TPV's, in degrees, is kept).
+    Wcs binned(int factor) const;
+
+private:
+    struct Engine;
+    WcsKeywords keywords_;
+    std::shared_ptr<const Engine> engine_;
 };
 
 /// A north-up, east-left TAN WCS with square pixels: `pixel_scale_arcsec` per pixel, the sky

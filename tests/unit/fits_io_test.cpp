@@ -230,12 +230,12 @@ TEST_F(FitsTest, MefRoundTripWithKeywordsWcsAndHistory) {
     EXPECT_EQ(fits.required_string("LONGSTR"), std::string(150, 'x') + "end");
     EXPECT_EQ(fits.required_double("A_VERY_LONG_NAME"), 0.5);  // HIERARCH
     const Wcs back = read_wcs(fits);
-    EXPECT_EQ(back.crpix1, wcs.crpix1);
-    EXPECT_EQ(back.crval2, wcs.crval2);
-    EXPECT_EQ(back.cd1_1, wcs.cd1_1);
-    EXPECT_EQ(back.cd1_2, wcs.cd1_2);
-    EXPECT_EQ(back.cd2_1, wcs.cd2_1);
-    EXPECT_EQ(back.cd2_2, wcs.cd2_2);
+    EXPECT_EQ(back.keywords().crpix1, wcs.keywords().crpix1);
+    EXPECT_EQ(back.keywords().crval2, wcs.keywords().crval2);
+    EXPECT_EQ(back.keywords().cd1_1, wcs.keywords().cd1_1);
+    EXPECT_EQ(back.keywords().cd1_2, wcs.keywords().cd1_2);
+    EXPECT_EQ(back.keywords().cd2_1, wcs.keywords().cd2_1);
+    EXPECT_EQ(back.keywords().cd2_2, wcs.keywords().cd2_2);
 
     fits.move_to("WEIGHT");
     EXPECT_TRUE((fits.read_image() == b.cast<float>().cast<double>()).all());  // −32: float
@@ -270,8 +270,9 @@ TEST_F(FitsTest, NanPixelsReadAsNanAndBlankIntegersToo) {
 // RADESYS passes through a WCS: read as the header gives it (ICRS when absent), written back,
 // with EQUINOX 2000 for FK5.
 TEST_F(FitsTest, RadesysRoundTrips) {
-    Wcs fk5 = tan_wcs(189.2, 62.2, 0.04, 10.0, 10.0);
-    fk5.radesys = "FK5";
+    WcsKeywords fk5_keywords = tan_wcs(189.2, 62.2, 0.04, 10.0, 10.0).keywords();
+    fk5_keywords.radesys = "FK5";
+    const Wcs fk5(fk5_keywords);
     {
         FitsWriter out(path("frames.fits"), "test");
         out.write_image(index_image(4, 4), {"FK5", -32, "", fk5, {}, {}});
@@ -279,14 +280,14 @@ TEST_F(FitsTest, RadesysRoundTrips) {
         out.commit();
     }
     FitsReader in(path("frames.fits[FK5]"));
-    EXPECT_EQ(read_wcs(in).radesys, "FK5");
+    EXPECT_EQ(read_wcs(in).keywords().radesys, "FK5");
     EXPECT_EQ(in.required_double("EQUINOX"), 2000.0);
     FitsReader icrs(path("frames.fits[ICRS]"));
-    EXPECT_EQ(read_wcs(icrs).radesys, "ICRS");
+    EXPECT_EQ(read_wcs(icrs).keywords().radesys, "ICRS");
     EXPECT_FALSE(icrs.has_key("EQUINOX"));
     FitsReader bare(shapesim::test::source_dir() + "/tests/corpus/cases/good.fits");  // no RADESYS card
     EXPECT_FALSE(bare.has_key("RADESYS"));
-    EXPECT_EQ(read_wcs(bare).radesys, "ICRS");
+    EXPECT_EQ(read_wcs(bare).keywords().radesys, "ICRS");
 }
 
 // An image written row by row (begin_image, write_rows) is the image written whole, bytes and

@@ -960,8 +960,8 @@ TEST(Scene, ImageSpecCarriesTheWindowsWcsAndTheRunsCards) {
         if (c.name == "EXPTIME") exptime = std::get<double>(c.value) == 30.0;
     EXPECT_TRUE(exptime);
     ASSERT_TRUE(spec.wcs);
-    EXPECT_EQ(spec.wcs->crpix1, scene.field.wcs.crpix1 - 100.0);
-    EXPECT_EQ(spec.wcs->crpix2, scene.field.wcs.crpix2 - 50.0);
+    EXPECT_EQ(spec.wcs->keywords().crpix1, scene.field.wcs.keywords().crpix1 - 100.0);
+    EXPECT_EQ(spec.wcs->keywords().crpix2, scene.field.wcs.keywords().crpix2 - 50.0);
     std::map<std::string, FitsKeyword> cards;
     for (const FitsKeyword& c : spec.keywords) cards.emplace(c.name, c);
     EXPECT_EQ(std::get<std::string>(cards.at("SEED").value), "7");
