@@ -16,7 +16,8 @@ namespace shapesim {
 /// For each of `measured` (x, y), the index of the nearest of `truth` (x, y) within `radius`
 /// (same units), or −1; each truth index appears at most once (the nearer measurement keeps
 /// it; ties to the lower index). Error unless radius > 0 and every position is finite.
-std::vector<long> match_nearest(const std::vector<double>& truth_x, const std::vector<double>& truth_y,
+std::vector<long> match_nearest(const std::vector<double>& truth_x,
+                                const std::vector<double>& truth_y,
                                 const std::vector<double>& measured_x,
                                 const std::vector<double>& measured_y, double radius);
 

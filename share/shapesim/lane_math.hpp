@@ -47,11 +47,13 @@ SHAPESIM_LANES double abs(double x) { return from_bits(bits(x) & 0x7ffffffffffff
 SHAPESIM_LANES Doubles4 abs(Doubles4 x) { return from_bits(bits(x) & 0x7fffffffffffffffULL); }
 SHAPESIM_LANES double floor(double x) { return __builtin_floor(x); }
 SHAPESIM_LANES Doubles4 floor(Doubles4 x) {
-    return Doubles4{__builtin_floor(x[0]), __builtin_floor(x[1]), __builtin_floor(x[2]), __builtin_floor(x[3])};
+    return Doubles4{__builtin_floor(x[0]), __builtin_floor(x[1]), __builtin_floor(x[2]),
+                    __builtin_floor(x[3])};
 }
 SHAPESIM_LANES double sqrt(double x) { return __builtin_sqrt(x); }
 SHAPESIM_LANES Doubles4 sqrt(Doubles4 x) {
-    return Doubles4{__builtin_sqrt(x[0]), __builtin_sqrt(x[1]), __builtin_sqrt(x[2]), __builtin_sqrt(x[3])};
+    return Doubles4{__builtin_sqrt(x[0]), __builtin_sqrt(x[1]), __builtin_sqrt(x[2]),
+                    __builtin_sqrt(x[3])};
 }
 
 /// ln x for a positive, normal, finite x (lanes outside that give garbage, not a trap).
@@ -126,7 +128,8 @@ SHAPESIM_LANES D asin(D x) {
     const D c = (t - s_high * s_high) / (s + s_high);             // and the rest
     const D near_one = pio2_hi - (2.0 * (s + s * w) - pio2_lo);
     const D middle = pio4_hi - ((2.0 * s * w - (pio2_lo - 2.0 * c)) - (pio4_hi - 2.0 * s_high));
-    const D magnitude = select(small, select(tiny, ax, ax + ax * w), select(steep, near_one, middle));
+    const D magnitude =
+        select(small, select(tiny, ax, ax + ax * w), select(steep, near_one, middle));
     return from_bits(bits(magnitude) | (bits(x) & 0x8000000000000000ULL));
 }
 

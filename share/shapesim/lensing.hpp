@@ -103,7 +103,8 @@ private:
 PowerSpectrum read_power_spectrum(const std::string& path);
 
 struct GaussianFieldOptions {
-    double spacing = 0.0;  ///< arcsec: the field holds |ℓ| < π/spacing (0: the field's longer side / 128)
+    /// arcsec: the field holds |ℓ| < π/spacing (0: the field's longer side / 128)
+    double spacing = 0.0;
     double padding = 2.0;  ///< the grid's period over the field's size, each axis (≥ 1)
     std::uint64_t seed = 0;
     long max_nodes = 2048L * 2048L;  ///< refused beyond (memory: 24 bytes a node, 72 while made)

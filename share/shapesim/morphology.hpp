@@ -205,7 +205,8 @@ long count_shape_only(const Morphology& morphology);
 
 /// Align every record's model and compute the smoothing lengths. Throws Error when a record
 /// has a_{0,0} ≤ 0 or no magnitude (the caller filters such records first).
-Morphology build_morphology(const std::vector<ShapeletRecord>& records, const SmoothOptions& options);
+Morphology build_morphology(const std::vector<ShapeletRecord>& records,
+                            const SmoothOptions& options);
 
 // Choosing the records (shapesim-smooth): which become points, their parent-selection weights
 // and fields, and the model's provenance.

@@ -172,7 +172,9 @@ struct Ptrs {
     /// μ = 10, 59% of the HDF scene's draws of μ ≥ 10, 86% as μ → ∞).
     SHAPESIM_LANES auto squeezed(D us, D v) const { return (us >= 0.07) & (v <= v_r); }
     /// Rejected without logs.
-    SHAPESIM_LANES auto rejected(D k, D us, D v) const { return (k < 0.0) | ((us < 0.013) & (v > us)); }
+    SHAPESIM_LANES auto rejected(D k, D us, D v) const {
+        return (k < 0.0) | ((us < 0.013) & (v > us));
+    }
     /// The exact test (k ≥ 0).
     SHAPESIM_LANES auto exact(D k, D us, D v, const double* small) const {
         const D inv_alpha = 1.1239 + 1.1328 / (b - 3.4);
