@@ -297,8 +297,9 @@ long chosen_tile_side(const DetectionSettings& s, const ImageSize& size) {
             used = 0;
         }
         if (used != s.tile_side.size() || side < 16 || side > (1L << 30))
-            throw po::error("--tile-side: must be auto, none or a side of at least 16 pixels, got '" +
-                            s.tile_side + "'");
+            throw po::error(
+                "--tile-side: must be auto, none or a side of at least 16 pixels, got '" +
+                s.tile_side + "'");
     }
     const long cell = s.detection.back_size;
     side = (side + cell - 1) / cell * cell;
@@ -342,7 +343,8 @@ TiledRun DetectionSettings::run_tiles(const ProgramOptions& options, const Log& 
     for (std::size_t t = 0; t < tiled.tiles.size(); ++t) {
         const TileWindow& tile = tiled.tiles[t];
         DetectionRun r = detect_window(*this, in, &tile.window);
-        const long nx = tile.window.x1 - tile.window.x0 + 1, ny = tile.window.y1 - tile.window.y0 + 1;
+        const long nx = tile.window.x1 - tile.window.x0 + 1,
+                   ny = tile.window.y1 - tile.window.y0 + 1;
         std::vector<std::size_t> owned;
         for (std::size_t k = 0; k < r.field.objects.size(); ++k) {
             Detection& d = r.field.objects[k];

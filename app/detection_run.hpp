@@ -67,8 +67,8 @@ struct DetectionSettings {
     /// Check the values and run the detection on the whole image (Error / po::error on bad
     /// input).
     DetectionRun run(const ProgramOptions& options, const Log& log);
-    /// Check the values and run the detection tile by tile (--tile-side), handing each tile's run to
-    /// `sink` in turn, so that memory is bounded by the tile, not the image. Each tile is
+    /// Check the values and run the detection tile by tile (--tile-side), handing each tile's run
+    /// to `sink` in turn, so that memory is bounded by the tile, not the image. Each tile is
     /// detected as an image of its own (its own background mesh, aligned with the image's, and
     /// noise statistics); an object belongs to the tile whose core holds its centroid.
     TiledRun run_tiles(const ProgramOptions& options, const Log& log, const TileSink& sink);

@@ -1,6 +1,6 @@
 // The sky field of a program that makes a field (shapesim-sample, shapesim-render): --like
-// IMAGE (Common::like), or --area / --size / --pixels with --pixel-scale, --ra, --dec; and --tile, a
-// window of its pixels. One declaration, one reading, so both programs agree on a field.
+// IMAGE (Common::like), or --area / --size / --pixels with --pixel-scale, --ra, --dec; and
+// --tile, a window of its pixels. One declaration, one reading, so both programs agree on a field.
 #pragma once
 
 #include "app/options.hpp"

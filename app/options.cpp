@@ -157,7 +157,8 @@ namespace {
 std::vector<po::option> negative_numbers(std::vector<std::string>& args) {
     std::vector<po::option> values;
     auto is_negative_number = [](const std::string& a) {
-        if (a.size() < 2 || a[0] != '-' || !(std::isdigit((unsigned char)a[1]) || a[1] == '.')) return false;
+        if (a.size() < 2 || a[0] != '-' || !(std::isdigit((unsigned char)a[1]) || a[1] == '.'))
+            return false;
         char* end = nullptr;
         std::strtod(a.c_str(), &end);
         return end == a.c_str() + a.size();

@@ -39,7 +39,8 @@ class Progress {
 public:
     /// `verb` and `noun` make the line ("measured", "objects"); `total` the loop's length.
     /// `period` ≤ 0, -q, or (at the default verbosity) a stderr that is not a terminal: silent.
-    Progress(const Log& log, std::string verb, std::string noun, std::size_t total, double period = 2.0)
+    Progress(const Log& log, std::string verb, std::string noun, std::size_t total,
+             double period = 2.0)
         : log_(log),
           verb_(std::move(verb)),
           noun_(std::move(noun)),
@@ -47,8 +48,9 @@ public:
           period_(period),
           start_(std::chrono::steady_clock::now()),
           last_(start_) {
-        enabled_ = period > 0.0 && (log.verbosity() == Verbosity::verbose ||
-                                    (log.verbosity() == Verbosity::normal && isatty(STDERR_FILENO)));
+        enabled_ = period > 0.0 &&
+                   (log.verbosity() == Verbosity::verbose ||
+                    (log.verbosity() == Verbosity::normal && isatty(STDERR_FILENO)));
     }
 
     /// One more done (any thread); prints when `period` has passed since the last line.
@@ -57,14 +59,16 @@ public:
         if (!enabled_) return;
         const auto now = std::chrono::steady_clock::now();
         std::unique_lock<std::mutex> lock(mutex_, std::try_to_lock);
-        if (!lock.owns_lock() || std::chrono::duration<double>(now - last_).count() < period_) return;
+        if (!lock.owns_lock() || std::chrono::duration<double>(now - last_).count() < period_)
+            return;
         last_ = now;
         ++lines_;
         const double elapsed = std::chrono::duration<double>(now - start_).count();
         const double rate = elapsed > 0.0 ? double(done) / elapsed : 0.0;
         const double left = rate > 0.0 ? double(total_ - std::min(done, total_)) / rate : -1.0;
         char percent[16];
-        std::snprintf(percent, sizeof percent, "%.0f%%", total_ ? 100.0 * double(done) / double(total_) : 100.0);
+        std::snprintf(percent, sizeof percent, "%.0f%%",
+                      total_ ? 100.0 * double(done) / double(total_) : 100.0);
         char per_second[32];
         std::snprintf(per_second, sizeof per_second, "%.3g", rate);
         log_.info(verb_, " ", done, " / ", total_, " ", noun_, " (", percent, "), ", per_second,

@@ -175,8 +175,9 @@ int run(int argc, const char* const argv[]) {
             JsonlWriter(noise_file.stream(), s.noise_model).write(noise->to_json());
             noise_file.commit();
             log.info("sky noise: rms ", noise->rms, " (MAD σ ", noise->mad_sigma, ") over ",
-                     noise->pixels, " pixels; autocorrelation at (1,0) ", noise->correlation.at(1, 0),
-                     ", (1,1) ", noise->correlation.at(1, 1), ", (2,0) ", noise->correlation.at(2, 0));
+                     noise->pixels, " pixels; autocorrelation at (1,0) ",
+                     noise->correlation.at(1, 0), ", (1,1) ", noise->correlation.at(1, 1),
+                     ", (2,0) ", noise->correlation.at(2, 0));
         }
         if (stamps) stamps->commit();
         if (stars_file) stars_file->commit();

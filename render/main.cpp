@@ -143,7 +143,8 @@ int run(int argc, const char* const argv[]) {
         const AnalyticPsf profile = parse_analytic_psf(s.psf_analytic);
         const AnalyticPsfModel m = analytic_psf_model(profile, field.pixel_scale);
         log.info("PSF ", profile.describe(), ": n_max ", m.psf.n_max, ", FWHM ", m.fwhm,
-                 "\" (model ", 100 * m.fwhm_error, "%), encircled energy within 1 and 2 FWHM off by ",
+                 "\" (model ", 100 * m.fwhm_error,
+                 "%), encircled energy within 1 and 2 FWHM off by ",
                  100 * m.ee_error_1, "% and ", 100 * m.ee_error_2, "%");
         if (m.worst_error() > 0.01)
             log.warn("the analytic PSF's model misses 1% (worst error ", m.worst_error(),
@@ -187,7 +188,8 @@ int run(int argc, const char* const argv[]) {
         if (outside > 0) {
             const PsfVariation& f = kernels.field->variation;
             log.warn(outside, " of ", records.size(), " objects lie beyond the stars the PSF field "
-                     "was fitted to (x ", f.x_zero - 0.5 * f.x_scale, " to ", f.x_zero + 0.5 * f.x_scale,
+                     "was fitted to (x ", f.x_zero - 0.5 * f.x_scale, " to ",
+                     f.x_zero + 0.5 * f.x_scale,
                      ", y ", f.y_zero - 0.5 * f.y_scale, " to ", f.y_zero + 0.5 * f.y_scale,
                      "): their PSF is the polynomial extrapolated; render the image psfex measured "
                      "(--like it)");
@@ -204,9 +206,11 @@ int run(int argc, const char* const argv[]) {
         log.info("note: ", observed_lensed, " lensed galaxies are observed-frame models: their "
                  "PSF is lensed with them (for a shear calibration draw intrinsic models, "
                  "shapesim-decompose --psf)");
-    RenderedScene scene = prepare_field(records, field, kernels, o, window, s.input, ReleaseShapes{});
+    RenderedScene scene =
+        prepare_field(records, field, kernels, o, window, s.input, ReleaseShapes{});
     s.draw_and_write(options, scene, records, kernels);
-    if (const std::string note = app::clipped_note(summarise_clipped(scene), o.noise_rms); !note.empty())
+    if (const std::string note = app::clipped_note(summarise_clipped(scene), o.noise_rms);
+        !note.empty())
         log.info(note);
     log.info(app::render_summary(scene, records.size(), window, kernels,
                             std::chrono::duration<double>(t_prepare - t_read).count()),

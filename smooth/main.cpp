@@ -142,13 +142,15 @@ int run(int argc, const char* const argv[]) {
     const long shape_only =
         mark_point_fields(morphology, selected, selection, fields.counted.size());
     if (shape_only > 0 && shape_only == long(selected.kept.size()))
-        throw Error("every kept record comes from a shape-only field: nothing to count", reader.name());
+        throw Error("every kept record comes from a shape-only field: nothing to count",
+                    reader.name());
     for (std::size_t k = 0; k < fields.counted.size() && !s.fields.empty(); ++k)
         log.verbose("field ", fields.counted[k].image, ": ", fields.counted[k].area_arcmin2,
                     " arcmin^2, ", fields.counted[k].mags.size(), " galaxies, complete to ",
                     fields.counted[k].completeness);
     if (!fields.shape_images.empty())
-        log.verbose(shape_only, " shape-only models from ", fields.shape_images.size(), " field(s)");
+        log.verbose(shape_only, " shape-only models from ", fields.shape_images.size(),
+                    " field(s)");
     for (const SourceField& f : fields.counted)
         if (f.star_mags)
             log.info(f.star_mags->size(), " stars in ", f.image.empty() ? "the field" : f.image,
@@ -158,9 +160,9 @@ int run(int argc, const char* const argv[]) {
     morphology.provenance = smooth_provenance(reader.name(), selected, selection, smooth);
     file.stream() << morphology.to_json().dump() << '\n';
     file.commit();
-    log.info(selected.kept.size(), " of ", selected.read, " models kept (n_max up to ", morphology.n_max,
-             "); lambda: beta ", morphology.lambda.beta, "\", mag ", morphology.lambda.mag,
-             ", phase ", morphology.lambda.phase_deg, " deg");
+    log.info(selected.kept.size(), " of ", selected.read, " models kept (n_max up to ",
+             morphology.n_max, "); lambda: beta ", morphology.lambda.beta, "\", mag ",
+             morphology.lambda.mag, ", phase ", morphology.lambda.phase_deg, " deg");
     for (const auto& [why, n] : selected.dropped) log.verbose(n, " dropped: ", why);
     std::vector<double> moved;
     for (const MorphologyPoint& p : morphology.points)

@@ -76,7 +76,8 @@ int run(int argc, const char* const argv[]) {
     if (format == "fit" || format == "fts") format = "fits";
     if (format != "fits" && format != "ecsv")
         throw po::error(s.format.empty()
-                            ? "cannot tell the format from '" + output + "': give --format fits|ecsv"
+                            ? "cannot tell the format from '" + output +
+                                  "': give --format fits|ecsv"
                             : "--format must be fits or ecsv, not '" + s.format + "'");
     if (format == "fits" && output == "-")
         throw po::error("a FITS table needs a file: give -o NAME.fits");

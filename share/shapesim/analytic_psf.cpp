@@ -66,7 +66,8 @@ ImageArray gaussian_blur(const ImageArray& in, double sigma) {
     for (Eigen::Index y = 0; y < ny; ++y)
         for (Eigen::Index x = 0; x < nx; ++x)
             for (int k = -half; k <= half; ++k)
-                if (x + k >= 0 && x + k < nx) rows(y, x) += kernel[std::size_t(k + half)] * in(y, x + k);
+                if (x + k >= 0 && x + k < nx)
+                    rows(y, x) += kernel[std::size_t(k + half)] * in(y, x + k);
     for (Eigen::Index y = 0; y < ny; ++y)
         for (int k = -half; k <= half; ++k)
             if (y + k >= 0 && y + k < ny)
@@ -162,7 +163,9 @@ std::string AnalyticPsf::describe() const {
 }
 
 void AnalyticPsf::validate() const {
-    const auto fail = [&](const std::string& what) { throw Error(describe() + ": " + what, "", 0, "psf"); };
+    const auto fail = [&](const std::string& what) {
+        throw Error(describe() + ": " + what, "", 0, "psf");
+    };
     if (kind != Kind::airy && !(fwhm > 0.0 && fwhm < 3600.0)) fail("the FWHM must be > 0 arcsec");
     if (kind == Kind::moffat && !(beta > 1.0 && beta < 1000.0)) fail("Moffat's beta must be > 1");
     if (kind == Kind::airy && !(lambda_over_d > 0.0 && lambda_over_d < 3600.0))
@@ -237,7 +240,8 @@ ImageArray analytic_psf_image(const AnalyticPsf& psf, double scale, int side) {
             double s = 0.0;
             for (int b = -1; b <= 1; ++b)
                 for (int a = -1; a <= 1; ++a)
-                    s += psf.profile(std::hypot((x - c + a / 3.0) * scale, (y - c + b / 3.0) * scale));
+                    s += psf.profile(
+                        std::hypot((x - c + a / 3.0) * scale, (y - c + b / 3.0) * scale));
             image(y, x) = s / 9.0 * norm;
         }
     return gaussian_blur(image, psf.jitter / scale);

@@ -31,7 +31,8 @@ void check_writable(const std::string& path) {
         throw Error("cannot write: is a directory", path);
     // A device or a pipe (/dev/null, a FIFO) is written in place: it must be writable itself.
     if (stat(path.c_str(), &st) == 0 && !S_ISREG(st.st_mode)) {
-        if (access(path.c_str(), W_OK) != 0) throw Error("cannot write: " + errno_text(errno), path);
+        if (access(path.c_str(), W_OK) != 0)
+            throw Error("cannot write: " + errno_text(errno), path);
         return;
     }
     // The temporary is created, and renamed, in the target's directory: that is what must be
@@ -101,7 +102,9 @@ extern "C" void remove_temporaries_and_die(int signal) {
     for (TemporarySlot& t : temporaries)
         if (t.state.load() == 2) unlink(t.path);
     // One line, then the signal's own death (the exit status shells and Slurm expect).
-    const char* name = signal == SIGINT ? "interrupted" : signal == SIGHUP ? "hung up" : "terminated";
+    const char* name = signal == SIGINT   ? "interrupted"
+                       : signal == SIGHUP ? "hung up"
+                                          : "terminated";
     const std::string& p = signal_program;
     if (write(STDERR_FILENO, p.data(), p.size()) < 0 ||
         write(STDERR_FILENO, ": ", 2) < 0 || write(STDERR_FILENO, name, std::strlen(name)) < 0 ||

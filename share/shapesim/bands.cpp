@@ -34,7 +34,8 @@ std::vector<BandField> measure_bands(const std::vector<BandRecord>& bands,
             FitsReader weight(spec.weight, FitsStart::first_image);
             inverse_variance = std::make_unique<ImageArray>(inverse_variance_from(
                 weight.read_image(), parse_noise_map_type(spec.weight_type), weight.place()));
-            if (inverse_variance->rows() != image.rows() || inverse_variance->cols() != image.cols())
+            if (inverse_variance->rows() != image.rows() ||
+                inverse_variance->cols() != image.cols())
                 throw Error("band " + spec.band + ": the noise map's size differs from the image's",
                             weight.place());
         }
@@ -89,8 +90,8 @@ Json band_source_entry(const BandField& band, std::size_t k, const CutStamp* cut
 }
 
 void add_bands(SourceRecord& record, const std::vector<BandField>& bands, std::size_t k,
-               const Detection& object, const CutStamp* cut, FitsWriter* stamps, const std::string& stamps_file,
-               const StampOptions& options) {
+               const Detection& object, const CutStamp* cut, FitsWriter* stamps,
+               const std::string& stamps_file, const StampOptions& options) {
     Json list = Json::array();
     for (const BandField& band : bands) {
         std::unique_ptr<CutStamp> band_cut;

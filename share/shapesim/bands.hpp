@@ -54,13 +54,13 @@ std::vector<BandField> measure_bands(const std::vector<BandRecord>& bands,
 Json band_source_entry(const BandField& band, std::size_t k, const CutStamp* cut,
                        const std::string& stamps_file);
 
-/// Add detection object `k`'s (`object`'s) bands to its `record` (a `bands` list of band_source_entry()),
-/// and, when the object has a detection stamp `cut`, its stamp in every band (cut_band_stamp(),
-/// HDU band_stamp_hdu()) to `stamps` (`stamps_file` its name in the records); `options` are
-/// the detection stamps' (each band's own gain replaces theirs).
+/// Add detection object `k`'s (`object`'s) bands to its `record` (a `bands` list of
+/// band_source_entry()), and, when the object has a detection stamp `cut`, its stamp in every
+/// band (cut_band_stamp(), HDU band_stamp_hdu()) to `stamps` (`stamps_file` its name in the
+/// records); `options` are the detection stamps' (each band's own gain replaces theirs).
 void add_bands(SourceRecord& record, const std::vector<BandField>& bands, std::size_t k,
-               const Detection& object, const CutStamp* cut, FitsWriter* stamps, const std::string& stamps_file,
-               const StampOptions& options);
+               const Detection& object, const CutStamp* cut, FitsWriter* stamps,
+               const std::string& stamps_file, const StampOptions& options);
 
 /// The HDU name of a band's stamp of object `id`: "<id>.<band>".
 std::string band_stamp_hdu(const std::string& id, const std::string& band);

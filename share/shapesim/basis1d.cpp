@@ -237,7 +237,8 @@ void pixel_basis_1d(int n_max, double beta_pix, double first_offset, int npix,
             "pixel_basis_1d: wrong buffer sizes");
     if (npix == 0) return;
 #if defined(__x86_64__)
-    if (lane::have_avx2()) return pixel_basis_avx2(n_max, beta_pix, first_offset, npix, out, edges.data());
+    if (lane::have_avx2())
+        return pixel_basis_avx2(n_max, beta_pix, first_offset, npix, out, edges.data());
 #endif
     // φ at the npix+1 pixel edges, each computed once and shared by its two pixels.
     for (int e = 0; e <= npix; ++e)
@@ -312,7 +313,8 @@ Eigen::MatrixXd hermite_moments(int p_max, int n_max) {
     const int width = n_max + p_max + 2;
     Eigen::MatrixXd m = Eigen::MatrixXd::Zero(p_max + 1, width);
     m(0, 0) = std::sqrt(2.0) / kPiQuarterInv;  // ∫ φ_0 = π^{-1/4} √(2π) = √2 π^{1/4}
-    for (int n = 1; n + 1 < width; n += 2) m(0, n + 1) = std::sqrt(double(n) / (n + 1)) * m(0, n - 1);
+    for (int n = 1; n + 1 < width; n += 2)
+        m(0, n + 1) = std::sqrt(double(n) / (n + 1)) * m(0, n - 1);
     for (int p = 1; p <= p_max; ++p)
         for (int n = 0; n + 1 < width; ++n)
             m(p, n) = std::sqrt((n + 1) / 2.0) * m(p - 1, n + 1) +

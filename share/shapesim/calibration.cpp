@@ -11,7 +11,8 @@
 
 namespace shapesim {
 
-std::vector<long> match_nearest(const std::vector<double>& truth_x, const std::vector<double>& truth_y,
+std::vector<long> match_nearest(const std::vector<double>& truth_x,
+                                const std::vector<double>& truth_y,
                                 const std::vector<double>& measured_x,
                                 const std::vector<double>& measured_y, double radius) {
     require(radius > 0.0 && std::isfinite(radius), "match: the radius must be finite and > 0");
@@ -19,14 +20,17 @@ std::vector<long> match_nearest(const std::vector<double>& truth_x, const std::v
             "match: x and y must be the same length");
     for (const auto* v : {&truth_x, &truth_y, &measured_x, &measured_y})
         for (double p : *v)
-            if (!std::isfinite(p) || std::abs(p) > 1e15) throw Error("match: a position is not finite");
+            if (!std::isfinite(p) || std::abs(p) > 1e15)
+                throw Error("match: a position is not finite");
     // Cells one radius wide: a match lies in the 3 × 3 cells about the measurement's own.
     auto cell = [radius](double x, double y) {
-        const std::int64_t i = std::int64_t(std::floor(x / radius)), j = std::int64_t(std::floor(y / radius));
+        const std::int64_t i = std::int64_t(std::floor(x / radius)),
+                           j = std::int64_t(std::floor(y / radius));
         return std::pair{i, j};
     };
     auto key = [](std::int64_t i, std::int64_t j) {
-        return std::uint64_t(i) * 0x9E3779B97F4A7C15ULL ^ (std::uint64_t(j) + 0x632BE59BD9B4E019ULL);
+        return std::uint64_t(i) * 0x9E3779B97F4A7C15ULL ^
+               (std::uint64_t(j) + 0x632BE59BD9B4E019ULL);
     };
     std::unordered_map<std::uint64_t, std::vector<long>> cells;
     cells.reserve(truth_x.size());
@@ -47,7 +51,8 @@ std::vector<long> match_nearest(const std::vector<double>& truth_x, const std::v
                     const double dx = truth_x[std::size_t(t)] - measured_x[k];
                     const double dy = truth_y[std::size_t(t)] - measured_y[k];
                     const double d2 = dx * dx + dy * dy;
-                    // Same key in another cell (a hash collision) is harmless: the distance decides.
+                    // Same key in another cell (a hash collision) is harmless: the distance
+                    // decides.
                     if (d2 <= r2 && (d2 < distance[k] || (d2 == distance[k] && t < match[k]))) {
                         distance[k] = d2;
                         match[k] = t;
@@ -80,7 +85,8 @@ struct Line {
     bool defined = false;
 };
 
-Line fit_line(const std::vector<ShearPoint>& points, const std::vector<double>& weight, int component) {
+Line fit_line(const std::vector<ShearPoint>& points, const std::vector<double>& weight,
+              int component) {
     double sw = 0.0, sg = 0.0, se = 0.0;
     for (std::size_t k = 0; k < points.size(); ++k) {
         if (weight[k] == 0.0) continue;
@@ -122,10 +128,12 @@ double standard_deviation(const std::vector<double>& v) {
 ShearCalibration fit_shear_calibration(const std::vector<ShearPoint>& points, int resamples,
                                        std::uint64_t seed) {
     if (points.size() < 3)
-        throw Error("only " + std::to_string(points.size()) + " matched galaxies: m and c need more");
+        throw Error("only " + std::to_string(points.size()) +
+                    " matched galaxies: m and c need more");
     require(resamples >= 0 && resamples <= 100000, "calibration: resamples must be in [0, 100000]");
     for (const ShearPoint& p : points)
-        if (!std::isfinite(p.g1) || !std::isfinite(p.g2) || !std::isfinite(p.e1) || !std::isfinite(p.e2))
+        if (!std::isfinite(p.g1) || !std::isfinite(p.g2) || !std::isfinite(p.e1) ||
+            !std::isfinite(p.e2))
             throw Error("a matched galaxy's shear or ellipticity is not finite");
     ShearCalibration out;
     out.galaxies = long(points.size());
@@ -179,7 +187,8 @@ std::vector<CalibrationBin> fit_in_bins(const std::vector<ShearPoint>& points,
     std::vector<std::size_t> order;
     for (std::size_t k = 0; k < value.size(); ++k)
         if (std::isfinite(value[k])) order.push_back(k);
-    std::stable_sort(order.begin(), order.end(), [&](std::size_t a, std::size_t b) { return value[a] < value[b]; });
+    std::stable_sort(order.begin(), order.end(),
+                     [&](std::size_t a, std::size_t b) { return value[a] < value[b]; });
     std::vector<CalibrationBin> out;
     for (int b = 0; b < bins; ++b) {
         const std::size_t lo = order.size() * std::size_t(b) / std::size_t(bins);

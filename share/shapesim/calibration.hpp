@@ -1,18 +1,9 @@
 // Shear calibration: a shape catalogue matched to the truth it was simulated from, and the
-// linear response e = (1 + m) g + c fitted per component (Heymans et al. 2006, STEP1; Massey
-// et al. 2007, STEP2) — m the multiplicative bias, c the additive one.
-//
-// Fit: ordinary least squares of e_i on g_i per component, every galaxy weighted alike:
-//   1 + m = Σ (g − ḡ)(e − ē) / Σ (g − ḡ)²,   c = ē − (1 + m) ḡ.
-// Errors: the standard deviation over bootstrap resamples of whole blocks — a ring of
-// rotated copies (shapesim-sample --ring) is one block, so its shape-noise cancellation is
-// kept in every resample, as it is in the estimate; else a galaxy is its own block. A
-// calibration needs the shear to vary (a field, halos, or several images): with one shear
-// the slope is undefined and the fit says so.
-//
-// Matching: every measured object to the nearest true galaxy within a radius, at most one
-// object per galaxy (the nearer wins; the other is counted as a blend), through a grid of
-// cells one radius wide, so a million galaxies match in one pass.
+// linear response e = (1 + m) g + c fitted per component by ordinary least squares (Heymans
+// et al. 2006, STEP1; Massey et al. 2007, STEP2): m the multiplicative bias, c the additive.
+// Errors by block bootstrap (a ring of rotated copies is one block); matching to the nearest
+// true galaxy within a radius, at most one object per galaxy.
+// Derivation: docs/algorithms.md#shear-calibration
 #pragma once
 
 #include <cstdint>
@@ -25,7 +16,8 @@ namespace shapesim {
 /// For each of `measured` (x, y), the index of the nearest of `truth` (x, y) within `radius`
 /// (same units), or −1; each truth index appears at most once (the nearer measurement keeps
 /// it; ties to the lower index). Error unless radius > 0 and every position is finite.
-std::vector<long> match_nearest(const std::vector<double>& truth_x, const std::vector<double>& truth_y,
+std::vector<long> match_nearest(const std::vector<double>& truth_x,
+                                const std::vector<double>& truth_y,
                                 const std::vector<double>& measured_x,
                                 const std::vector<double>& measured_y, double radius);
 

@@ -16,7 +16,8 @@ ColourCatalogue ColourCatalogue::from_records(std::string name,
     c.name = std::move(name);
     for (const SourceRecord& r : records) {
         if (!r.extra.contains("bands"))
-            throw Error("record " + r.id + " has no bands (shapesim-detect --bands)", "", 0, "bands");
+            throw Error("record " + r.id + " has no bands (shapesim-detect --bands)", "", 0,
+                        "bands");
         const Json& list = required_array(r.extra, "bands");
         std::vector<std::string> names;
         Galaxy g;
@@ -28,7 +29,8 @@ ColourCatalogue ColourCatalogue::from_records(std::string name,
         }
         if (c.bands.empty()) c.bands = names;
         if (names != c.bands)
-            throw Error("record " + r.id + "'s bands differ from the first record's", "", 0, "bands");
+            throw Error("record " + r.id + "'s bands differ from the first record's", "", 0,
+                        "bands");
         const bool star = r.extra.contains("kind") && r.extra.at("kind") == "star";
         if (star || !r.mag) continue;
         g.mag = *r.mag;
@@ -113,8 +115,8 @@ void write_colour_report(std::ostream& out, const std::vector<ColourCatalogue>& 
         << " (both AUTO fluxes > 0), each catalogue against " << catalogues.front().name
         << ": mean with its bootstrap error, the offset of the means in their errors, KS of the "
            "colours and of the gradients (inner - outer colour).\n\n"
-        << "| colour | catalogue | n | mean | offset (sigma) | KS D | KS p | n grad | median grad | "
-           "grad KS D | grad KS p |\n|---|---|---|---|---|---|---|---|---|---|---|\n";
+        << "| colour | catalogue | n | mean | offset (sigma) | KS D | KS p | n grad | "
+           "median grad | grad KS D | grad KS p |\n|---|---|---|---|---|---|---|---|---|---|---|\n";
     for (std::size_t b = 0; b < comparisons.front().size(); ++b)
         for (std::size_t c = 0; c < catalogues.size(); ++c) {
             const ColourComparison& k = comparisons[c][b];
@@ -149,7 +151,9 @@ void write_colour_report(std::ostream& out, const std::vector<ColourCatalogue>& 
             for (std::size_t c = 0; c < catalogues.size(); ++c) {
                 const auto it = bins[c].find(bin);
                 if (it == bins[c].end()) out << " - |";
-                else out << " " << fixed(median_of_values(it->second), 2) << " (" << it->second.size() << ") |";
+                else
+                    out << " " << fixed(median_of_values(it->second), 2) << " ("
+                        << it->second.size() << ") |";
             }
             out << "\n";
         }

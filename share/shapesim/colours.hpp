@@ -36,7 +36,8 @@ struct ColourCatalogue {
     /// differ from the first record's (or it has none).
     static ColourCatalogue from_records(std::string name, const std::vector<SourceRecord>& records);
     /// The colours m_b − m_{b+1} (and their magnitudes) of the galaxies with mag ≤ `mag_limit`.
-    std::vector<double> colours(std::size_t b, double mag_limit, std::vector<double>* mags = nullptr) const;
+    std::vector<double> colours(std::size_t b, double mag_limit,
+                                std::vector<double>* mags = nullptr) const;
     /// The gradients (inner − outer colour) of bands (b, b+1) of those galaxies.
     std::vector<double> gradients(std::size_t b, double mag_limit) const;
 };

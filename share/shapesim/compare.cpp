@@ -64,7 +64,8 @@ TableRow table_row(const Catalogue& catalogue, const TableCuts& cuts) {
     auto rms0 = [](const std::vector<double>& v) {
         double s = 0.0;
         for (double x : v) s += x * x;
-        return v.empty() ? std::numeric_limits<double>::quiet_NaN() : std::sqrt(s / double(v.size()));
+        return v.empty() ? std::numeric_limits<double>::quiet_NaN()
+                         : std::sqrt(s / double(v.size()));
     };
     t.e_rms = rms0(e);
     t.e_rms_err = bootstrap_error(e, rms0, cuts.resamples, cuts.seed + 30);
@@ -183,7 +184,8 @@ PairedComparison compare_paired(const Catalogue& real, const std::vector<Catalog
     p.real_geomean = geomean(real_fwhm);
     p.real_geomean_err = bootstrap_error(real_fwhm, geomean, cuts.resamples, cuts.seed + 60);
     p.real_median = median_of_values(real_fwhm);
-    p.real_median_err = bootstrap_error(real_fwhm, median_of_values, cuts.resamples, cuts.seed + 61);
+    p.real_median_err =
+        bootstrap_error(real_fwhm, median_of_values, cuts.resamples, cuts.seed + 61);
     p.replay_geomean = geomean(replay_fwhm);
     p.replay_geomean_err = bootstrap_error(replay_fwhm, geomean, cuts.resamples, cuts.seed + 62);
     p.replay_median = median_of_values(replay_fwhm);
@@ -208,7 +210,8 @@ void write_paired_markdown(std::ostream& out, const PairedComparison& p, const s
             std::snprintf(range, sizeof range, "all (%.2f–%.2f)", r.mag_lo, r.mag_hi);
         else
             std::snprintf(range, sizeof range, "%.2f–%.2f", r.mag_lo, r.mag_hi);
-        std::snprintf(buf, sizeof buf, "| %s | %ld | %ld/%ld (%.0f%%) | %.3f ± %.3f | %.3f | %.3f | %+.3f |\n",
+        std::snprintf(buf, sizeof buf,
+                      "| %s | %ld | %ld/%ld (%.0f%%) | %.3f ± %.3f | %.3f | %.3f | %+.3f |\n",
                       range, r.galaxies, r.found, pairs, 100.0 * double(r.found) / double(pairs),
                       r.ratio_geomean, r.ratio_geomean_err, r.ratio_median, r.ratio_mean,
                       r.dmag_median);
@@ -216,8 +219,8 @@ void write_paired_markdown(std::ostream& out, const PairedComparison& p, const s
     }
     std::snprintf(buf, sizeof buf,
                   "\nGalaxies with %s ≤ %g, unpaired: FWHM geometric mean %.4f″ ± %.4f (%s, %ld) "
-                  "and %.4f″ ± %.4f (the replays, %ld pooled: %+.1f%%); median %.4f″ ± %.4f and %.4f″ ± "
-                  "%.4f (%+.1f%%). Errors: %d bootstrap resamples.\n",
+                  "and %.4f″ ± %.4f (the replays, %ld pooled: %+.1f%%); median %.4f″ ± %.4f "
+                  "and %.4f″ ± %.4f (%+.1f%%). Errors: %d bootstrap resamples.\n",
                   band.c_str(), cuts.mag_counts, p.real_geomean, p.real_geomean_err,
                   p.real.c_str(), p.real_galaxies, p.replay_geomean, p.replay_geomean_err,
                   p.replay_galaxies,

@@ -43,7 +43,7 @@ void signed_basis_at_nodes(const GaussHermite& rule, double scale, int n_max, bo
         if (sigma_sign(n) < 0) out.row(n) *= -1.0;
 }
 
-// c_0 = √(2π) √(αb/γ): the constant of the 1D tensor (file comment of convolve.hpp).
+// c_0 = √(2π) √(αb/γ): the constant of the 1D tensor (docs/algorithms.md#convolution).
 double tensor_constant(double alpha, double b, double gamma) {
     return kSqrtTwoPi * std::sqrt(alpha * b / gamma);
 }
@@ -211,8 +211,8 @@ double condition_number_triangular(const Eigen::MatrixXd& r) {
     return std::sqrt(largest * inverse_largest);
 }
 
-// Least-squares solve of L x = y (full column rank: the map is injective, file comment of the
-// header) by Householder QR; fills the report.
+// Least-squares solve of L x = y (full column rank: the map is injective,
+// docs/algorithms.md#convolution) by Householder QR; fills the report.
 Eigen::VectorXd solve_least_squares(const Eigen::MatrixXd& l, const Eigen::VectorXd& y,
                                     InverseReport& report) {
     require(l.cwiseAbs().maxCoeff() > 0.0, "deconvolve: the PSF is identically zero");

@@ -1,45 +1,11 @@
-// Exact shapelet convolution, deconvolution and the PSF "difference kernel".
-//
-// Sources: Refregier (2003, Shapelets I) §3.3 and Refregier & Bacon (2003, Shapelets II) §3
-// (convolution is a linear map of coefficients); Massey et al. (2004) §2.3 (re-observing with a
-// broader PSF through a difference kernel); DESIGN §3.
-//
-// Convention. Plain convolution in pixel units, no implicit normalisation:
-//   h(x) = ∫ f(x′) g(x − x′) d²x′,   flux_h = flux_f · flux_g.
-// The PSF g is applied about its own centre (its x, y play no part); h is centred at the
-// galaxy's centre. If f has scale α and n_max N_f, and g has scale b and n_max N_g, then h is
-// exactly a shapelet series with scale γ = √(α² + b²) and n_max N = N_f + N_g.
-//
-// The 1D tensor. B_n(·; α) ∗ B_m(·; b) = Σ_l C_{nml} B_l(·; γ), l ≤ n + m, n + m + l even.
-// With the unitary Fourier transform φ̃_n = (−i)^n φ_n, so B̃_n(k; α) = α^{1/2} (−i)^n φ_n(αk),
-// and (u ∗ v)~ = √(2π) ũ ṽ; Parseval then gives, with k = u/γ,
-//   C_{nml} = √(2π) · √(αb/γ) · i^{l−n−m} · J_{nml},
-//   J_{nml} = ∫ φ_l(u) φ_n(a u) φ_m(c u) du,    a = α/γ, c = b/γ   (a² + c² = 1).
-// The integrand is a polynomial of degree n + m + l ≤ 2N times e^{−u²}, so the K = N + 1 point
-// Gauss–Hermite rule of basis1d (Hermite-function form) is exact: J = Σ_i W_i φ_l φ_n φ_m.
-// i^{l−n−m} = (−1)^{(n+m−l)/2} is real; it factorises as σ_l σ_n σ_m (−1)^{ε_n ε_m}, with
-// σ_n = (−1)^{⌊n/2⌋} and ε_n = n mod 2, which keeps every computation real.
-// Checks: C_{000} = √(2π) π^{−1/4} √(αb/γ) (two Gaussians); Σ_l C_{nml} B_l equals brute-force
-// convolution (tests/unit/convolve_test.cpp).
-//
-// 2D, in Fourier-node space. Rather than contracting C ⊗ C with both coefficient arrays
-// (O(N_g² N_f² N)), `convolve` evaluates both transforms on the K × K Gauss–Hermite grid
-// (F = D_fᵀ f D_f, O(K N_f² + K² N_f)), multiplies them there (the sign (−1)^{ε_n ε_m} per axis
-// is a reflection u_i → −u_i of F, free on the symmetric grid) and projects back
-// (O(K² N + K N²)). Only for the linear map (fitting PSF-convolved models) is the tensor
-// contracted explicitly. A fixed PSF is converted to Cartesian form once by the caller; the
-// per-galaxy work then uses a reusable ConvolveWorkspace.
-//
-// Deconvolution. f ↦ g ∗ f is injective for any PSF that is not identically 0 (in Fourier space
-// it multiplies by a nonzero polynomial × Gaussian), so the least-squares inverse at
-// α = √(γ² − b²) is unique whenever γ > b, and exact when the observation really is g ∗ f with
-// n_max(f) ≤ n_max_out. It is solved in Cartesian coefficients, where the Euclidean norm is the
-// L² norm of the image. Its conditioning worsens as α/γ → 0 (the PSF dominates) and as
-// n_max_out grows; the condition number is reported so callers can refuse ill-posed cases.
-// Measured (random PSF of order 8, b = 1.5 px): κ = 3 for n_max_out 4, α = 2 px; 65 for 22,
-// α = 2; 4.6e3 for 15, α = 1; 4.8e7 for 15, α = 0.5; 4e13 for 15, α = 0.2. The error of the
-// recovered coefficients is ~3e-16 κ relative to max|a| noise-free; noise is amplified by ~κ.
-// Cost O(rows · cols²) (Householder QR): ~1 ms at n_max_out 10, 25 ms at 22, 80 ms at 30.
+// Exact shapelet convolution, deconvolution and the PSF "difference kernel" (Refregier 2003
+// §3.3; Refregier & Bacon 2003 §3; Massey et al. 2004 §2.3; DESIGN §3).
+// Plain convolution in pixels, no implicit normalisation: h(x) = ∫ f(x′) g(x − x′) d²x′,
+// flux_h = flux_f · flux_g; g about its own centre, h at the galaxy's. f of scale α and order
+// N_f through g of scale b and order N_g is exactly a shapelet series of scale
+// γ = √(α² + b²) and order N_f + N_g. Deconvolution is the least-squares inverse at
+// α = √(γ² − b²), unique for γ > b; its condition number is reported.
+// Derivation: docs/algorithms.md#convolution
 #pragma once
 
 #include "shapesim/model.hpp"
@@ -87,7 +53,7 @@ struct ConvolveWorkspace {
 };
 
 /// Exact convolution of Cartesian series: scale γ, n_max galaxy.n_max + psf.n_max, centred at
-/// the galaxy's centre. Cost O(K N_f² + K² N) for K = N + 1 (see the file comment).
+/// the galaxy's centre. Cost O(K N_f² + K² N) for K = N + 1 (docs/algorithms.md#convolution).
 CartesianModel convolve(const CartesianModel& galaxy, const CartesianModel& psf,
                         ConvolveWorkspace& workspace);
 CartesianModel convolve(const CartesianModel& galaxy, const CartesianModel& psf);

@@ -52,7 +52,8 @@ GaussianPopulation deconvolve_gaussian(const std::vector<Eigen::VectorXd>& point
     pop.covariance = Eigen::MatrixXd::Zero(d, d);
     for (const auto& x : points) pop.covariance += (x - pop.mean) * (x - pop.mean).transpose() / n;
     // A start inside the cone: EM keeps V positive definite when it starts so.
-    pop.covariance.diagonal().array() += 1e-9 * std::max(pop.covariance.trace() / double(d), 1e-300);
+    pop.covariance.diagonal().array() +=
+        1e-9 * std::max(pop.covariance.trace() / double(d), 1e-300);
 
     const double log_2pi = std::log(2.0 * pi);
     double previous = -std::numeric_limits<double>::infinity();

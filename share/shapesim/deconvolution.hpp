@@ -1,21 +1,8 @@
-// A population seen through noise, and the population without it (issue 17: the colours of
-// jointly fitted galaxies).
-//
-// Each measurement x_i = v_i + ε_i: the true value v_i ~ N(μ, V), the noise ε_i ~ N(0, S_i)
-// with S_i known and different for each point. The sample covariance of the x_i is V plus
-// the mean S_i; a simulation that copies x_i and adds its own noise again has V + 2 S̄.
-//
-//  - deconvolve_gaussian: μ and V by maximum likelihood, Π_i N(x_i; μ, V + S_i), with the EM
-//    iteration of "extreme deconvolution" for one Gaussian (Bovy, Hogg & Roweis 2011, Ann.
-//    Appl. Stat. 5, 1657, §2):  b_i = μ + V T_i⁻¹ (x_i − μ),  B_i = V − V T_i⁻¹ V,
-//    T_i = V + S_i;  μ ← mean b_i,  V ← mean[(b_i − μ)(b_i − μ)ᵀ + B_i].  Each step raises
-//    the likelihood; a noisy point pulls on μ and V only as far as its S_i lets it.
-//  - denoise: moves x_i by the least-displacement (optimal-transport) linear map from
-//    N(μ, V + S_i) to N(μ, V): x' = μ + A_i (x_i − μ), A_i symmetric with A_i T_i A_i = V,
-//    A_i = T_i^{−1/2} (T_i^{1/2} V T_i^{1/2})^{1/2} T_i^{−1/2}. Each point then scatters about
-//    μ as the population itself does (variance matching, the "constrained Bayes" of Louis
-//    1984, J. Am. Stat. Assoc. 79, 393): a precise point barely moves, a noisy one is drawn
-//    towards μ, and noise added back gives the measured spread, not twice the noise.
+// A population seen through noise, and the population without it (the colours of jointly
+// fitted galaxies). Each x_i = v_i + ε_i, v_i ~ N(μ, V), ε_i ~ N(0, S_i) with S_i known:
+// deconvolve_gaussian finds μ and V by "extreme deconvolution" (Bovy, Hogg & Roweis 2011,
+// §2); denoise moves x_i by the least-displacement map from N(μ, V + S_i) to N(μ, V).
+// Derivation: docs/algorithms.md#denoised-colours
 #pragma once
 
 #include <Eigen/Dense>
@@ -40,7 +27,7 @@ GaussianPopulation deconvolve_gaussian(const std::vector<Eigen::VectorXd>& point
                                        const std::vector<Eigen::MatrixXd>& noise,
                                        int max_iterations = 20000);
 
-/// The noise-free stand-in for one point (see above): μ + A (x − μ). Without noise (S = 0)
+/// The noise-free stand-in for one point (the file comment): μ + A (x − μ). Without noise (S = 0)
 /// the point itself.
 Eigen::VectorXd denoise(const GaussianPopulation& population, const Eigen::VectorXd& point,
                         const Eigen::MatrixXd& noise);

@@ -23,7 +23,8 @@ std::vector<SourceBand> source_bands(const SourceRecord& record) {
             if (auto f = optional_string(e, "stamp_file")) b.stamp_file = *f;
             if (auto h = optional_string(e, "stamp_hdu")) b.stamp_hdu = *h;
             b.zero_point = optional_double(e, "zero_point");
-            if (auto F = optional_double(e, "noise_correlation")) b.noise_correlation = std::max(1.0, *F);
+            if (auto F = optional_double(e, "noise_correlation"))
+                b.noise_correlation = std::max(1.0, *F);
             if (auto r = optional_double(e, "noise_rms")) b.noise_rms = *r;
             for (const SourceBand& other : out)
                 if (other.band == b.band)
@@ -37,10 +38,10 @@ std::vector<SourceBand> source_bands(const SourceRecord& record) {
     return out;
 }
 
-JointStamps read_joint_stamps(std::vector<SourceBand> bands, const Stamp& box,
-                              const std::string& record_file, const std::string& stamps_file,
-                              const std::string& reference, StampFiles& files,
-                              const std::function<std::optional<CartesianModel>(const std::string&)>& psf_of) {
+JointStamps read_joint_stamps(
+    std::vector<SourceBand> bands, const Stamp& box, const std::string& record_file,
+    const std::string& stamps_file, const std::string& reference, StampFiles& files,
+    const std::function<std::optional<CartesianModel>(const std::string&)>& psf_of) {
     JointStamps out;
     for (const SourceBand& b : bands) {
         if (b.stamp_hdu.empty())
@@ -64,7 +65,8 @@ JointStamps read_joint_stamps(std::vector<SourceBand> bands, const Stamp& box,
         const auto ref = std::find_if(out.bands.begin(), out.bands.end(),
                                       [&](const SourceBand& b) { return b.band == reference; });
         if (ref == out.bands.end())
-            throw Error("no band " + reference + " (--reference-band) in the record", "", 0, "bands");
+            throw Error("no band " + reference + " (--reference-band) in the record", "", 0,
+                        "bands");
         const auto k = ref - out.bands.begin();
         std::rotate(out.bands.begin(), ref, ref + 1);
         std::rotate(out.stamps.begin(), out.stamps.begin() + k, out.stamps.begin() + k + 1);

@@ -49,10 +49,10 @@ using StampFiles = std::map<std::string, std::unique_ptr<FitsReader>>;
 /// `stamps_file` when given, else its own stamp_file, else `record_file`; each must lie in
 /// `box`; band b's PSF is psf_of(name). Then `reference` (when not empty) is put first. Error
 /// (field "bands") on a band without a stamp, a stamp outside the box, or no such band.
-JointStamps read_joint_stamps(std::vector<SourceBand> bands, const Stamp& box,
-                              const std::string& record_file, const std::string& stamps_file,
-                              const std::string& reference, StampFiles& files,
-                              const std::function<std::optional<CartesianModel>(const std::string&)>& psf_of);
+JointStamps read_joint_stamps(
+    std::vector<SourceBand> bands, const Stamp& box, const std::string& record_file,
+    const std::string& stamps_file, const std::string& reference, StampFiles& files,
+    const std::function<std::optional<CartesianModel>(const std::string&)>& psf_of);
 
 /// The joint fit of a source's bands from (x, y) (stamp FITS coordinates) and scale
 /// `beta_start` (decompose_bands(): each band's noise correlation, or `noise_correlation` for

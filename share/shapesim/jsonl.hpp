@@ -1,21 +1,10 @@
 // JSON-lines catalogues (DESIGN §2): one JSON object per line, UTF-8, no header line, every
-// record carrying a "schema" string such as "shapesim.source/1".
-//
-// Reading: JsonlReader reads a stream line by line ("-" is stdin), counts lines, skips blank
-// ones, parses each line alone and checks its schema. nlohmann's errors speak of "line 1"
-// (each line is its own document), so they are rewrapped as Error(file, line, field). Fields
-// are read through the typed accessors below, which throw Error(message, field); the reader's
-// `next_record` (or `locate`) adds the file and line, giving
-//   shapelets.jsonl:42: beta: must be > 0, got -0.3
-//
-// Writing: JsonlWriter writes one record per line with nlohmann's shortest round-trip doubles
-// and flushes each line so pipes stream. JSON has no NaN/Inf (nlohmann would quietly write
-// null): the writer refuses them with an Error naming the field. A failed stream — a closed
-// pipe (SIGPIPE is ignored by app::run_main, so write() fails with EPIPE), a full disk — is
-// an Error too, never silent.
-//
-// Records are nlohmann::ordered_json (`Json`), so fields keep their order: "schema" and "id"
-// lead each line, and unknown fields are carried through in the order they came.
+// record carrying a "schema" string such as "shapesim.source/1". JsonlReader reads line by
+// line ("-" is stdin), checks each schema and reports errors as file:line: field: message;
+// JsonlWriter writes shortest round-trip doubles, flushes every line, and refuses NaN/Inf and
+// failed streams with an Error. Records are ordered_json: "schema" and "id" lead, unknown
+// fields pass through in order.
+// Details: docs/algorithms.md#json-lines-catalogues
 #pragma once
 
 #include "shapesim/error.hpp"

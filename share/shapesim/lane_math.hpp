@@ -1,19 +1,9 @@
-// ln x and eˣ written once for a double and for four doubles in vector lanes (GCC vector
-// extensions): the same operations in the same order, so a lane gives the bits the scalar
-// gives, whatever the lane width or CPU. Photon noise draws its Poisson deviates four pixels
-// at a time with these and must give exactly the per-pixel draw of rng.hpp (libm's log and
-// exp could differ in the last bit from any vector version, and are a call each).
-//
-// The algorithms are fdlibm's (Sun Microsystems 1993, as in FreeBSD's msun and musl):
-//   ln x  x = 2^k m, m ∈ [√½, √2), f = m − 1, s = f/(2 + f): ln m = 2s + s·R(s²) with fdlibm's
-//         degree-14 minimax R (|error| < 2⁻⁵⁸·⁴⁵), k ln 2 in two parts; < 1 ulp.
-//   eˣ    k = round(x/ln 2), r = x − k ln 2 (two parts), eʳ by fdlibm's degree-5 rational
-//         Remez form (|error| < 2⁻⁵⁹), scaled by 2^k; < 1 ulp.
-//   asin  |x| < ½: x + x·R(x²); above, from t = (1 − |x|)/2 and √t (π/2 − 2 asin √t), √t
-//         split in two parts below 0.975; R fdlibm's rational minimax (|error| < 2⁻⁵⁸·⁷⁵);
-//         < 1 ulp. In lanes every branch is computed and one chosen.
-// Tests hold them to within 1 ulp of libm over their domains and scalar = lane bit for bit.
-// The build's -ffp-contract=off keeps a·b + c from becoming an FMA in one width only.
+// ln x, eˣ and asin x written once for a double and for four doubles in vector lanes (GCC
+// vector extensions): the same operations in the same order, so a lane gives the bits the
+// scalar gives, whatever the lane width or CPU (photon noise draws four pixels at a time and
+// must equal rng.hpp's per-pixel draw). fdlibm's algorithms, < 1 ulp; the build's
+// -ffp-contract=off keeps a·b + c from becoming an FMA in one width only.
+// Derivation: docs/algorithms.md#vector-lanes
 #pragma once
 
 #include <cstdint>
@@ -57,11 +47,13 @@ SHAPESIM_LANES double abs(double x) { return from_bits(bits(x) & 0x7ffffffffffff
 SHAPESIM_LANES Doubles4 abs(Doubles4 x) { return from_bits(bits(x) & 0x7fffffffffffffffULL); }
 SHAPESIM_LANES double floor(double x) { return __builtin_floor(x); }
 SHAPESIM_LANES Doubles4 floor(Doubles4 x) {
-    return Doubles4{__builtin_floor(x[0]), __builtin_floor(x[1]), __builtin_floor(x[2]), __builtin_floor(x[3])};
+    return Doubles4{__builtin_floor(x[0]), __builtin_floor(x[1]), __builtin_floor(x[2]),
+                    __builtin_floor(x[3])};
 }
 SHAPESIM_LANES double sqrt(double x) { return __builtin_sqrt(x); }
 SHAPESIM_LANES Doubles4 sqrt(Doubles4 x) {
-    return Doubles4{__builtin_sqrt(x[0]), __builtin_sqrt(x[1]), __builtin_sqrt(x[2]), __builtin_sqrt(x[3])};
+    return Doubles4{__builtin_sqrt(x[0]), __builtin_sqrt(x[1]), __builtin_sqrt(x[2]),
+                    __builtin_sqrt(x[3])};
 }
 
 /// ln x for a positive, normal, finite x (lanes outside that give garbage, not a trap).
@@ -147,7 +139,8 @@ SHAPESIM_LANES D asin(D x) {
     const D c = (t - s_high * s_high) / (s + s_high);             // and the rest
     const D near_one = pio2_hi - (2.0 * (s + s * w) - pio2_lo);
     const D middle = pio4_hi - ((2.0 * s * w - (pio2_lo - 2.0 * c)) - (pio4_hi - 2.0 * s_high));
-    const D magnitude = select(small, select(tiny, ax, ax + ax * w), select(steep, near_one, middle));
+    const D magnitude =
+        select(small, select(tiny, ax, ax + ax * w), select(steep, near_one, middle));
     return from_bits(bits(magnitude) | (bits(x) & 0x8000000000000000ULL));
 }
 

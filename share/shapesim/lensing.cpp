@@ -70,7 +70,8 @@ double keys(double t) {
 
 }  // namespace
 
-std::optional<Lensing> reduced(const Convergence& c, bool magnify, const WeakLensingLimits& limits) {
+std::optional<Lensing> reduced(const Convergence& c, bool magnify,
+                               const WeakLensingLimits& limits) {
     if (!(c.kappa < 1.0)) return std::nullopt;
     const double g1 = c.gamma1 / (1.0 - c.kappa), g2 = c.gamma2 / (1.0 - c.kappa);
     const double g_sq = g1 * g1 + g2 * g2;
@@ -122,7 +123,8 @@ NfwProfile nfw_profile(double x, double kappa_s) {
 }
 
 void Cosmology::validate() const {
-    if (!(h0 > 0.0 && h0 < 1000.0)) throw Error("must be in (0, 1000) km/s/Mpc, got " + number(h0), "", 0, "h0");
+    if (!(h0 > 0.0 && h0 < 1000.0))
+        throw Error("must be in (0, 1000) km/s/Mpc, got " + number(h0), "", 0, "h0");
     if (!(omega_m > 0.0 && omega_m <= 1.0))
         throw Error("must be in (0, 1], got " + number(omega_m), "", 0, "omega-m");
 }
@@ -159,11 +161,15 @@ double Cosmology::sigma_crit(double z_lens, double z_source) const {
 }
 
 void NfwHalo::validate() const {
-    if (!(std::isfinite(x) && std::isfinite(y))) throw Error("position must be finite", "", 0, "halo");
-    if (!(mass > 0.0 && mass < 1e18)) throw Error("M200 must be in (0, 1e18) M_sun, got " + number(mass), "", 0, "halo");
+    if (!(std::isfinite(x) && std::isfinite(y)))
+        throw Error("position must be finite", "", 0, "halo");
+    if (!(mass > 0.0 && mass < 1e18))
+        throw Error("M200 must be in (0, 1e18) M_sun, got " + number(mass), "", 0, "halo");
     if (!(concentration > 0.0 && concentration < 1000.0))
-        throw Error("concentration must be in (0, 1000), got " + number(concentration), "", 0, "halo");
-    if (!(z > 0.0 && z < 20.0)) throw Error("redshift must be in (0, 20), got " + number(z), "", 0, "halo");
+        throw Error("concentration must be in (0, 1000), got " + number(concentration), "", 0,
+                    "halo");
+    if (!(z > 0.0 && z < 20.0))
+        throw Error("redshift must be in (0, 20), got " + number(z), "", 0, "halo");
 }
 
 NfwLens::NfwLens(const NfwHalo& halo, const Cosmology& cosmology, double z_source,
@@ -215,7 +221,8 @@ PowerSpectrum::PowerSpectrum(std::vector<double> ell, std::vector<double> power)
 
 double PowerSpectrum::operator()(double ell) const {
     if (!(ell >= ell_.front() && ell <= ell_.back())) return 0.0;
-    const std::size_t k = std::size_t(std::upper_bound(ell_.begin(), ell_.end(), ell) - ell_.begin());
+    const std::size_t k =
+        std::size_t(std::upper_bound(ell_.begin(), ell_.end(), ell) - ell_.begin());
     if (k == ell_.size()) return power_.back();
     const double l0 = ell_[k - 1], l1 = ell_[k], p0 = power_[k - 1], p1 = power_[k];
     const double t = std::log(ell / l0) / std::log(l1 / l0);
@@ -266,15 +273,18 @@ GaussianLensingField::GaussianLensingField(const PowerSpectrum& e,
     options.validate();
     require(field.nx > 0 && field.ny > 0 && field.pixel_scale > 0.0, "the field is empty");
     pixel_scale_ = field.pixel_scale;
-    const double wx = double(field.nx) * field.pixel_scale, wy = double(field.ny) * field.pixel_scale;
+    const double wx = double(field.nx) * field.pixel_scale,
+                 wy = double(field.ny) * field.pixel_scale;
     const double spacing = options.spacing > 0.0 ? options.spacing : std::max(wx, wy) / 128.0;
     h_arcsec_ = spacing / double(oversampling);
     const double nodes_x = std::ceil(options.padding * wx / h_arcsec_);
     const double nodes_y = std::ceil(options.padding * wy / h_arcsec_);
     if (!(nodes_x * nodes_y <= double(options.max_nodes)))
         throw Error("a grid of " + number(nodes_x) + " x " + number(nodes_y) + " nodes (spacing " +
-                        number(spacing) + "\" over " + number(options.padding) + " x the field) is "
-                        "more than " + std::to_string(options.max_nodes) + ": give a larger spacing",
+                        number(spacing) + "\" over " + number(options.padding) +
+                        " x the field) is "
+                        "more than " + std::to_string(options.max_nodes) +
+                        ": give a larger spacing",
                     "", 0, "spacing");
     // Even node counts: the Nyquist row is then one row (it is outside the band anyway).
     mx_ = std::max(4L, long(nodes_x) + long(nodes_x) % 2);
@@ -376,8 +386,9 @@ Convergence LensingSources::at(double x, double y) const {
 
 BinnedPower shear_power(const std::vector<double>& gamma1, const std::vector<double>& gamma2,
                         long nx, long ny, double spacing_rad, const std::vector<double>& edges) {
-    require(nx > 0 && ny > 0 && gamma1.size() == std::size_t(nx * ny) && gamma2.size() == gamma1.size(),
-            "shear_power: the arrays must hold nx × ny values");
+    require(
+        nx > 0 && ny > 0 && gamma1.size() == std::size_t(nx * ny) && gamma2.size() == gamma1.size(),
+        "shear_power: the arrays must hold nx × ny values");
     require(edges.size() >= 2 && spacing_rad > 0.0, "shear_power: needs bin edges and a spacing");
     std::vector<Cplx> a(gamma1.begin(), gamma1.end()), c(gamma2.begin(), gamma2.end());
     fft2(a, nx, ny, false);

@@ -1,35 +1,10 @@
-// Lensing fields: the convergence κ and shear γ each galaxy sees, from NFW halos (closed form)
-// and from Gaussian random fields of a convergence power spectrum; summed, then reduced to the
-// g = γ/(1−κ) and κ that render applies in shapelet space (transform.hpp lens).
-//
-// Frame: field pixels, x right, y up (FITS), angles counter-clockwise from +x: γ1 > 0 stretches
-// along x, γ2 > 0 along the diagonal x = y, as render's --shear and the truth's e1, e2. On a
-// north-up image with east to the left, sky-frame γ2 has the opposite sign.
-//
-// NFW (Navarro, Frenk & White 1997; lensing: Wright & Brainerd 2000, ApJ 534, 34, eqs 11–16):
-// with x = R/r_s and κ_s = ρ_s r_s / Σ_crit (ρ_s = δ_c ρ_crit(z_l)),
-//   κ(x)        = 2 κ_s (1 − A(x)) / (x² − 1)
-//   κ̄(<x)       = 4 κ_s (A(x) + ln(x/2)) / x²
-//   γ_t(x)      = κ̄(<x) − κ(x)
-//   A(x) = arccosh(1/x)/√(1−x²) (x < 1),  1 (x = 1),  arccos(1/x)/√(x²−1) (x > 1).
-// Near x = 1 (u = x² − 1 small) A = Σ_k (−u)^k/(2k+1) and (1 − A)/u = Σ_k (−u)^k/(2k+3), so
-// κ is exact through r_s; at small x, ln(x/2) + A is rewritten without cancellation. The
-// tangential shear at position angle φ from the halo: (γ1, γ2) = −γ_t (cos 2φ, sin 2φ).
-// The halo: M200 (mass inside r200, where the mean density is 200 ρ_crit(z_l)), concentration
-// c = r200/r_s, δ_c = (200/3) c³ / (ln(1+c) − c/(1+c)); distances in flat ΛCDM (Cosmology);
-// Σ_crit = c²/(4πG) · D_s/(D_l D_ls).
-//
-// Gaussian random field (GalSim's PowerSpectrum is the same idea; the discretisation is ours):
-// the convergence's Fourier modes on a periodic grid of M × M' points spaced h (radians),
-// period L = M h, have ⟨|κ̃(ℓ)|²⟩ = L L' P(ℓ) with κ(θ_j) = (1/(L L')) Σ_ℓ κ̃(ℓ) e^{iℓ·θ_j}:
-// real white noise w ~ N(0,1) on the grid, W = DFT(w), κ̃ = W h √P(|ℓ|), so the field's
-// variance is Σ_ℓ P/(L L') ≈ ∫ P d²ℓ/(2π)². A B mode (optional) draws its own noise. The
-// shear: γ̃1 = cos 2φ_ℓ κ̃_E − sin 2φ_ℓ κ̃_B, γ̃2 = sin 2φ_ℓ κ̃_E + cos 2φ_ℓ κ̃_B; κ = κ_E. The
-// field is band-limited to |ℓ| < π/spacing (the user's spacing), realised at spacing/4 (so the
-// Keys cubic interpolation between nodes keeps its power within 2–3% up to that limit), over a period `padding` × the field in each axis (so the field does not repeat
-// inside itself); ℓ = 0 is left out (no mean shear). The white noise is drawn node by node in
-// one keyed stream: the field depends on the seed, the field's size and these options only,
-// so every tile and thread count sees the same bits.
+// Lensing fields: the convergence κ and shear γ each galaxy sees, from NFW halos (closed form,
+// Wright & Brainerd 2000) and from Gaussian random fields of a convergence power spectrum;
+// summed, then reduced to the g = γ/(1−κ) and κ that render applies in shapelet space
+// (transform.hpp lens). Frame: field pixels, x right, y up (FITS), angles counter-clockwise
+// from +x: γ1 > 0 stretches along x, γ2 > 0 along x = y (sky-frame γ2 on a north-up,
+// east-left image has the opposite sign).
+// Derivation: docs/algorithms.md#lensing-fields
 #pragma once
 
 #include "shapesim/geometry.hpp"
@@ -128,14 +103,15 @@ private:
 PowerSpectrum read_power_spectrum(const std::string& path);
 
 struct GaussianFieldOptions {
-    double spacing = 0.0;  ///< arcsec: the field holds |ℓ| < π/spacing (0: the field's longer side / 128)
+    /// arcsec: the field holds |ℓ| < π/spacing (0: the field's longer side / 128)
+    double spacing = 0.0;
     double padding = 2.0;  ///< the grid's period over the field's size, each axis (≥ 1)
     std::uint64_t seed = 0;
     long max_nodes = 2048L * 2048L;  ///< refused beyond (memory: 24 bytes a node, 72 while made)
     void validate() const;
 };
 
-/// A Gaussian random lensing field realised over a field (see the top of this file).
+/// A Gaussian random lensing field realised over a field (docs/algorithms.md#lensing-fields).
 class GaussianLensingField {
 public:
     /// E mode from `e`, B mode from `b` when given.

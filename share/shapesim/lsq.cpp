@@ -64,7 +64,8 @@ NormalSystem normal_system(const CleanStamp& s, const Eigen::MatrixXd& phi_x,
             y2.row(n * nb + m) = phi_y.row(n).cwiseProduct(phi_y.row(m));
         }
     const Eigen::MatrixXd h = (x2 * s.weight.transpose()) * y2.transpose();
-    const Eigen::MatrixXd rhs_b = phi_x * s.image.cwiseProduct(s.weight).transpose() * phi_y.transpose();
+    const Eigen::MatrixXd rhs_b =
+        phi_x * s.image.cwiseProduct(s.weight).transpose() * phi_y.transpose();
     const int nc = real_count(n_max);
     NormalSystem system{Eigen::MatrixXd(nc, nc), Eigen::VectorXd(nc)};
     for (int n = 0; n <= n_max; ++n)
@@ -83,7 +84,8 @@ NormalSystem normal_system(const CleanStamp& s, const Eigen::MatrixXd& phi_x,
 std::optional<Solution> solve_normal(const NormalSystem& system, bool required) {
     const Eigen::Index nc = system.normal.rows();
     Eigen::LDLT<Eigen::MatrixXd> ldlt(system.normal);
-    if (!required && (ldlt.info() != Eigen::Success || !(ldlt.rcond() > 1e-10))) return std::nullopt;
+    if (!required && (ldlt.info() != Eigen::Success || !(ldlt.rcond() > 1e-10)))
+        return std::nullopt;
     return Solution{ldlt.solve(system.rhs), ldlt.solve(Eigen::MatrixXd::Identity(nc, nc))};
 }
 
@@ -247,7 +249,8 @@ Eigen::MatrixXd correlate(const Eigen::MatrixXd& b, const NoiseCorrelation& xi) 
     for (int dy = -xi.radius; dy <= xi.radius; ++dy)
         for (int dx = -xi.radius; dx <= xi.radius; ++dx) {
             const double w = xi.at(dx, dy);
-            const Eigen::Index j0 = std::max<Eigen::Index>(0, -dy), i0 = std::max<Eigen::Index>(0, -dx);
+            const Eigen::Index j0 = std::max<Eigen::Index>(0, -dy),
+                               i0 = std::max<Eigen::Index>(0, -dx);
             const Eigen::Index h = std::min(ny, ny - dy) - j0, wd = std::min(nx, nx - dx) - i0;
             if (w == 0.0 || h <= 0 || wd <= 0) continue;
             out.block(j0, i0, h, wd) += w * b.block(j0 + dy, i0 + dx, h, wd);
@@ -260,7 +263,8 @@ double noise_take_up(const ImageArray& image, const ImageArray& weight, const Ma
                      double x, double y, double beta_pix, int n_max, const NoiseCorrelation& xi,
                      const CartesianModel* psf) {
     check_fit_inputs(n_max, beta_pix);
-    require(xi.radius >= 0 && xi.values.size() == std::size_t((2 * xi.radius + 1) * (2 * xi.radius + 1)),
+    require(xi.radius >= 0 &&
+                xi.values.size() == std::size_t((2 * xi.radius + 1) * (2 * xi.radius + 1)),
             "noise_take_up: the correlation's values do not match its radius");
     const CleanStamp s = clean_stamp(image, weight, mask);
     check_pixels(s, n_max);

@@ -1,22 +1,10 @@
-// Weighted linear least-squares shapelet decomposition of a pixel stamp (DESIGN §3).
-//
-// At a given centre, β and n_max, the model is linear in its coefficients, so the best fit
-// minimises χ² = Σ_p w_p (I_p − Σ_k A_{pk} c_k)² with A the *pixel-integrated* basis (so a
-// model rendered by render.hpp is recovered exactly). The fit runs on the Cartesian basis —
-// separable, A_{p,(n1,n2)} = Φ_x(n1, i) Φ_y(n2, j) — whose span at each n_max equals the
-// polar one; the coefficients and their covariance are then mapped to polar exactly.
-// Solve (two paths, same answer to rounding):
-//  - normal: the normal matrix AᵀWA is itself separable, (AᵀWA)_{(n1,n2),(m1,m2)} =
-//    Σ_ij w_ij Φ_x(n1,i)Φ_x(m1,i) Φ_y(n2,j)Φ_y(m2,j), two GEMMs costing O(n⁴·(nx+ny)·…)
-//    instead of O(pixels · n⁴); Cholesky (LDLT) solve. Used when its reciprocal condition
-//    estimate is above 1e-10, i.e. when squaring the condition number costs < 1e-6 relative.
-//  - qr: column-pivoting Householder QR of W^{1/2} A (no normal equations); the fallback for
-//    ill-conditioned designs (β far below a pixel, heavy masking), and detects rank deficiency.
-// Covariance (AᵀWA)⁻¹ comes from the same factor. χ²_r = χ² / (pixels used − coefficients),
-// χ² summed from the residual image (not from the normal equations, which would cancel).
-//
-// Pixels are used when their weight is > 0 and finite, their image value is finite and the
-// mask (when given) is 0. Weights are inverse variances in the image's units.
+// Weighted linear least-squares shapelet decomposition of a pixel stamp (DESIGN §3): at a
+// given centre, β and n_max, minimise χ² = Σ_p w_p (I_p − Σ_k A_{pk} c_k)² with A the
+// pixel-integrated basis, on the separable Cartesian basis, then map to polar exactly. Solved
+// by the separable normal equations (LDLT) when well conditioned, else by pivoting QR of
+// W^{1/2}A. A pixel counts when its weight is > 0 and finite, its value finite and the mask 0;
+// weights are inverse variances in the image's units.
+// Derivation: docs/algorithms.md#least-squares-fits
 #pragma once
 
 #include "shapesim/correlation.hpp"
@@ -31,7 +19,7 @@ namespace shapesim {
 /// Per-pixel mask, same shape as the image: non-zero excludes the pixel (e.g. a neighbour's).
 using MaskArray = Eigen::Array<std::uint8_t, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>;
 
-/// Which solver to use (see the file comment); `automatic` picks `normal` when well-conditioned.
+/// Which solver to use (docs/algorithms.md); `automatic` picks `normal` when well-conditioned.
 enum class LsqSolver { automatic, normal, qr };
 
 /// What a decomposition returns.

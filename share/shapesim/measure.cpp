@@ -59,7 +59,8 @@ MoffatFit fit_moffat(const ImageArray& image, const MaskArray& use, double x, do
                 double row = 0.0;
                 for (int a = 0; a < moffat_points; ++a) {
                     const double dx = px[k] + moffat_node[a] - p[0];
-                    row += moffat_weight[a] * std::exp(-beta * std::log1p((dx * dx + dy * dy) * inv_a2));
+                    row += moffat_weight[a] *
+                           std::exp(-beta * std::log1p((dx * dx + dy * dy) * inv_a2));
                 }
                 sum += moffat_weight[b] * row;
             }
@@ -157,7 +158,8 @@ MorphRecord measure_object(const DetectionResult& field, const Detection& object
     MaskArray mask(j1 - j0, i1 - i0);
     for (long j = j0; j < j1; ++j)
         for (long i = i0; i < i1; ++i) mask(j - j0, i - i0) = field.is_bad(int(j), int(i)) ? 1 : 0;
-    const Morphometry m = measure_morphometry(image, labels, object.label, &mask, options.morphometry);
+    const Morphometry m =
+        measure_morphometry(image, labels, object.label, &mask, options.morphometry);
 
     MorphRecord r;
     r.id = source.id;

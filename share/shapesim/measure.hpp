@@ -1,23 +1,9 @@
 // One galaxy's morphology record (shapesim.morph/1, DESIGN §2, §5) from a detected field:
 // SExtractor-style photometry and shape from detection (detect.hpp, sources.hpp), e1, e2
-// (paper eqs. 6–7), and the statistics of morphometry.hpp on a statmorph-style cutout.
-//
-// Cutout: the object's segment bounding box, centred, half-size max(⌊2.5·max(dx, dy)/2⌋, 24)
-// pixels, clipped to the image (statmorph's cutout_extent 2.5, min_cutout_size 48), from the
-// background-subtracted image, the segmentation and the bad-pixel mask.
-//
-// Record fields: id (the label), x, y, mag (Kron), fwhm, a, b, theta, e1, e2, r_petro
-// (pixels, η = 0.2, about the asymmetry centre), c, a_sym, s (clumpiness ×10 as in Conselice
-// 2003 and the paper), gini, m20; extra: kind, stellarity, r20, r80, smoothness (statmorph's
-// S), sky_sigma, x_asym, y_asym (FITS), snr (Kron); with a PSF for shapes, shear_e1, shear_e2,
-// shear_resolution, shear_sigma (MeasureOptions::shear_psf). A statistic that cannot be computed is
-// left out. Flags say when a statistic is unreliable:
-//   small     r_p < `min_petrosian` pixels (2): the PSF, not the galaxy, sets C, A, S
-//   faint     Kron S/N < `min_snr` (10): A and S are noise-dominated
-//   crowded   more than `max_neighbour_fraction` (10%) of the 1.5 r_p aperture belongs to
-//             other segments
-//   no_sky    no clean sky box in the cutout: A and S without their background terms
-// plus morphometry's own flags and the detection's (blended, truncated, …).
+// (paper eqs. 6–7), and the statistics of morphometry.hpp on a statmorph-style cutout (the
+// segment's box × 2.5, at least 48 pixels). A statistic that cannot be computed is left out;
+// flags (small, faint, crowded, no_sky) say when one is unreliable.
+// Fields, cutout and flags: docs/algorithms.md#morphology-records
 #pragma once
 
 #include "shapesim/detect.hpp"

@@ -95,7 +95,7 @@ Moments moments_from_raw(const RawMoments& raw, double x_c, double y_c) {
     Moments out;
     out.flux = raw.flux;
     if (!(raw.flux > 0.0) || !std::isfinite(raw.flux)) {
-        // Centroid and shape are undefined without positive flux (file comment).
+        // Centroid and shape are undefined without positive flux (moments.hpp).
         out.dx = out.dy = out.x = out.y = kNaN;
         out.q11 = out.q22 = out.q12 = out.r2_about_centre = out.rms_radius = kNaN;
         out.chi = out.epsilon = Complex(kNaN, kNaN);

@@ -1,39 +1,18 @@
 // Properties of a shapelet model straight from its coefficients: flux, centroid, second
-// moments, rms radius, ellipticity and the L2 norm. All are exact (no image is drawn).
-//
-// Raw moments about the basis centre, z = x + iy in pixels from the centre, β in pixels
-// (closed forms of Massey & Refregier 2005, MNRAS 363, 197, re-derived here for this
-// repository's χ_{n,m} ∝ e^{+imθ}, hence the conjugates; with the Laguerre generating function
-// Σ_q L_q^k(t) s^q = (1−s)^{−k−1} e^{−ts/(1−s)} each radial integral is one power series):
-//   F     = ∫ f d²x        = 2√π β    Σ_{n even}      a_{n,0}
-//   Z     = ∫ z f d²x      = 2√(2π) β² Σ_{n odd}      √(n+1) · conj a_{n,1}
-//   R     = ∫ |z|² f d²x   = 4√π β³   Σ_{n even}      (n+1) · a_{n,0}
-//   E     = ∫ z² f d²x     = 4√π β³   Σ_{n even ≥ 2}  √(n(n+2)) · conj a_{n,2}
-// The Cartesian route is independent of those derivations: with M_p(n) = ∫ u^p φ_n du
-// (`hermite_moments`),  ∫ x^p y^q f = β^{p+q+1} Σ b(n1,n2) M_p(n1) M_q(n2).  Both are provided;
-// the unit tests hold them equal and equal to the moments of finely rendered images.
-//
-// Derived quantities (units: pixels, pixels², image units):
-//   centroid offset   z̄ = Z / F                     (centroid = basis centre + z̄)
-//   central moments   Q11 + Q22 = R/F − |z̄|²,  Q11 − Q22 + 2i Q12 = E/F − z̄²
-//   rms radius        √(Q11 + Q22);  also R/F, the mean |z|² about the basis centre
-//   distortion        χ = (Q11 − Q22 + 2i Q12)/(Q11 + Q22)   — the paper's e1 + i e2 (eqs. 6–7)
-//                      and GalSim's "distortion" e; |χ| = (a² − b²)/(a² + b²)
-//   reduced-shear ε   ε = χ / (1 + √(1 − |χ|²)) — GalSim's "reduced shear" g; |ε| = (a−b)/(a+b)
-// a, b are the axes of the moment ellipse; the phase of χ and ε is 2θ, θ CCW from +x.
-//
-// Undefined values are NaN, never an exception (a catalogue of thousands must not stop at one
-// odd object; writers refuse NaN fields, STYLE "JSON-lines"):
-//   flux ≤ 0 or not finite  → every derived quantity is NaN (raw moments and flux are kept);
-//   Q11 + Q22 ≤ 0           → rms radius, χ and ε are NaN;
-//   |χ| ≥ 1 (Q not positive definite) → ε is NaN.
+// moments, rms radius, ellipticity and the L2 norm, all exact (no image is drawn; Massey &
+// Refregier 2005). Units: pixels, pixels², image units; z = x + iy from the basis centre.
+//   F = 2√π β Σ_{n even} a_{n,0},   χ = (Q11 − Q22 + 2i Q12)/(Q11 + Q22) (paper eqs. 6–7),
+//   ε = χ / (1 + √(1 − |χ|²)) (GalSim's reduced shear g).
+// Undefined values are NaN, never an exception: flux ≤ 0 or not finite makes every derived
+// quantity NaN; Q11 + Q22 ≤ 0 the rms radius, χ and ε; |χ| ≥ 1 ε.
+// Derivation: docs/algorithms.md#moments
 #pragma once
 
 #include "shapesim/model.hpp"
 
 namespace shapesim {
 
-/// Raw moments about the basis centre (offsets in pixels; see the file comment).
+/// Raw moments about the basis centre (offsets in pixels; docs/algorithms.md#moments).
 struct RawMoments {
     double flux = 0.0;  ///< F = ∫ f d²x, image units
     Complex z;          ///< Z = ∫ (x + iy) f d²x

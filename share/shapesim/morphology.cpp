@@ -142,7 +142,8 @@ double even_sum(const std::vector<Complex>& shape) {
 
 double flux_ratio(const MorphologyPoint& p, std::size_t band) {
     const double sum = even_sum(p.shape);
-    return sum != 0.0 ? even_sum(p.band_shapes.at(band)) / sum : std::numeric_limits<double>::quiet_NaN();
+    return sum != 0.0 ? even_sum(p.band_shapes.at(band)) / sum
+                      : std::numeric_limits<double>::quiet_NaN();
 }
 
 namespace {
@@ -231,7 +232,8 @@ void denoise_colours(Morphology& out, const std::vector<ShapeletRecord>& records
         ratios.push_back(std::move(x));
         noise.push_back(std::move(s));
     }
-    if (std::all_of(noise.begin(), noise.end(), [](const auto& s) { return s.isZero(0.0); })) return;
+    if (std::all_of(noise.begin(), noise.end(), [](const auto& s) { return s.isZero(0.0); }))
+        return;
     const GaussianPopulation population = deconvolve_gaussian(ratios, noise);
     for (std::size_t i = 0; i < out.points.size(); ++i) {
         MorphologyPoint& p = out.points[i];
@@ -239,7 +241,8 @@ void denoise_colours(Morphology& out, const std::vector<ShapeletRecord>& records
         for (std::size_t b = 0, k = 0; b < bands; ++b) {
             if (b == reference) continue;
             const double change = moved(Eigen::Index(k++));
-            for (std::size_t m = 0; m < p.shape.size(); ++m) p.band_shapes[b][m] += change * p.shape[m];
+            for (std::size_t m = 0; m < p.shape.size(); ++m)
+                p.band_shapes[b][m] += change * p.shape[m];
         }
     }
 }
@@ -337,7 +340,8 @@ void set_smoothing_lengths(Morphology& out, const SmoothOptions& options) {
         betas.push_back(p.beta);
         mags.push_back(p.mag);
     }
-    l.beta = options.delta ? 0.0 : options.beta.value_or(k * mean_nearest_neighbour_separation(betas));
+    l.beta =
+        options.delta ? 0.0 : options.beta.value_or(k * mean_nearest_neighbour_separation(betas));
     l.mag = options.delta ? 0.0 : options.mag.value_or(k * mean_nearest_neighbour_separation(mags));
     const std::vector<PolarIndex> index = polar_indices(out.n_max);
     l.coefficient.assign(index.size(), 0.0);

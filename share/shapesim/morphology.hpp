@@ -1,99 +1,11 @@
 // The morphology PDF of the method (paper §3–4.1, DESIGN §4): aligned shapelet models as
-// points of a parameter space, smoothed by Epanechnikov kernels, resampled by Silverman's
-// bootstrap.
-//
-// Alignment (align()): rotate so the ellipticity lies along x — the paper's "a_{2,2} phase",
-// taken exactly: χ of the closed-form quadrupole moments (moments.hpp), to which every m = 2
-// coefficient contributes, a_{2,2} most — made real and positive. Rotation by π keeps χ, and
-// every even-m coefficient, but flips the odd-m ones: of the two, take the one giving the
-// first odd-m coefficient (packed order) with Re ≠ 0 Re > 0. Then reflect about the x axis
-// (a → conj a, which keeps χ real) when Im a_{4,2} < 0. Where what a rule needs is absent or
-// zero (|a| ≤ 1e-12·|a_{0,0}|; χ = 0 for a model with no m = 2 part), the next thing of its
-// kind decides: for the rotation a_{2,2}, else the first non-zero m ≥ 1 coefficient (made
-// real and positive by a rotation of phase/m); for the reflection the first even-m coefficient
-// from a_{4,2} on (from a_{1,1} when n_max < 4) with Im ≠ 0, else the first such odd-m one. A model with no such coefficient
-// (n_max 0, or circularly symmetric) is left as it is.
-//
-// Parameter space (one point per model): c_{n,m} = a_{n,m}/a_{0,0} as modulus |c| and phase
-// arg c for m > 0, the real c_{n,0} for n > 0, plus β (arcsec) and magnitude. Models of
-// different n_max share the space: absent coefficients are zero and are never perturbed.
-//
-// Smoothing lengths: λ_phase fixed (15° by default); every other axis λ = k × the mean
-// nearest-neighbour separation along that axis over the models that have it (k = 4); fewer
-// than two models on an axis ⇒ λ = 0. λ = 0 everywhere is the δ-function PDF.
-//
-// Drawing (draw_galaxy()): a parent by weight (uniform by default), an Epanechnikov
-// perturbation of λ on every axis it has (RandomStream::epanechnikov, the paper's
-// three-uniform recipe), the coefficients rebuilt as a_{0,0}·c' with a_{0,0} set by the drawn
-// magnitude (flux = 2√π β_pix a_{0,0} Σ_{n even} c'_{n,0}), then a uniform rotation and a
-// fair-coin reflection. Perturbing c = a/a_{0,0} with a fixed λ is the paper's adaptive
-// kernel: in a the width is a_{0,0}·λ, wider for brighter, rarer galaxies.
-//
-// Conditional on magnitude (DrawOptions::neighbours = K > 0, not in δ mode). The paper's draw
-// copies a parent's shape at its own magnitude, so a field with one bright galaxy fills a
-// large simulation's bright end with copies of it (the HDF cut: all 63 galaxies brighter than
-// I = 22 in 6 arcmin² from one spiral). Here the magnitude is drawn as before (a parent by
-// weight, perturbed by λ_mag: the counts stay the data's, smoothed), and the shape comes from
-// one of the K parents nearest to that magnitude, chosen uniformly: a bright draw picks among
-// the K brightest, so no parent supplies much more than 1/K of them. Only parents within
-// `max_mag_shift` of the drawn magnitude qualify (the nearest always does): a field with one
-// bright galaxy still gives it to most bright draws, and more fields are the cure (a faint
-// galaxy's shape blown up five magnitudes is no bright galaxy). The shape parent's β is
-// scaled to the drawn magnitude by the size–luminosity relation r ∝ L^s
-// (β·10^{−0.4·s·(m − m_parent)}, s = `size_slope`), then perturbed by λ_β.
-//
-// Positive parents (SmoothOptions::keep_negative false, not in δ mode). A fit of a noisy or
-// truncated galaxy rings below zero (half the HDF's n_max ≥ 2 models by more than 1% of their
-// peak; intrinsic fits of faint galaxies hold up to half their flux in negative rings). Every
-// point's shape, and each band's, is replaced by the nearest one (in ∫(f − f')²) whose light is
-// nowhere below zero, to 10⁻³ of its flux (nearest_non_negative()); the δ PDF keeps the real
-// models exactly.
-//
-// Mixtures (DrawOptions::mix = M ≥ 2, conditional draws only). A perturbed shapelet series
-// rings: its change in high orders is an oscillation at large radius, and a clipped negative
-// half leaves the positive half as a visible ring. A mixture is new without ringing: the shape
-// parent (chosen as above) and M − 1 partners, picked among the 2(M − 1) points of its
-// magnitude window whose aligned unit-β images are most alike to its own (the cosine of the
-// angle between them: a mixture averages galaxies of one kind), are
-// each scaled to unit flux at unit β (c / Σ_{n even} c_{n,0}) and added with weights w from a
-// flat Dirichlet draw, the largest the shape parent's. In the coordinates u = x/β every term is its parent's image stretched,
-// positive where the parent is; a convex sum of positive images is positive, so the mixture
-// rings no deeper than its parents do. Its β gives it the shape parent's rms radius (moved to
-// the drawn magnitude by the size–luminosity slope s): β = β_0 r_0 10^{−0.4 s (m − m_0)} /
-// √(Σ w r_j²), r_j² the parent's size2, so the sizes are the parents'. Bands mix with the same
-// weights (a red bulge of one parent stays red), each then scaled to the shape parent's flux
-// ratio: the colours are the parents', not averages of them. No coefficient is perturbed.
-//
-// Several bands (issue 17). Models of a joint fit (shapesim-decompose on shapesim-detect
-// --bands records) carry every band's coefficients at one centre, β and n_max. A point keeps
-// them aligned as its reference shape is (the same rotation and reflection) and normalised by
-// the reference band's a_{0,0}: c_b = a_b / a_{0,0}, colours per shapelet mode, so a red bulge
-// in a blue disc stays one. A draw gives band b the parent's c_b plus the reference shape's
-// perturbation scaled by the parent's flux ratio s_b = Σ_{n even} c_{b,n,0} / Σ_{n even} c_{n,0}
-// (the perturbation carries the galaxy's mean colour, the parent's colour gradients are kept).
-// Then its colours are perturbed as one vector: the non-reference ratios s of the points have
-// mean μ and covariance V (Morphology::colour_mean, colour_covariance), and a draw takes
-// s' = μ + (s − μ + h V^{1/2} g)/√(1 + h²), g standard normal, clipped at s' ≥ 0: Silverman's
-// (1986, §6.4.1) smoothed bootstrap with its variance correction, with a kernel shaped as the
-// population (§4.2.1), so the draws have the parents' mean and covariance. SEDs are smooth and
-// neighbouring bands' ratios move together: a kernel per band would widen every adjacent
-// colour by its own width. h = SmoothingLengths::colour, 0.25 by default (SmoothOptions;
-// measured on the XDF, README: the d-dimensional normal-reference rule, 0.6 for 102 parents
-// in 8 dimensions, blurs the colour distributions' clumps), 0 in δ mode (a δ draw copies
-// every band). The change s' − s enters as the drawn reference shape times it (a uniform
-// colour change; the parent's gradients stay). The bands are placed with the same a_{0,0},
-// β, rotation and reflection as the reference.
-//
-// A parent's measured flux ratios s_b carry its measurement noise, and a simulation adds its
-// own noise on top: a faint band's colours come out twice as noisy as the real ones. So
-// build_morphology first denoises them (deconvolution.hpp): the population of the vectors
-// (s_b) over the non-reference bands, N(μ, V), is deconvolved from each parent's noise S
-// (its bands' statistical flux errors — fit and β, not truncation — over the reference flux,
-// and the reference's own error through every ratio), and each parent's ratios move by the
-// least-displacement map from N(μ, V + S) to N(μ, V): a precise colour stays, a noisy one is
-// drawn towards the population's. The move adds the reference shape times the ratio change,
-// so the band's own structure (its gradients) is kept. Parents without flux errors keep their
-// colours; SmoothOptions::keep_colour_noise turns it off.
+// points of a parameter space (c_{n,m} = a_{n,m}/a_{0,0} as |c| and arg c for m > 0, the real
+// c_{n,0}, β in arcsec and magnitude), smoothed by Epanechnikov kernels of widths λ and
+// resampled by Silverman's bootstrap: a parent by weight, perturbed by λ on every axis it has,
+// then rotated and reflected at random. Options draw shapes conditional on magnitude, move
+// parents to their nearest non-negative shapes, mix several parents, and carry several bands
+// with denoised colours.
+// Derivation: docs/algorithms.md#the-morphology-pdf
 #pragma once
 
 #include "shapesim/model.hpp"
@@ -117,7 +29,7 @@ struct Alignment {
     bool reflected = false; ///< reflected about the x axis after the rotation
 };
 
-/// The aligned model (see above) and how it was reached.
+/// The aligned model (docs/algorithms.md#alignment) and how it was reached.
 ShapeletModel align(const ShapeletModel& model, Alignment* how = nullptr);
 /// The inverse of align(): the original model from the aligned one.
 ShapeletModel unalign(const ShapeletModel& aligned, const Alignment& how);
@@ -174,9 +86,10 @@ struct SmoothOptions {
     /// denoised: see build_morphology).
     bool keep_colour_noise = false;
     /// Keep every shape as fitted, light below zero and all (by default, outside δ mode, each
-    /// is moved to its nearest non-negative shape: positivity.hpp, "Positive parents" above).
+    /// is moved to its nearest non-negative shape: positivity.hpp,
+    /// docs/algorithms.md#positive-models).
     bool keep_negative = false;
-    /// Multi-band: the colour kernel's width h (see above).
+    /// Multi-band: the colour kernel's width h (docs/algorithms.md#several-bands).
     double colour = 0.25;
     void validate() const;
 };
@@ -292,7 +205,8 @@ long count_shape_only(const Morphology& morphology);
 
 /// Align every record's model and compute the smoothing lengths. Throws Error when a record
 /// has a_{0,0} ≤ 0 or no magnitude (the caller filters such records first).
-Morphology build_morphology(const std::vector<ShapeletRecord>& records, const SmoothOptions& options);
+Morphology build_morphology(const std::vector<ShapeletRecord>& records,
+                            const SmoothOptions& options);
 
 // Choosing the records (shapesim-smooth): which become points, their parent-selection weights
 // and fields, and the model's provenance.
@@ -391,7 +305,7 @@ struct DrawnGalaxy {
 /// Throws Error when no point qualifies.
 std::vector<double> parent_table(const Morphology& morphology, double mag_limit);
 
-/// How draw_galaxy() chooses shapes (see "Conditional on magnitude" above).
+/// How draw_galaxy() chooses shapes (docs/algorithms.md#conditional-on-magnitude).
 struct DrawOptions {
     int neighbours = 0;       ///< K; 0: the paper's draw (shape and magnitude of one parent)
     double size_slope = 0.3;  ///< s in r ∝ L^s when a shape moves to another magnitude

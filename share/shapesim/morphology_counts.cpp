@@ -104,7 +104,8 @@ double CountModel::density(double lo, double hi) const {
     lo = std::max(lo, bright);
     hi = std::min(hi, faint);
     if (!(hi > lo)) return 0.0;
-    return std::pow(10.0, log_density) * power_moments(slope * std::log(10.0), lo, hi, pivot).zeroth;
+    return std::pow(10.0, log_density) *
+           power_moments(slope * std::log(10.0), lo, hi, pivot).zeroth;
 }
 
 CountModel fit_counts(const std::vector<SourceField>& fields, double bright, double faint) {

@@ -71,7 +71,8 @@ std::vector<std::size_t> magnitude_order(const Morphology& morphology, double ma
     return order;
 }
 
-double conditional_mag_spread(const MorphologyPoint& p, double lambda_mag, const DrawOptions& draw) {
+double conditional_mag_spread(const MorphologyPoint& p, double lambda_mag,
+                              const DrawOptions& draw) {
     const double gap = std::isfinite(p.mag_gap) ? p.mag_gap : 0.0;
     return std::max(lambda_mag, std::min(gap, 0.5 * draw.max_mag_shift));
 }
@@ -151,7 +152,8 @@ PerturbedShape perturb_shape(const MorphologyPoint& p, const SmoothingLengths& l
         out.norm += std::norm(c);
         if (k == 0) continue;
         if (index[k].m == 0) {
-            out.shape[k] = Complex(c.real() + shrink * l.coefficient[k] * stream.epanechnikov(), 0.0);
+            out.shape[k] =
+                Complex(c.real() + shrink * l.coefficient[k] * stream.epanechnikov(), 0.0);
             if (index[k].n % 2 == 0) out.sum += out.shape[k].real();
         } else {
             const double modulus = (prepared ? p.modulus[k] : std::abs(c)) +
@@ -184,7 +186,8 @@ bool rings_no_deeper(const std::vector<Complex>& shape, const MorphologyPoint& p
                      double beta, double allowance) {
     ShapeletModel candidate(0.0, 0.0, 1.0, p.n_max);
     candidate.coeffs = shape;
-    const double peak_ratio = std::pow(10.0, -0.4 * (mag - p.mag)) * (p.beta / beta) * (p.beta / beta);
+    const double peak_ratio =
+        std::pow(10.0, -0.4 * (mag - p.mag)) * (p.beta / beta) * (p.beta / beta);
     return hole_depth(candidate) <= p.hole / std::max(peak_ratio, 1.0) + allowance;
 }
 

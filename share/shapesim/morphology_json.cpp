@@ -117,9 +117,11 @@ double number(const Json& object, const char* field, const std::string& where) {
 // "colours": {"reference": band, "mean": [one per band], "covariance": [[…] one row per band]}.
 void read_colour_population(Morphology& m, const Json& colours) {
     const std::size_t n = m.bands.size();
-    if (!colours.is_object() || !colours.contains("reference") || !colours.at("reference").is_string())
+    if (!colours.is_object() || !colours.contains("reference") ||
+        !colours.at("reference").is_string())
         throw Error("missing or not a string", "", 0, "colours.reference");
-    const auto at = std::find(m.bands.begin(), m.bands.end(), colours.at("reference").get<std::string>());
+    const auto at =
+        std::find(m.bands.begin(), m.bands.end(), colours.at("reference").get<std::string>());
     if (at == m.bands.end()) throw Error("not one of the bands", "", 0, "colours.reference");
     m.reference_band = std::size_t(at - m.bands.begin());
     const auto numbers = [](const Json& list, std::size_t size, const std::string& where) {
@@ -127,19 +129,22 @@ void read_colour_population(Morphology& m, const Json& colours) {
             throw Error("must be an array of one number per band", "", 0, where);
         std::vector<double> out;
         for (const Json& v : list) {
-            if (!v.is_number() || !std::isfinite(v.get<double>())) throw Error("not a finite number", "", 0, where);
+            if (!v.is_number() || !std::isfinite(v.get<double>()))
+                throw Error("not a finite number", "", 0, where);
             out.push_back(v.get<double>());
         }
         return out;
     };
-    m.colour_mean = numbers(colours.contains("mean") ? colours.at("mean") : Json(), n, "colours.mean");
+    m.colour_mean =
+        numbers(colours.contains("mean") ? colours.at("mean") : Json(), n, "colours.mean");
     const Json& rows = colours.contains("covariance") ? colours.at("covariance") : Json();
     if (!rows.is_array() || rows.size() != n)
         throw Error("must hold one row per band", "", 0, "colours.covariance");
     m.colour_covariance.resize(Eigen::Index(n), Eigen::Index(n));
     for (std::size_t i = 0; i < n; ++i) {
         const std::vector<double> row = numbers(rows[i], n, "colours.covariance");
-        for (std::size_t j = 0; j < n; ++j) m.colour_covariance(Eigen::Index(i), Eigen::Index(j)) = row[j];
+        for (std::size_t j = 0; j < n; ++j)
+            m.colour_covariance(Eigen::Index(i), Eigen::Index(j)) = row[j];
     }
     if (!m.colour_covariance.isApprox(m.colour_covariance.transpose()))
         throw Error("must be symmetric", "", 0, "colours.covariance");
@@ -300,7 +305,8 @@ void read_fields(const Json& doc, Morphology& m) {
         const Json& f = doc.at("shape_fields");
         if (!f.is_array()) throw Error("must be an array of strings", "", 0, "shape_fields");
         for (const Json& image : f) {
-            if (!image.is_string()) throw Error("must be an array of strings", "", 0, "shape_fields");
+            if (!image.is_string())
+                throw Error("must be an array of strings", "", 0, "shape_fields");
             m.shape_fields.push_back(image.get<std::string>());
         }
     }

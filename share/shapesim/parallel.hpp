@@ -1,6 +1,7 @@
 // One loop over independent items on several threads, for the programs' per-object work
-// (decompose, render, measure), and image rows in bands. Items are handed out one at a time, so uneven costs balance;
-// results go into slots indexed by the item, so the output order never depends on the threads.
+// (decompose, render, measure), and image rows in bands. Items are handed out one at a time,
+// so uneven costs balance; results go into slots indexed by the item, so the output order
+// never depends on the threads.
 #pragma once
 
 #include <algorithm>
@@ -38,7 +39,9 @@ void parallel_for(std::size_t count, int threads, const Work& work) {
 template <class Work>
 void parallel_bands(long rows, int threads, const Work& work) {
     const int parts = int(std::max<long>(1, std::min<long>(threads, rows)));
-    const auto band = [&](int k) { return std::make_pair(rows * k / parts, rows * (k + 1) / parts); };
+    const auto band = [&](int k) {
+        return std::make_pair(rows * k / parts, rows * (k + 1) / parts);
+    };
     std::vector<std::thread> pool;
     for (int k = 1; k < parts; ++k)
         pool.emplace_back([&, k] {

@@ -71,7 +71,8 @@ namespace {
 // state |n_r, n_l⟩, n_r = (n+m)/2, n_l = (n−m)/2, built by a_r† = (a_x† + i a_y†)/√2 and
 // a_l† = (a_x† − i a_y†)/√2 (phases included: checked against the paper's formula by
 // quadrature in tests/unit/polar_test.cpp). With a_x†|n1,n2⟩ = √(n1+1)|n1+1,n2⟩:
-//   √n_r |n_r, n_l⟩ = (a_x† + i a_y†)/√2 |n_r−1, n_l⟩,  √n_l |n_r, n_l⟩ = (a_x† − i a_y†)/√2 |n_r, n_l−1⟩.
+//   √n_r |n_r, n_l⟩ = (a_x† + i a_y†)/√2 |n_r−1, n_l⟩,
+//   √n_l |n_r, n_l⟩ = (a_x† − i a_y†)/√2 |n_r, n_l−1⟩.
 // The step is taken along the larger of n_r, n_l: its 1/√(2 max(n_r, n_l)) keeps each step's
 // error gain ≤ 1 (stepping along a small n_r amplifies rounding ~√(n/n_r) per order).
 Eigen::MatrixXcd compute_polar_cartesian(int n, const Eigen::MatrixXcd* previous) {

@@ -1,17 +1,11 @@
 // The polar shapelet basis χ_{n,m} (paper eq. 2) and the exact change of basis between polar
 // and Cartesian coefficients.
 //
-//   χ_{n,m}(r, θ; β) = (−1)^q / (β √π) · [q!/p!]^{1/2} (r/β)^{|m|} L_q^{|m|}(r²/β²) e^{−r²/2β²} e^{imθ}
+//   χ_{n,m}(r, θ; β) = (−1)^q / (β √π) · [q!/p!]^{1/2} (r/β)^{|m|} L_q^{|m|}(r²/β²)
+//                      · e^{−r²/2β²} e^{imθ}
 // with q = (n − |m|)/2, p = (n + |m|)/2, θ counter-clockwise from +x (y up, FITS orientation).
-// The radial part is evaluated with the normalised Laguerre recurrence
-//   g_{q+1} = (2q+|m|+1−t)/√((q+1)(q+|m|+1)) g_q − √(q(q+|m|)/((q+1)(q+|m|+1))) g_{q−1},
-//   g_0 = t^{|m|/2} e^{−t/2} / √(|m|!),  t = r²/β²,
-// so no factorial or Laguerre polynomial is ever formed.
-//
-// Change of basis: within each order n, χ_{n,m} = Σ_{n1+n2=n} T^{(n)}_{m,n1} B_{n1}(x) B_{n2}(y),
-// T^{(n)} unitary. χ_{n,m} is the circular oscillator state |n_r = (n+m)/2, n_l = (n−m)/2⟩, so
-// T^{(n)} follows exactly from T^{(n−1)} by one ladder step, O(n²) per order (polar.cpp); the
-// unit tests check it against (n+1)²-point Gauss–Hermite quadrature of eq. 2. Cached per n.
+// Within each order n, χ_{n,m} = Σ_{n1+n2=n} T^{(n)}_{m,n1} B_{n1}(x) B_{n2}(y), T^{(n)}
+// unitary, cached per n. Evaluation and the ladder step: docs/algorithms.md#the-shapelet-basis
 #pragma once
 
 #include "shapesim/model.hpp"

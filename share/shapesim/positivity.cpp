@@ -80,12 +80,14 @@ void set_parameters(ShapeletModel& model, const Eigen::VectorXd& p) {
 
 double negative_over_total(const Eigen::VectorXd& image) {
     const double total = image.sum();
-    return total > 0.0 ? -image.cwiseMin(0.0).sum() / total : std::numeric_limits<double>::infinity();
+    return total > 0.0 ? -image.cwiseMin(0.0).sum() / total
+                       : std::numeric_limits<double>::infinity();
 }
 
 }  // namespace
 
-PositiveModel nearest_non_negative(const ShapeletModel& model, double tolerance, int max_iterations) {
+PositiveModel nearest_non_negative(const ShapeletModel& model, double tolerance,
+                                   int max_iterations) {
     PositiveModel out;
     out.model = model;
     if (model.n_max == 0) return out;  // a Gaussian: positive wherever its flux is

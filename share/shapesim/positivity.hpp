@@ -1,11 +1,9 @@
-// The nearest model whose light is nowhere negative (issue 36: a truncated, noisy fit rings
-// below zero; a renderer that clips the negative half keeps the positive half as a visible
-// ring). A model is drawn pixel-integrated at β = 3 pixels out to β(√(2n+1) + 2), as
-// hole_depth() draws it; the model nearest to it in ∫(f − f')² (the coefficients' L2 norm,
-// the basis being orthonormal) among those of the same β and n_max whose pixels are all ≥ 0 is
-// found by Dykstra's alternating projections (Boyle & Dykstra 1986) between the models' span
-// (a least-squares fit) and the non-negative images (a clip). docs/algorithms.md, "Positive
-// models".
+// The nearest model whose light is nowhere negative (a truncated, noisy fit rings below zero;
+// a renderer that clips the negative half keeps the positive half as a visible ring): nearest
+// in ∫(f − f')² among the models of the same β and n_max whose pixel-integrated image at
+// β = 3 pixels is ≥ 0, by Dykstra's alternating projections (Boyle & Dykstra 1986) between the
+// models' span and the non-negative images.
+// Derivation: docs/algorithms.md#positive-models
 #pragma once
 
 #include "shapesim/model.hpp"
@@ -22,7 +20,7 @@ struct PositiveModel {
 };
 
 /// The model nearest to `model` whose drawn light below zero is at most `tolerance` of its
-/// flux (see above); `model` itself when it already is, or when its flux is not positive.
+/// flux (the file comment); `model` itself when it already is, or when its flux is not positive.
 /// Stops after `max_iterations` with what it reached.
 PositiveModel nearest_non_negative(const ShapeletModel& model, double tolerance = 1e-3,
                                    int max_iterations = 3000);

@@ -1,35 +1,9 @@
-// PSF mode: a shapelet model of a PSF image (DESIGN §3, paper §2.3).
-//
-// The PSF image is noise-free, so the fit is plain least squares (uniform weights,
-// lsq.hpp fit_shapelets) and "good" means a small residual relative to the peak, not χ²_r:
-//   - centre: at each n_max, start at the image's flux centroid, then move the basis centre
-//     until the fitted model's own centroid (moments.hpp) sits on it, as for galaxies: Newton
-//     steps on g(c) = centroid(fit at c) − c (Jacobian by finite differences at fixed β; a
-//     step is halved until |g| shrinks, ≤ 0.5 pixel), at most `centre_iterations`, stopping
-//     at |g| < `centre_tolerance`. (The plain iteration c ← centroid diverges even for an exact
-//     model: a truncated basis follows a shift of its centre only in part, dg/dc ≈ −2.2 in
-//     the tests.) The final |g| is reported per n_max;
-//   - β: at each n_max, the minimum of the residual sum of squares over ln β — a scan of
-//     `beta_grid` points over the allowed range, then golden-section refinement to
-//     `beta_tolerance` in ln β; after each re-centring the search is redone (from scratch
-//     after a move > 0.05 pixel, else within one scan step of the current β). The range keeps
-//     the basis resolved and inside the stamp: β/√(n+1) ≥ min_resolution_pixels and
-//     β√(n+1) ≤ half the stamp's smaller side. (An undersampled PSF — e.g. WFPC2 at 0.04″ —
-//     carries aliased power at the pixel scale that only a basis finer than 0.5 pixel can
-//     follow: there the resolution bound, not n_max, sets the residual floor; see
-//     psf_test.cpp for the numbers);
-//   - n_max: raised from n_max_min until max |residual| ≤ residual_target · peak, up to
-//     n_max_cap (or until the β range closes). When no n_max reaches the target, the one with
-//     the smallest max |residual| is returned, reached_target is false, and `steps` records
-//     every n_max tried, so callers can say why.
-// The residual covers the whole stamp, so it includes what lies beyond the model's reach
-// (r > β√(n+1)): a WFPC2 PSF has wide wings; `beyond_reach_*` report them.
-// The returned model is normalised to unit flux (moments.hpp `flux`), its centre in the
-// stamp's FITS coordinates and β in its pixels; `image` and `residual` are scaled alike.
-// Mind what normalising does to wide wings: the fit's own flux F covers only what the basis
-// reaches (TinyTim WFPC2 F814W at 0.03985″ in 41²: F = 95.0 % of the stamp's flux, the stamp
-// 97.3 % of the PSF's), so a unit-flux model puts the missing wing flux into the core;
-// model_flux / data_flux and flux_outside_stamp say how much.
+// PSF mode: a shapelet model of a PSF image (DESIGN §3, paper §2.3). The image is noise-free,
+// so the fit is plain least squares (lsq.hpp) and "good" means max |residual| ≤
+// residual_target · peak, not χ²_r: at each n_max the centre moves until the model's own
+// centroid sits on it and β minimises the residual over ln β; n_max rises until the target is
+// met. The model has unit flux, its centre in the stamp's FITS coordinates, β in its pixels.
+// Derivation: docs/algorithms.md#psf-images
 #pragma once
 
 #include "shapesim/image.hpp"
@@ -85,9 +59,9 @@ struct PsfModel {
     std::vector<PsfFitStep> steps;        ///< every n_max tried, in order
 };
 
-/// Fit a shapelet model to a noise-free PSF image already at the target pixel scale (see the
-/// file comment). Error when the image is empty, not finite, has max ≤ 0 or Σ ≤ 0, the options
-/// are inconsistent, or no n_max admits a β (stamp too small).
+/// Fit a shapelet model to a noise-free PSF image already at the target pixel scale
+/// (docs/algorithms.md#psf-images). Error when the image is empty, not finite, has max ≤ 0 or
+/// Σ ≤ 0, the options are inconsistent, or no n_max admits a β (stamp too small).
 PsfModel fit_psf_image(const ImageArray& psf_pixels_at_target_scale,
                        const PsfFitOptions& options = {});
 

@@ -77,7 +77,8 @@ std::vector<double> PsfVariation::terms(double x, double y) const {
 }
 
 bool PsfVariation::within_stars(double x, double y) const {
-    return degree == 0 || (std::abs(x - x_zero) <= 0.5 * x_scale && std::abs(y - y_zero) <= 0.5 * y_scale);
+    return degree == 0 ||
+           (std::abs(x - x_zero) <= 0.5 * x_scale && std::abs(y - y_zero) <= 0.5 * y_scale);
 }
 
 PsfexModel read_psfex(const std::string& path) {
@@ -118,7 +119,8 @@ PsfexModel read_psfex(const std::string& path) {
     }
     m.variation.degree = int(degree);
     m.sampling = fits.required_double("PSF_SAMP");
-    for (const auto& [key, value] : {std::pair{"POLSCAL1", m.variation.x_scale}, {"POLSCAL2", m.variation.y_scale},
+    for (const auto& [key, value] : {std::pair{"POLSCAL1", m.variation.x_scale},
+                                     {"POLSCAL2", m.variation.y_scale},
                                      {"PSF_SAMP", m.sampling}})
         if (!(std::isfinite(value) && value > 0.0))
             throw Error(std::string(key) + " is not > 0", place, 0, key);
@@ -169,14 +171,16 @@ PsfField fit_psf_field(const PsfexModel& m, const PsfFieldOptions& o) {
     Eigen::MatrixXd data(w * h, kk);
     for (int k = 0; k < kk; ++k)
         for (int row = 0; row < h; ++row)
-            for (int col = 0; col < w; ++col) data(row * w + col, k) = m.components[std::size_t(k)](row, col);
+            for (int col = 0; col < w; ++col)
+                data(row * w + col, k) = m.components[std::size_t(k)](row, col);
     if (!std::isfinite(data.squaredNorm()))
         throw Error("the PSFEx model's samples are out of range (their squares overflow)");
     // The 3 × 3 places across the stars' range, as term weights (K × 9), and the peak there.
     Eigen::MatrixXd places(kk, 9);
     Eigen::VectorXd peaks(9);
     for (int p = 0; p < 9; ++p) {
-        const std::vector<double> t = monomials(m.variation.degree, 0.5 * (p % 3 - 1), 0.5 * (p / 3 - 1));
+        const std::vector<double> t =
+            monomials(m.variation.degree, 0.5 * (p % 3 - 1), 0.5 * (p / 3 - 1));
         for (int k = 0; k < kk; ++k) places(k, p) = t[std::size_t(k)];
         peaks(p) = (data * places.col(p)).maxCoeff();
         if (!(peaks(p) > 0))
@@ -189,7 +193,9 @@ PsfField fit_psf_field(const PsfexModel& m, const PsfFieldOptions& o) {
         const double lo = std::log(o.min_resolution_pixels * std::sqrt(n + 1.0));
         const double hi = std::log(half / std::sqrt(n + 1.0));
         if (!(hi > lo)) break;
-        auto trial = [&](double log_beta) { return fit_at(m, data, places, peaks, n, std::exp(log_beta)); };
+        auto trial = [&](double log_beta) {
+            return fit_at(m, data, places, peaks, n, std::exp(log_beta));
+        };
         // A scan over ln β, then golden section about its best point.
         constexpr int scan = 12;
         Trial at_n;
@@ -199,7 +205,8 @@ PsfField fit_psf_field(const PsfexModel& m, const PsfFieldOptions& o) {
             if (t.cost < at_n.cost) { at_n = std::move(t); at = s; }
         }
         const double step = (hi - lo) / (scan - 1);
-        const double a = lo + step * std::max(0, at - 1), b = lo + step * std::min(scan - 1, at + 1);
+        const double a = lo + step * std::max(0, at - 1),
+                     b = lo + step * std::min(scan - 1, at + 1);
         auto less = [](const Trial& x, const Trial& y) { return x.cost < y.cost; };
         auto keep = [&](const Trial& t) { if (t.cost < at_n.cost) at_n = t; };
         const GoldenBracket<Trial> last = golden_section(trial, a, b, o.beta_tolerance, less, keep);

@@ -1,19 +1,9 @@
-// A PSF that varies across the field: PSFEx's model read as it is, and its shapelet form.
-//
-// PSFEx (Bertin 2011, ASPC 442, 435) stores K sampled images B_k (PSF_MASK, w × h samples
-// PSF_SAMP image pixels apart) and the PSF at image position (x, y) is
-//   P(x, y) = Σ_k x̃^i ỹ^j B_k,   x̃ = (x − POLZERO1)/POLSCAL1,  ỹ = (y − POLZERO2)/POLSCAL2,
-// over i + j ≤ POLDEG1, j outer and i inner (1, x̃, x̃², ỹ, x̃ỹ, ỹ² for degree 2). The samples
-// are of the effective PSF (the PSF already convolved with the image pixel), centred on sample
-// (⌊w/2⌋, ⌊h/2⌋), 0-based.
-//
-// The shapelet form (fit_psf_field) gives every B_k one β, n_max and centre and fits it by
-// least squares as the pixel-integrated basis: a box one image pixel wide about each sample,
-// so the model is the PSF before the pixel, like every PSF record in shapesim. The fit is
-// linear, so the shapelet PSF at (x, y), Σ x̃^i ỹ^j c_k, is exactly the fit of PSFEx's image
-// there. β is the minimum of the residual summed over a 3 × 3 grid of places across the
-// stars' range (|x̃|, |ỹ| ≤ ½); n_max rises until the worst residual there is within the
-// target of the peak.
+// A PSF that varies across the field: PSFEx's model read as it is (Bertin 2011), and its
+// shapelet form. PSFEx: P(x, y) = Σ_k x̃^i ỹ^j B_k, x̃ = (x − POLZERO1)/POLSCAL1, ỹ likewise,
+// i + j ≤ POLDEG1. The shapelet form fits every B_k with one β, n_max and centre as the
+// pixel-integrated basis, so it is the PSF before the pixel, and exactly the fit of PSFEx's
+// image at every (x, y).
+// Derivation: docs/algorithms.md#a-psf-across-the-field
 #pragma once
 
 #include "shapesim/image.hpp"
@@ -60,7 +50,7 @@ struct PsfFieldOptions {
     double beta_tolerance = 1e-3;         ///< final bracket in ln β
 };
 
-/// The shapelet form of a PSFEx model (see the file comment), in the image's pixels.
+/// The shapelet form of a PSFEx model (docs/algorithms.md), in the image's pixels.
 struct PsfField {
     PsfVariation variation;               ///< PSFEx's
     int n_max = 0;

@@ -1,23 +1,8 @@
-// GalSim's RealGalaxyCatalog: the format in which the COSMOS training samples (I < 23.5 and
-// I < 25.2, tens of thousands of HST ACS galaxies) are distributed, so a lensing user already
-// has it on disk (GalSim's real.py and its COSMOS catalogue documentation).
-//
-// A FITS binary table (its first table HDU), one row per galaxy: IDENT, MAG (in BAND), WEIGHT
-// (the sample's selection weight), RA and DEC; the galaxy's postage stamp (GAL_FILENAME and
-// GAL_HDU, 0 the primary) and its PSF image (PSF_FILENAME, PSF_HDU), both at PIXEL_SCALE
-// arcsec per pixel; the stamp's noise level NOISE_MEAN and NOISE_VARIANCE (image units). File
-// names are relative to the catalogue's folder unless an image folder is given. The stamps
-// are cutouts about the galaxy, meant to have their neighbours replaced by noise: the stamp is the
-// galaxy's (neighbours left in one are masked). Required: IDENT, MAG, GAL_FILENAME, GAL_HDU, PSF_FILENAME, PSF_HDU, PIXEL_SCALE,
-// NOISE_VARIANCE; the others default to WEIGHT 1, NOISE_MEAN 0, no RA/DEC, no BAND.
-//
-// real_galaxy_job() turns one row into a decomposition job (decompose_job.hpp): the stamp
-// with NOISE_MEAN removed and weight 1/NOISE_VARIANCE, the PSF image modelled as shapelets at
-// the galaxy's pixel scale (psf_from_oversampled, no box: the image is already the PSF of the
-// data's pixels), the search started from the stamp's light above 3σ. The record's magnitude
-// is the catalogue's MAG (what the sample was selected on), its "image" the catalogue, so
-// shapesim-smooth --field CATALOGUE=shapes takes the galaxies as shape-only parents and
-// --weight-field weight their WEIGHT.
+// GalSim's RealGalaxyCatalog: the format in which the COSMOS training samples (tens of
+// thousands of HST ACS galaxies) are distributed (GalSim's real.py). A FITS binary table, one
+// row per galaxy: IDENT, MAG, WEIGHT, the stamp's and the PSF's files and HDUs, PIXEL_SCALE,
+// NOISE_MEAN, NOISE_VARIANCE. real_galaxy_job() turns a row into a decomposition job through
+// the galaxy's own PSF. Columns and defaults: docs/algorithms.md#galsim-realgalaxycatalog
 #pragma once
 
 #include "shapesim/decompose_job.hpp"

@@ -25,7 +25,8 @@ PixelWindow PixelWindow::clipped_to(int image_nx, int image_ny) const {
 namespace {
 
 // A (rows × cols) matrix over `buffer`, grown (never shrunk) to hold it.
-Eigen::Map<Eigen::MatrixXd> grown(std::vector<double>& buffer, Eigen::Index rows, Eigen::Index cols) {
+Eigen::Map<Eigen::MatrixXd> grown(std::vector<double>& buffer, Eigen::Index rows,
+                                  Eigen::Index cols) {
     if (buffer.size() < std::size_t(rows * cols)) buffer.resize(std::size_t(rows * cols));
     return Eigen::Map<Eigen::MatrixXd>(buffer.data(), rows, cols);
 }
@@ -35,14 +36,16 @@ Eigen::Map<Eigen::MatrixXd> grown(std::vector<double>& buffer, Eigen::Index rows
 // the sum in order of k, from 0, whether in a lane or not, so any lane width (AVX2 or SSE) gives
 // the same bits. Four output rows × four pixels are summed in registers, sharing each load.
 __attribute__((target_clones("avx2", "default"))) void weighted_rows(
-    const double* a, int n, const int* ends, int count, const double* rows, int width, double* out) {
+    const double* a, int n, const int* ends, int count, const double* rows, int width,
+    double* out) {
     using lane::Doubles4;
     const int lanes_end = width - width % 4;
     auto tail = [&](int r) {  // the last width % 4 pixels of output row r, one at a time
         const double* ar = a + std::size_t(r) * std::size_t(n);
         for (int c = lanes_end; c < width; ++c) {
             double sum = 0.0;
-            for (int k = 0; k < ends[r]; ++k) sum += ar[k] * rows[std::size_t(k) * std::size_t(width) + std::size_t(c)];
+            for (int k = 0; k < ends[r]; ++k)
+                sum += ar[k] * rows[std::size_t(k) * std::size_t(width) + std::size_t(c)];
             out[std::size_t(r) * std::size_t(width) + std::size_t(c)] = sum;
         }
     };
@@ -50,7 +53,8 @@ __attribute__((target_clones("avx2", "default"))) void weighted_rows(
     for (; r + 4 <= count; r += 4) {
         const double* w[4];
         for (int q = 0; q < 4; ++q) w[q] = a + std::size_t(r + q) * std::size_t(n);
-        const int shared = std::min(std::min(ends[r], ends[r + 1]), std::min(ends[r + 2], ends[r + 3]));
+        const int shared =
+            std::min(std::min(ends[r], ends[r + 1]), std::min(ends[r + 2], ends[r + 3]));
         for (int c = 0; c < lanes_end; c += 4) {
             Doubles4 sum[4] = {};
             const double* column = rows + c;
@@ -68,7 +72,8 @@ __attribute__((target_clones("avx2", "default"))) void weighted_rows(
                     std::memcpy(&v, column + std::size_t(k) * std::size_t(width), sizeof v);
                     sum[q] += w[q][k] * v;
                 }
-                std::memcpy(out + std::size_t(r + q) * std::size_t(width) + std::size_t(c), &sum[q], sizeof sum[q]);
+                std::memcpy(out + std::size_t(r + q) * std::size_t(width) + std::size_t(c),
+                            &sum[q], sizeof sum[q]);
             }
         }
         for (int q = 0; q < 4; ++q) tail(r + q);
@@ -79,10 +84,12 @@ __attribute__((target_clones("avx2", "default"))) void weighted_rows(
             Doubles4 sum = {};
             for (int k = 0; k < ends[r]; ++k) {
                 Doubles4 v;
-                std::memcpy(&v, rows + std::size_t(k) * std::size_t(width) + std::size_t(c), sizeof v);
+                std::memcpy(&v, rows + std::size_t(k) * std::size_t(width) + std::size_t(c),
+                            sizeof v);
                 sum += w[k] * v;
             }
-            std::memcpy(out + std::size_t(r) * std::size_t(width) + std::size_t(c), &sum, sizeof sum);
+            std::memcpy(out + std::size_t(r) * std::size_t(width) + std::size_t(c), &sum,
+                        sizeof sum);
         }
         tail(r);
     }

@@ -1,19 +1,9 @@
 // Pixel resampling: box convolution and flux-conserving re-pixelisation of a finely sampled
-// image (an oversampled PSF) onto a coarser grid. The one home of this maths (stellarity and
-// psf use it).
-//
-// Conventions (image.hpp, DESIGN §2): image(j, i) is the pixel centred at FITS (x, y) =
-// (i + 1, j + 1); a pixel covers [x − ½, x + ½] × [y − ½, y + ½] and its value is the flux
-// integrated over it (image units per pixel). A fine image is taken as *piecewise constant*:
-// its flux is spread uniformly over each of its pixels. Everything is separable, so each
-// operation is two products with 1D overlap matrices, out = W_y · image · W_xᵀ.
-//
-// Accuracy of resampling (derived in psf_test.cpp's comments and tested): when a coarse
-// pixel's edges fall at fraction t of a fine pixel (fine pixel h coarse pixels wide), the
-// piecewise-constant representation linearly interpolates the cumulative flux between fine
-// pixel edges, so each coarse pixel integral is off by ≈ (h² t(1−t)/2)·∂²P/∂x² per axis (P the
-// exact coarse pixel-integrated image as a function of its position): a blur of variance
-// h² t(1−t) ≤ h²/4. It vanishes when the coarse edges fall on fine edges (t = 0).
+// image (an oversampled PSF) onto a coarser grid; the one home of this maths. image(j, i) is
+// the pixel centred at FITS (i + 1, j + 1), its value the flux over it; a fine image is
+// piecewise constant. Separable: out = W_y · image · W_xᵀ. Resampling blurs by a variance
+// ≤ h²/4 (h the fine pixel in coarse pixels), 0 when the edges align.
+// Derivation: docs/algorithms.md#resampling
 #pragma once
 
 #include "shapesim/geometry.hpp"  // PixelPosition

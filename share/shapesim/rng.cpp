@@ -26,7 +26,8 @@ RandomStream::RandomStream(std::uint64_t seed, std::string_view object_id,
 
 void RandomStream::first_blocks(std::uint64_t seed, const std::uint64_t* ids, std::size_t n,
                                 PurposeHash purpose, std::array<std::uint64_t, 4>* out) {
-    for (std::size_t i = 0; i < n; ++i) out[i] = philox_block({0, purpose.value, 0, 0}, {seed, ids[i]});
+    for (std::size_t i = 0; i < n; ++i)
+        out[i] = philox_block({0, purpose.value, 0, 0}, {seed, ids[i]});
 }
 
 void RandomStream::refill() {

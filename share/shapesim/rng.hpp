@@ -1,38 +1,11 @@
 // Counter-based random streams: every random draw in shapesim comes from a stream keyed by
 // (run seed, object id, purpose), so one object's realisation does not depend on thread count,
 // tile or order (DESIGN §2 "Randomness"): same key and same calls ⇒ bit-identical numbers.
-//
-// Generator: Philox4x64-10 of Random123 (Salmon, Moraes, Dror & Shaw 2011, "Parallel random
-// numbers: as easy as 1, 2, 3", SC'11), a keyed bijection of 256-bit counters. The layout is
-// fixed (changing it changes every simulation, so it is pinned by tests):
-//   key     = (run seed, object id)
-//   counter = (block, purpose, 0, 0)          block = 0, 1, 2, …; the last two words reserved
-// Each block gives four 64-bit words, used in order. String ids and purposes are hashed with
-// 64-bit FNV-1a over their bytes (offset basis 0xcbf29ce484222325, prime 0x100000001b3; Fowler,
-// Noll & Vo, IETF draft-eastlake-fnv). An integer id is used as it is, so the string "7" and the
-// integer 7 are different objects: a catalogue must keep one form per id field.
-//
-// Words consumed by each draw (part of the contract, as it fixes which numbers come next):
-//   next_u64, uniform*, coin, sign, angle: 1;  gaussian, gaussian_pair: 2 (Box–Muller, both
-//   from the same two words; gaussian returns the cosine branch and keeps no spare value);
-//   epanechnikov: 3;  uniform_index: 1, or more on the rare rejection (probability < n/2⁶⁴);
-//   poisson: 0 for mean 0, 1 for mean < 10 (inversion), 2 per trial for mean ≥ 10 (PTRS,
-//   ~1.1–1.2 trials on average).
-//
-// Distributions:
-//   uniform()        k · 2⁻⁵³ with k the top 53 bits of a word: [0, 1), all 2⁵³ values
-//   uniform_open()   (k + ½) · 2⁻⁵³: (0, 1), symmetric about ½
-//   gaussian()       Box–Muller: √(−2 ln u₁) cos 2πu₂, u₁ = uniform_open, u₂ = uniform
-//   poisson(μ)       μ < 10: inversion of the CDF (exact to rounding of the cumulative sum);
-//                    μ ≥ 10: Hörmann's transformed rejection with squeeze, PTRS (W. Hörmann,
-//                    "The transformed rejection method for generating Poisson random
-//                    variables", Insurance: Mathematics and Economics 12, 39, 1993); exact.
-//   epanechnikov()   density ¾(1 − x²) on [−1, 1], CDF (2 + 3x − x³)/4, by the paper's rule
-//                    (Massey et al. 2004 §4.1): "generating three random numbers from a uniform
-//                    probability distribution between −λ and λ. If the first does not have the
-//                    highest absolute value, take it and discard the rest; otherwise take the
-//                    second" (DESIGN §4) — Devroye (1986, p. 237)'s generator with the variates
-//                    relabelled. Ties (probability ~2⁻⁵²) count as "highest". Scale by λ.
+// Generator: Philox4x64-10 of Random123 (Salmon et al. 2011); key = (run seed, object id),
+// counter = (block, purpose, 0, 0); string ids and purposes hashed by 64-bit FNV-1a. The
+// layout, the words each draw consumes and each distribution's recipe are fixed (changing
+// them changes every simulation; tests pin them).
+// Derivation: docs/algorithms.md#random-streams
 #pragma once
 
 #include <array>
@@ -199,7 +172,9 @@ struct Ptrs {
     /// μ = 10, 59% of the HDF scene's draws of μ ≥ 10, 86% as μ → ∞).
     SHAPESIM_LANES auto squeezed(D us, D v) const { return (us >= 0.07) & (v <= v_r); }
     /// Rejected without logs.
-    SHAPESIM_LANES auto rejected(D k, D us, D v) const { return (k < 0.0) | ((us < 0.013) & (v > us)); }
+    SHAPESIM_LANES auto rejected(D k, D us, D v) const {
+        return (k < 0.0) | ((us < 0.013) & (v > us));
+    }
     /// The exact test (k ≥ 0).
     SHAPESIM_LANES auto exact(D k, D us, D v, const double* small) const {
         const D inv_alpha = 1.1239 + 1.1328 / (b - 3.4);

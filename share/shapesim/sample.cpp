@@ -29,7 +29,8 @@ double StarCounts::magnitude(double u) const {
 }
 
 void StarCounts::validate() const {
-    if (!(density >= 0.0 && std::isfinite(density))) throw Error("must be ≥ 0", "", 0, "star_density");
+    if (!(density >= 0.0 && std::isfinite(density)))
+        throw Error("must be ≥ 0", "", 0, "star_density");
     if (!std::isfinite(slope)) throw Error("must be finite", "", 0, "star_slope");
     if (!(mag_max > mag_min)) throw Error("star magnitude range is empty", "", 0, "star_mag");
     double total = 0.0;
@@ -101,8 +102,8 @@ void SampleOptions::validate() const {
     if (cell < 1) throw Error("must be ≥ 1 pixel", "", 0, "cell");
     if (ring < 1 || ring > 1000) throw Error("must be in [1, 1000]", "", 0, "ring");
     if (count && *count % std::uint64_t(ring) != 0)
-        throw Error("the galaxy count " + std::to_string(*count) + " is no multiple of the ring's " +
-                        std::to_string(ring),
+        throw Error("the galaxy count " + std::to_string(*count) +
+                        " is no multiple of the ring's " + std::to_string(ring),
                     "", 0, "ring");
     if (faint_limit && !(std::isfinite(*faint_limit) && *faint_limit > mag_limit))
         throw Error("must be fainter than the magnitude limit", "", 0, "faint_limit");
@@ -203,10 +204,15 @@ struct Cells {
     long columns = 1, rows = 1, side = 1;
     const FieldGeometry* field = nullptr;
     Cells(const FieldGeometry& f, long cell)
-        : columns((f.nx + cell - 1) / cell), rows((f.ny + cell - 1) / cell), side(cell), field(&f) {}
+        : columns((f.nx + cell - 1) / cell), rows((f.ny + cell - 1) / cell), side(cell),
+          field(&f) {}
     std::uint64_t count() const { return std::uint64_t(columns * rows); }
-    double x_lo(std::uint64_t c) const { return 0.5 + double(long(c % std::uint64_t(columns)) * side); }
-    double y_lo(std::uint64_t c) const { return 0.5 + double(long(c / std::uint64_t(columns)) * side); }
+    double x_lo(std::uint64_t c) const {
+        return 0.5 + double(long(c % std::uint64_t(columns)) * side);
+    }
+    double y_lo(std::uint64_t c) const {
+        return 0.5 + double(long(c / std::uint64_t(columns)) * side);
+    }
     double width(std::uint64_t c) const {
         const long x = long(c % std::uint64_t(columns)) * side;
         return double(std::min(side, field->nx - x));
@@ -238,7 +244,8 @@ struct Cells {
 // Object k of cell c: its stream key and its id ("g17" in cell 0, "g3.17" in cell 3).
 std::uint64_t object_key(std::uint64_t cell, std::uint64_t k) { return (cell << 32) | k; }
 std::string object_id(const char* prefix, std::uint64_t cell, std::uint64_t k) {
-    return prefix + (cell == 0 ? std::to_string(k) : std::to_string(cell) + "." + std::to_string(k));
+    return prefix +
+           (cell == 0 ? std::to_string(k) : std::to_string(cell) + "." + std::to_string(k));
 }
 
 // Each cell's number of objects: Poisson(density × its area) from RandomStream(seed, cell,
@@ -313,7 +320,8 @@ double galaxy_reach_bound(const Morphology& morphology, const DrawOptions& draw,
         for (const auto& p : morphology.points) {
             if (!std::isfinite(p.size2)) continue;
             const double up = std::pow(10.0, -0.4 * draw.size_slope * (brightest - p.mag));
-            const double down = std::pow(10.0, -0.4 * draw.size_slope * (options.mag_limit - p.mag));
+            const double down =
+                std::pow(10.0, -0.4 * draw.size_slope * (options.mag_limit - p.mag));
             radius = std::max(radius, p.beta * std::sqrt(p.size2) * std::max(up, down));
             size = std::min(size, std::sqrt(p.size2));
         }
@@ -392,7 +400,8 @@ void sample_faint(const Morphology& morphology, const FieldGeometry& field,
         cells, options.seed, options.faint_counts->density(), std::nullopt, "faint galaxy count");
     for (const std::uint64_t n : counts) summary.faint += n;
     for_each_placed(cells, counts, options.seed, "faint galaxy position", tile, reach_bound,
-                    [&](std::uint64_t cell, std::uint64_t j, std::uint64_t k, const PixelPosition& p) {
+                    [&](std::uint64_t cell, std::uint64_t j, std::uint64_t k,
+                        const PixelPosition& p) {
         RandomStream stream(options.seed, k, "faint galaxy");
         const DrawnGalaxy g =
             draw_faint_galaxy(morphology, stream, field.pixel_scale, options.zero_point, faint);

@@ -1,23 +1,10 @@
 // Populating a sky field with objects drawn from the morphology PDF (paper §4.1–4.2,
 // DESIGN §4, §6): galaxies by Silverman's bootstrap (morphology.hpp draw_galaxy), stars from
-// a magnitude distribution, uniform positions, every draw from the counter-based stream of
-// (seed, object number, purpose) — so any object's record is the same whatever the tiling.
-//
-// Sky cells (issue 16): the field is cut into cells of `cell` × `cell` pixels (4096 by default,
-// 2.7′ at the HDF's scale; the last column and row of cells take what is left), and every draw
-// is keyed by its cell, so a tile reads only the cells it reaches and a square degree costs
-// each tile its own neighbourhood, not the whole field. Cell c (row by row from the field's
-// first pixel) holds N_c = Poisson(density × its area) galaxies from RandomStream(seed, c,
-// "galaxy count") (likewise "star count"), or its share of an exact count (in proportion to
-// area, largest remainders). Its galaxy k has the key K = c · 2³² + k: its position (uniform in
-// the cell) from RandomStream(seed, K, "galaxy position"), its shape from RandomStream(seed, K,
-// "galaxy"); it is "g<k>" in cell 0 and "g<c>.<k>" elsewhere (stars "s…", from "star
-// position" and "star"). A field of one cell draws exactly what it drew before cells.
-//
-// Tiles: a window of the field's pixels. An object belongs to a tile when the circle of its
-// reach — model_reach(β_pix, n_max) plus `margin` pixels (for the PSF) — meets the window;
-// objects near a tile edge therefore appear in every tile they reach, with identical records,
-// and the union over a tiling is the whole-field draw. A star's reach is `margin` alone.
+// a magnitude distribution, uniform positions. Every draw comes from the counter-based stream
+// of (seed, object key, purpose), keyed by sky cells of `cell` × `cell` pixels, so any
+// object's record is the same whatever the tiling; a tile holds every object whose reach
+// (model_reach plus `margin` pixels) meets it.
+// Derivation: docs/algorithms.md#sampling-a-field
 #pragma once
 
 #include "shapesim/geometry.hpp"

@@ -27,8 +27,10 @@ std::optional<AdaptiveMoments> adaptive_moments(const ImageArray& image, const M
         // The weight's 5σ box along each axis (its support to e^-12.5).
         const double hx = 5.0 * std::sqrt(m11), hy = 5.0 * std::sqrt(m22);
         if (!(hx < double(nx) && hy < double(ny))) return fail("the weight outgrew the image");
-        const long i0 = std::max(0L, long(std::floor(x0 - hx))), i1 = std::min(nx - 1, long(std::ceil(x0 + hx)));
-        const long j0 = std::max(0L, long(std::floor(y0 - hy))), j1 = std::min(ny - 1, long(std::ceil(y0 + hy)));
+        const long i0 = std::max(0L, long(std::floor(x0 - hx))),
+                   i1 = std::min(nx - 1, long(std::ceil(x0 + hx)));
+        const long j0 = std::max(0L, long(std::floor(y0 - hy))),
+                   j1 = std::min(ny - 1, long(std::ceil(y0 + hy)));
         double s = 0.0, sx = 0.0, sy = 0.0, sxx = 0.0, syy = 0.0, sxy = 0.0;
         for (long j = j0; j <= j1; ++j) {
             const double dy = double(j) - y0;
@@ -50,7 +52,8 @@ std::optional<AdaptiveMoments> adaptive_moments(const ImageArray& image, const M
         }
         if (!(s > 0.0)) return fail("no positive light under the weight");
         const double ddx = sx / s, ddy = sy / s;
-        const double c11 = sxx / s - ddx * ddx, c22 = syy / s - ddy * ddy, c12 = sxy / s - ddx * ddy;
+        const double c11 = sxx / s - ddx * ddx, c22 = syy / s - ddy * ddy,
+                     c12 = sxy / s - ddx * ddy;
         double n11 = 2.0 * c11, n22 = 2.0 * c22, n12 = 2.0 * c12;
         if (!(n11 > 0.0 && n22 > 0.0 && n11 * n22 - n12 * n12 > 0.0))
             return fail("the weighted moments are not positive definite");
@@ -61,7 +64,8 @@ std::optional<AdaptiveMoments> adaptive_moments(const ImageArray& image, const M
             n11 *= f, n22 *= f, n12 *= f;
         }
         const double step = std::hypot(2.0 * ddx, 2.0 * ddy);
-        const double change = (std::abs(n11 - m11) + std::abs(n22 - m22) + 2.0 * std::abs(n12 - m12)) / t_old;
+        const double change =
+            (std::abs(n11 - m11) + std::abs(n22 - m22) + 2.0 * std::abs(n12 - m12)) / t_old;
         x0 += 2.0 * ddx;
         y0 += 2.0 * ddy;
         m11 = n11, m22 = n22, m12 = n12;

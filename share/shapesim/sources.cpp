@@ -126,14 +126,16 @@ FieldNoise read_field_noise(const std::string& path) {
     std::vector<double> rms, field_rms, factor;
     while (reader.next_record(r)) {
         try {
-            if (auto v = optional_double(r.extra, "background_rms"); v && *v > 0.0) field_rms.push_back(*v);
+            if (auto v = optional_double(r.extra, "background_rms"); v && *v > 0.0)
+                field_rms.push_back(*v);
             if (auto v = optional_double(r.extra, "noise_rms")) rms.push_back(*v);
             if (auto v = optional_double(r.extra, "noise_correlation")) factor.push_back(*v);
         } catch (const Error& e) {
             throw reader.locate(e);
         }
     }
-    if (rms.empty() && field_rms.empty()) throw Error("no background_rms or noise_rms in the records", path);
+    if (rms.empty() && field_rms.empty())
+        throw Error("no background_rms or noise_rms in the records", path);
     return {median_of_values(field_rms.empty() ? rms : field_rms),
             factor.empty() ? 1.0 : std::max(1.0, median_of_values(factor))};
 }

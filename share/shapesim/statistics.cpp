@@ -97,7 +97,8 @@ double wasserstein_1d(std::vector<double> a, std::vector<double> b) {
     for (std::size_t k = 0; k + 1 < x.size(); ++k) {
         while (i < a.size() && a[i] <= x[k]) ++i;
         while (j < b.size() && b[j] <= x[k]) ++j;
-        w += std::abs(double(i) / double(a.size()) - double(j) / double(b.size())) * (x[k + 1] - x[k]);
+        w += std::abs(double(i) / double(a.size()) - double(j) / double(b.size())) *
+             (x[k + 1] - x[k]);
     }
     return w;
 }

@@ -157,7 +157,8 @@ double stellarity(const CoreFraction& measured, const PointSourceLocus& locus) {
     const double rho = measured.ratio, star = locus.ratio;
     const double sigma = std::max(measured.error, 1e-6 * star);
     const double s2 = locus.scatter * locus.scatter + sigma * sigma;
-    const double l_star = std::exp(-0.5 * (rho - star) * (rho - star) / s2) / std::sqrt(2 * pi * s2);
+    const double l_star =
+        std::exp(-0.5 * (rho - star) * (rho - star) / s2) / std::sqrt(2 * pi * s2);
     // Galaxies are resolved: their noise-free ρ lies uniformly in [0, ρ★ − 2 s★].
     const double edge = std::max(star - 2.0 * locus.scatter, 0.05 * star);
     const double l_galaxy = (normal_cdf((edge - rho) / sigma) - normal_cdf(-rho / sigma)) / edge;

@@ -1,28 +1,9 @@
 // Stellarity: the probability that a detection is a point source, from how concentrated it
-// is compared with the PSF (libsep has no CLASS_STAR; this replaces it, documented and
-// tested).
-//
-// Statistic: the core fraction ρ = F(r_core)/F(r_outer), fluxes in circular apertures about
-// the centroid with r_core = 0.6·FWHM_psf and r_outer = 2·FWHM_psf (neighbours mirrored
-// out). In a space image a star is the PSF, so its ρ sits on the PSF's value ρ★ (up to
-// the sub-pixel phase, which moves flux between pixels), while any resolved galaxy is
-// broader and has ρ < ρ★. Aperture fractions are used rather than the peak pixel because
-// the peak of a faint object is biased up by noise (the brightest of several noisy pixels).
-//
-// Likelihoods, with σ_ρ the measurement error (propagated from the two aperture errors,
-// the annulus independent of the core) and s★ the PSF's phase scatter plus a floor of
-// 2% of ρ★ for PSF-model error:
-//   star:    ρ ~ N(ρ★, s★² + σ_ρ²)
-//   galaxy:  ρ = u + noise, u uniform on [0, ρ_g], ρ_g = ρ★ − 2 s★ (a galaxy is resolved: its
-//            core fraction lies clearly below the PSF's; an unresolved one is a point
-//            source to any classifier):  L = [Φ((ρ_g−ρ)/σ_ρ) − Φ(−ρ/σ_ρ)] / ρ_g
-// Stellarity = L_star / (L_star + L_galaxy), equal priors. A bright star → 1, a bright
-// resolved galaxy → 0, and an object whose ρ is lost in noise → ≈ 0.5, as CLASS_STAR does.
-//
-// The PSF may be given three ways, all reduced to pixelised stamps at the image's pixel scale
-// at several sub-pixel phases: a Gaussian of given FWHM (SExtractor's SEEING_FWHM), a
-// shapelet model (rendered exactly, pixel-integrated), or an image at its own (finer) pixel
-// scale, integrated over each image pixel.
+// is compared with the PSF (libsep has no CLASS_STAR; this replaces it). The statistic is the
+// core fraction ρ = F(0.6 FWHM_psf)/F(2 FWHM_psf) in circular apertures: a star's ρ sits on
+// the PSF's ρ★, a resolved galaxy's below it. Stellarity = L_star / (L_star + L_galaxy), equal
+// priors: a bright star → 1, a bright galaxy → 0, an object lost in noise → ≈ 0.5.
+// Derivation: docs/algorithms.md#stellarity
 #pragma once
 
 #include "shapesim/detect.hpp"
@@ -60,7 +41,7 @@ struct CoreFraction {
 CoreFraction core_fraction(const DetectionResult& field, const Detection& object,
                            const PointSourceLocus& locus);
 
-/// Stellarity in [0, 1] from a measured core fraction (formula in the file comment).
+/// Stellarity in [0, 1] from a measured core fraction (docs/algorithms.md#stellarity).
 double stellarity(const CoreFraction& measured, const PointSourceLocus& locus);
 
 }  // namespace shapesim

@@ -127,7 +127,7 @@ int smallest_order(const Eigen::VectorXd& energy, double norm2, double target) {
     return -1;
 }
 
-/// The map of the file comment in the frame of the quadrature.
+/// The map of docs/algorithms.md#transforms in the frame of the quadrature.
 struct AffineMap {
     Eigen::Matrix2d a;
     Eigen::Vector2d e;  ///< c + d − c_o, pixels
@@ -156,7 +156,7 @@ void hermite_columns(const Eigen::ArrayXd& u, int n_max, Eigen::MatrixXd& out) {
 }
 
 /// Fill ws.b_out with b_o(l1, l2), l1 + l2 ≤ n_out (zero elsewhere), by the exact tensor
-/// Gauss–Hermite rule of the file comment.
+/// Gauss–Hermite rule of docs/algorithms.md#transforms.
 void project_cartesian(const Eigen::MatrixXd& b_in, int n_in, const AffineMap& map, int n_out,
                        ProjectionWorkspace& ws) {
     // Complete the square: exponent −½ uᵀQu − hᵀu, minimum at u* = −Q⁻¹h.
@@ -239,7 +239,7 @@ int next_trial(const Eigen::VectorXd& energy, double norm2, double target, int t
     return std::min(cap, trial + extra);
 }
 
-/// The order-N search of the file comment; leaves the chosen projection in ws.b_out.
+/// The order-N search of docs/algorithms.md#transforms; leaves the chosen projection in ws.b_out.
 int project_to_tolerance(const Eigen::MatrixXd& b_in, int n_in, const AffineMap& map,
                          const ProjectionOptions& options, double norm2,
                          ProjectionWorkspace& ws) {

@@ -1,53 +1,11 @@
-// Geometric transforms of a shapelet model, each with its accuracy stated.
-//
-// Frame: offsets in pixels from the model's basis centre c (FITS pixels), θ counter-clockwise
-// from +x with y up, χ_{n,m} ∝ e^{imθ} (polar.hpp). f(u) below is the input model as a function
-// of the offset u from its centre.
-//
-// EXACT (coefficients only, to rounding; Massey & Refregier 2005, MNRAS 363, 197; DESIGN §3):
-//   rotation by ρ about c        f(R(−ρ)u)     a_{n,m} → a_{n,m} e^{−imρ}
-//   reflection, axis ∥ x         f(x, −y)      a_{n,m} → conj a_{n,m}   (= a_{n,−m})
-//   reflection, axis at angle ψ  f(S_ψ u)      a_{n,m} → conj(a_{n,m}) e^{−2imψ}
-//                                (S_ψ = R(ψ) diag(1,−1) R(−ψ); ψ = 0 is the case above)
-//   dilation by s about c        f(u/s)/s²     β → sβ, a → a/s  (flux kept; f(u/s): a → s·a)
-//
-// PROJECTED (exact to a stated order, error reported): for a 2×2 matrix A and shift d (pixels)
-//   g(X) = f(A⁻¹(X − c − d))            (X in FITS pixels; A acts about the model centre)
-// is expanded on the Cartesian basis of an output frame (centre c_o, scale β_o, order N):
-//   b_o(l1, l2) = ∫ B_{l1}(X−c_o; β_o) B_{l2}(Y−c_o; β_o) g(X) d²X
-//               = |det A| ∫ B_l(A u + e; β_o) f(u) d²u,        e = c + d − c_o.
-// Each integrand is a polynomial of total degree ≤ N + n_in times exp(−½ uᵀQu − hᵀu),
-// Q = AᵀA/β_o² + I/β², h = Aᵀe/β_o². Completing the square (u* = −Q⁻¹h) and diagonalising
-// Q = V diag(λ) Vᵀ, u = u* + V diag(√(2/λ)) t turns it into p(t) e^{−|t|²}; the K×K tensor
-// Gauss–Hermite rule with K = ⌊(N + n_in)/2⌋ + 1 (exact to degree 2K−1 per axis,
-// basis1d.hpp) integrates it EXACTLY. Coefficients up to order N are therefore exact to
-// rounding; the only error is the truncation at N, computed exactly by Parseval (the output
-// basis is orthonormal):
-//   ‖g‖² = ∫ f(A⁻¹(X−c−d))² d²X = |det A| ‖f‖²      (substitute X = c + d + A u),
-//   truncation error  ‖g − P_N g‖² = ‖g‖² − Σ_{l1+l2 ≤ N} b_o(l1,l2)²  ≥ 0.
-// It is absolute (image units² × pixel²); its relative form divides by ‖g‖². Rounding limits
-// it to a floor of ~1e-15·‖g‖², so tolerances below 1e-14 are refused. The pointwise image
-// error is bounded through it: for any pixel, |∫_pixel (g − P_N g)| ≤ √(truncation error).
-// Moments of P_N g (flux, centroid, Q; moments.hpp) are inner products with 1, x, x², so their
-// relative errors are of order √(relative error) (the tests hold them within 10×). The exact
-// transformed moments need no projection: flux × |det A|, centroid c + d + A z̄, Q → A Q Aᵀ.
-//
-// Automatic order: with ProjectionOptions::n_out < 0, N is the smallest order whose relative
-// truncation error is ≤ tolerance (searched up to n_out_max; the coefficients of order ≤ N do
-// not depend on N, so one projection at a larger trial order serves every smaller N).
-//
-// Shear and lensing follow GalSim (GalSim-developers/GalSim, galsim/shear.py Shear.getMatrix,
-// galsim/gsobject.py GSObject.shear, .lens, .transform): a position x of the object moves to
-// A x, and surface brightness is carried along, g(x) = f(A⁻¹x).
-//   shear(g1, g2):  A = S(g) = [[1+g1, g2], [g2, 1−g1]] / √(1−|g|²), det S = 1 (area and flux
-//                   kept). A round object becomes an ellipse with (a−b)/(a+b) = |g| and major
-//                   axis at ½ arg(g1 + i g2); its moment ellipticity ε equals g (moments.hpp).
-//   lens(g1, g2, κ): the lens equation maps the image-plane offset θ to the source plane
-//                   𝒜θ, 𝒜 = (1−κ)[[1−g1, −g2], [−g2, 1+g1]], so A = 𝒜⁻¹ = √μ S(g) with
-//                   magnification μ = 1/det 𝒜 = 1/((1−κ)²(1−|g|²)); this is GalSim
-//                   obj.lens(g1, g2, μ) (flux × μ). By default the result is divided by μ
-//                   (flux conserved: GalSim obj.lens(g1, g2, μ).withScaledFlux(1/μ)).
-// The general affine_transform keeps surface brightness (flux × |det A|), like GalSim transform.
+// Geometric transforms of a shapelet model, each with its accuracy stated (DESIGN §3). Frame:
+// pixels from the basis centre, θ counter-clockwise from +x, χ_{n,m} ∝ e^{imθ} (polar.hpp).
+// EXACT, coefficients only (Massey & Refregier 2005): rotation by ρ a_{n,m} → a_{n,m} e^{−imρ};
+// reflection about x a → conj a; dilation by s β → sβ, a → a/s (flux kept).
+// PROJECTED: g(X) = f(A⁻¹(X − c − d)) on an output basis of order N, exact to rounding by
+// Gauss–Hermite quadrature, its truncation error ‖g − P_N g‖² exact by Parseval. Shear and
+// lensing follow GalSim: A = S(g) = [[1+g1, g2], [g2, 1−g1]] / √(1−|g|²); lens A = √μ S(g).
+// Derivation: docs/algorithms.md#transforms
 #pragma once
 
 #include "shapesim/model.hpp"
@@ -92,7 +50,7 @@ struct OutputBasis {
     double beta_pix = 1.0;    ///< β_o, pixels
 };
 
-/// A projected model and the error it bought (see the file comment).
+/// A projected model and the error it bought (docs/algorithms.md#transforms).
 struct Projection {
     ShapeletModel model;            ///< the projection P_N g, n_max = N
     double norm2 = 0.0;             ///< ‖g‖², exact
@@ -107,7 +65,8 @@ struct ProjectionWorkspace {
     Eigen::VectorXd values;
 };
 
-/// g(X) = f(A⁻¹(X − c − d)) projected onto `basis` (the general routine; file comment).
+/// g(X) = f(A⁻¹(X − c − d)) projected onto `basis` (the general routine;
+/// docs/algorithms.md#transforms).
 /// @param a      the 2×2 matrix A, finite, det A ≠ 0
 /// @param shift  d in pixels
 /// @param workspace  reusable buffers, or nullptr to allocate
