@@ -272,4 +272,12 @@ FieldGeometry read_field_geometry(const std::string& path,
                                   std::optional<double> pixel_scale = std::nullopt,
                                   double ra = 0.0, double dec = 0.0);
 
+namespace detail {
+/// The one door for cfitsio statuses (Gnuastro's gal_fits_io_error), shared by the reading
+/// (fits_io.cpp) and writing (fits_write.cpp) sides: a non-zero status becomes an Error with
+/// cfitsio's short text (or `instead`), the place and the keyword.
+void fits_check(int status, const std::string& place, const std::string& keyword = {},
+                const std::string& instead = {});
+}  // namespace detail
+
 }  // namespace shapesim
