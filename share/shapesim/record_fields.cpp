@@ -23,40 +23,40 @@ std::string read_id(const Json& j, const std::string& field) {
 }
 }  // namespace
 
-void read_value(const Json& j, const char* name, FieldRule rule, double& v) {
+void read_value(const Json& j, const std::string& name, FieldRule rule, double& v) {
     if (rule != FieldRule::optional) v = required_double(j, name);
     else if (const auto read = optional_double(j, name)) v = *read;
 }
 
-void read_value(const Json& j, const char* name, FieldRule, std::optional<double>& v) {
+void read_value(const Json& j, const std::string& name, FieldRule, std::optional<double>& v) {
     v = optional_double(j, name);
 }
 
-void read_value(const Json& j, const char* name, FieldRule rule, int& v) {
+void read_value(const Json& j, const std::string& name, FieldRule rule, int& v) {
     if (rule != FieldRule::optional) v = required_int(j, name);
     else if (const auto read = optional_int(j, name)) v = *read;
 }
 
-void read_value(const Json& j, const char* name, FieldRule rule, long& v) {
+void read_value(const Json& j, const std::string& name, FieldRule rule, long& v) {
     if (rule != FieldRule::optional) v = required_int(j, name);
     else if (const auto read = optional_int(j, name)) v = *read;
 }
 
-void read_value(const Json& j, const char* name, FieldRule rule, std::string& v) {
+void read_value(const Json& j, const std::string& name, FieldRule rule, std::string& v) {
     if (rule == FieldRule::id) v = read_id(j, name);
     else if (rule == FieldRule::required) v = required_string(j, name);
     else if (auto read = optional_string(j, name)) v = std::move(*read);
 }
 
-void read_value(const Json& j, const char* name, FieldRule, std::optional<std::string>& v) {
+void read_value(const Json& j, const std::string& name, FieldRule, std::optional<std::string>& v) {
     v = optional_string(j, name);
 }
 
-void read_value(const Json& j, const char* name, FieldRule, std::vector<std::string>& v) {
+void read_value(const Json& j, const std::string& name, FieldRule, std::vector<std::string>& v) {
     v = optional_strings(j, name);
 }
 
-void read_value(const Json& j, const char* name, FieldRule rule, std::vector<double>& v) {
+void read_value(const Json& j, const std::string& name, FieldRule rule, std::vector<double>& v) {
     const Json* list = rule == FieldRule::optional ? optional_array(j, name)
                                                    : &required_array(j, name);
     v.clear();
@@ -64,29 +64,29 @@ void read_value(const Json& j, const char* name, FieldRule rule, std::vector<dou
         for (const Json& value : *list) v.push_back(as_double(value, name));
 }
 
-void write_value(Json& j, const char* name, FieldRule, double v) { j[name] = v; }
+void write_value(Json& j, const std::string& name, FieldRule, double v) { j[name] = v; }
 
-void write_value(Json& j, const char* name, FieldRule, const std::optional<double>& v) {
+void write_value(Json& j, const std::string& name, FieldRule, const std::optional<double>& v) {
     if (v) j[name] = *v;
 }
 
-void write_value(Json& j, const char* name, FieldRule, int v) { j[name] = v; }
+void write_value(Json& j, const std::string& name, FieldRule, int v) { j[name] = v; }
 
-void write_value(Json& j, const char* name, FieldRule, long v) { j[name] = v; }
+void write_value(Json& j, const std::string& name, FieldRule, long v) { j[name] = v; }
 
-void write_value(Json& j, const char* name, FieldRule rule, const std::string& v) {
+void write_value(Json& j, const std::string& name, FieldRule rule, const std::string& v) {
     if (rule != FieldRule::optional || !v.empty()) j[name] = v;
 }
 
-void write_value(Json& j, const char* name, FieldRule, const std::optional<std::string>& v) {
+void write_value(Json& j, const std::string& name, FieldRule, const std::optional<std::string>& v) {
     if (v) j[name] = *v;
 }
 
-void write_value(Json& j, const char* name, FieldRule, const std::vector<std::string>& v) {
+void write_value(Json& j, const std::string& name, FieldRule, const std::vector<std::string>& v) {
     j[name] = v;
 }
 
-void write_value(Json& j, const char* name, FieldRule rule, const std::vector<double>& v) {
+void write_value(Json& j, const std::string& name, FieldRule rule, const std::vector<double>& v) {
     if (rule != FieldRule::optional || !v.empty()) j[name] = v;
 }
 

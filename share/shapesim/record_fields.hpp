@@ -12,6 +12,7 @@
 
 #include <optional>
 #include <string>
+#include <string_view>
 #include <variant>
 #include <vector>
 
@@ -39,9 +40,9 @@ struct Field {
     using Read = void (*)(Record&, const Json& object, NumberPairs* pairs);
     using Write = void (*)(const Record&, Json& object);
     /// A number's check (`validate`): throws Error naming `field`.
-    using Check = void (*)(const char* field, double value);
+    using Check = void (*)(std::string_view field, double value);
 
-    const char* name;
+    std::string_view name;
     Member member;  ///< monostate: a custom entry, or a name only
     FieldRule rule = FieldRule::required;
     Check check = nullptr;  ///< for double and optional<double> members (an absent one passes)
@@ -51,16 +52,16 @@ struct Field {
 
     /// A member, read by its type: optional<…> and a list of strings may be absent (a list is
     /// written even when empty, an optional only when it holds a value).
-    Field(const char* name, Member member, Check check = nullptr)
+    Field(std::string_view name, Member member, Check check = nullptr)
         : name(name), member(member), check(check) {}
-    Field(const char* name, Member member, FieldRule rule, Check check = nullptr)
+    Field(std::string_view name, Member member, FieldRule rule, Check check = nullptr)
         : name(name), member(member), rule(rule), check(check) {}
     /// A custom entry.
-    Field(const char* name, Read read, Write write, FieldPlace place = FieldPlace::in_order)
+    Field(std::string_view name, Read read, Write write, FieldPlace place = FieldPlace::in_order)
         : name(name), read(read), write(write), place(place) {}
     /// A name only: a field read and written by a custom entry before it (a group of fields
     /// present together), named here so that it is never taken for an unknown one.
-    Field(const char* name) : name(name) {}
+    Field(std::string_view name) : name(name) {}
 };
 
 template <class Record>
@@ -68,26 +69,26 @@ using Fields = std::vector<Field<Record>>;
 
 namespace fields_detail {
 
-void read_value(const Json& j, const char* name, FieldRule rule, double& v);
-void read_value(const Json& j, const char* name, FieldRule rule, std::optional<double>& v);
-void read_value(const Json& j, const char* name, FieldRule rule, int& v);
-void read_value(const Json& j, const char* name, FieldRule rule, long& v);
-void read_value(const Json& j, const char* name, FieldRule rule, std::string& v);
-void read_value(const Json& j, const char* name, FieldRule rule, std::optional<std::string>& v);
-void read_value(const Json& j, const char* name, FieldRule rule, std::vector<std::string>& v);
-void read_value(const Json& j, const char* name, FieldRule rule, std::vector<double>& v);
+void read_value(const Json& j, const std::string& name, FieldRule, double& v);
+void read_value(const Json& j, const std::string& name, FieldRule, std::optional<double>& v);
+void read_value(const Json& j, const std::string& name, FieldRule, int& v);
+void read_value(const Json& j, const std::string& name, FieldRule, long& v);
+void read_value(const Json& j, const std::string& name, FieldRule, std::string& v);
+void read_value(const Json& j, const std::string& name, FieldRule, std::optional<std::string>& v);
+void read_value(const Json& j, const std::string& name, FieldRule, std::vector<std::string>& v);
+void read_value(const Json& j, const std::string& name, FieldRule, std::vector<double>& v);
 
-void write_value(Json& j, const char* name, FieldRule rule, double v);
-void write_value(Json& j, const char* name, FieldRule rule, const std::optional<double>& v);
-void write_value(Json& j, const char* name, FieldRule rule, int v);
-void write_value(Json& j, const char* name, FieldRule rule, long v);
-void write_value(Json& j, const char* name, FieldRule rule, const std::string& v);
-void write_value(Json& j, const char* name, FieldRule rule, const std::optional<std::string>& v);
-void write_value(Json& j, const char* name, FieldRule rule, const std::vector<std::string>& v);
-void write_value(Json& j, const char* name, FieldRule rule, const std::vector<double>& v);
+void write_value(Json& j, const std::string& name, FieldRule, double v);
+void write_value(Json& j, const std::string& name, FieldRule, const std::optional<double>& v);
+void write_value(Json& j, const std::string& name, FieldRule, int v);
+void write_value(Json& j, const std::string& name, FieldRule, long v);
+void write_value(Json& j, const std::string& name, FieldRule, const std::string& v);
+void write_value(Json& j, const std::string& name, FieldRule, const std::optional<std::string>& v);
+void write_value(Json& j, const std::string& name, FieldRule, const std::vector<std::string>& v);
+void write_value(Json& j, const std::string& name, FieldRule, const std::vector<double>& v);
 
 template <class Record>
-bool known(const Fields<Record>& fields, const std::string& key) {
+bool known(const Fields<Record>& fields, std::string_view key) {
     if (key == "schema") return true;
     for (const Field<Record>& f : fields)
         if (key == f.name) return true;
@@ -109,7 +110,8 @@ void read_fields(const Fields<Record>& fields, const Json& object, Record& recor
         std::visit(
             [&](auto member) {
                 if constexpr (!std::is_same_v<decltype(member), std::monostate>)
-                    fields_detail::read_value(object, f.name, f.rule, record.*member);
+                    fields_detail::read_value(object, std::string(f.name), f.rule,
+                                              record.*member);
             },
             f.member);
     }
@@ -136,7 +138,8 @@ void write_fields(const Fields<Record>& fields, const Record& record, Json& obje
             std::visit(
                 [&](auto member) {
                     if constexpr (!std::is_same_v<decltype(member), std::monostate>)
-                        fields_detail::write_value(object, f.name, f.rule, record.*member);
+                        fields_detail::write_value(object, std::string(f.name), f.rule,
+                                               record.*member);
                 },
                 f.member);
         }
@@ -155,7 +158,7 @@ void check_fields(const Fields<Record>& fields, const Record& record) {
         if (f.rule == FieldRule::id) {
             if (const auto* m = std::get_if<std::string Record::*>(&f.member);
                 m && (record.*(*m)).empty())
-                throw Error("must not be empty", {}, 0, f.name);
+                throw Error("must not be empty", {}, 0, std::string(f.name));
         }
         if (!f.check) continue;
         if (const auto* m = std::get_if<double Record::*>(&f.member)) f.check(f.name, record.*(*m));

@@ -21,27 +21,28 @@ std::string number(double v) {
 }
 
 // The numbers' checks (Field::Check), run by validate().
-void finite(const char* field, double v) {
-    if (!std::isfinite(v)) throw Error("must be finite", {}, 0, field);
+void finite(std::string_view field, double v) {
+    if (!std::isfinite(v)) throw Error("must be finite", {}, 0, std::string(field));
 }
-void non_negative(const char* field, double v) {
-    if (!(v >= 0.0)) throw Error("must be >= 0, got " + number(v), {}, 0, field);
+void non_negative(std::string_view field, double v) {
+    if (!(v >= 0.0)) throw Error("must be >= 0, got " + number(v), {}, 0, std::string(field));
 }
-void finite_non_negative(const char* field, double v) {
+void finite_non_negative(std::string_view field, double v) {
     non_negative(field, v);
     finite(field, v);
 }
-void positive(const char* field, double v) {
+void positive(std::string_view field, double v) {
     if (!(v > 0.0) || !std::isfinite(v))
-        throw Error("must be finite and > 0, got " + number(v), {}, 0, field);
+        throw Error("must be finite and > 0, got " + number(v), {}, 0, std::string(field));
 }
-void declination(const char* field, double v) {
+void declination(std::string_view field, double v) {
     if (!(std::abs(v) <= 90.0))
-        throw Error("must be within [-90, 90] degrees, got " + number(v), {}, 0, field);
+        throw Error("must be within [-90, 90] degrees, got " + number(v), {}, 0,
+                    std::string(field));
 }
-void fraction(const char* field, double v) {
+void fraction(std::string_view field, double v) {
     if (!(v >= 0.0 && v <= 1.0))
-        throw Error("must be within [0, 1], got " + number(v), {}, 0, field);
+        throw Error("must be within [0, 1], got " + number(v), {}, 0, std::string(field));
 }
 
 // n_max is checked as it is read: the coefficient arrays are sized by it.
