@@ -87,6 +87,16 @@ void write_value(Json& j, const std::string& name, FieldRule, const std::optiona
 void write_value(Json& j, const std::string& name, FieldRule, const std::vector<std::string>& v);
 void write_value(Json& j, const std::string& name, FieldRule, const std::vector<double>& v);
 
+// `action(member)` for a member entry (nothing for a custom or name-only one).
+template <class Record, class Action>
+void on_member(const Field<Record>& f, Action&& action) {
+    std::visit(
+        [&](auto member) {
+            if constexpr (!std::is_same_v<decltype(member), std::monostate>) action(member);
+        },
+        f.member);
+}
+
 template <class Record>
 bool known(const Fields<Record>& fields, std::string_view key) {
     if (key == "schema") return true;
@@ -107,13 +117,9 @@ void read_fields(const Fields<Record>& fields, const Json& object, Record& recor
                  NumberPairs* pairs = nullptr) {
     for (const Field<Record>& f : fields) {
         if (f.read) f.read(record, object, pairs);
-        std::visit(
-            [&](auto member) {
-                if constexpr (!std::is_same_v<decltype(member), std::monostate>)
-                    fields_detail::read_value(object, std::string(f.name), f.rule,
-                                              record.*member);
-            },
-            f.member);
+        fields_detail::on_member(f, [&](auto member) {
+            fields_detail::read_value(object, std::string(f.name), f.rule, record.*member);
+        });
     }
 }
 
@@ -135,13 +141,9 @@ void write_fields(const Fields<Record>& fields, const Record& record, Json& obje
         for (const Field<Record>& f : fields) {
             if (f.place != place) continue;
             if (f.write) f.write(record, object);
-            std::visit(
-                [&](auto member) {
-                    if constexpr (!std::is_same_v<decltype(member), std::monostate>)
-                        fields_detail::write_value(object, std::string(f.name), f.rule,
-                                               record.*member);
-                },
-                f.member);
+            fields_detail::on_member(f, [&](auto member) {
+                fields_detail::write_value(object, std::string(f.name), f.rule, record.*member);
+            });
         }
     };
     write(FieldPlace::in_order);
