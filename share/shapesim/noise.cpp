@@ -2,6 +2,7 @@
 
 #include "shapesim/constants.hpp"
 #include "shapesim/error.hpp"
+#include "shapesim/record_fields.hpp"
 #include "shapesim/statistics.hpp"
 
 #include <Eigen/SVD>
@@ -67,12 +68,18 @@ void SkyMarginal::validate() const {
             fail("values must be ascending, within ±100 (standard deviations)");
 }
 
+namespace {
+const Fields<SkyMarginal>& marginal_fields() {
+    using R = SkyMarginal;
+    static const Fields<R> fields = {{"z0", &R::z0}, {"dz", &R::dz}, {"values", &R::values}};
+    return fields;
+}
+}  // namespace
+
 Json SkyMarginal::to_json() const {
     validate();
     Json j;
-    j["z0"] = z0;
-    j["dz"] = dz;
-    j["values"] = values;
+    write_fields(marginal_fields(), *this, j);
     return j;
 }
 
@@ -80,9 +87,7 @@ SkyMarginal SkyMarginal::from_json(const Json& j) {
     if (!j.is_object()) throw Error("must be an object {z0, dz, values}", {}, 0, "marginal");
     SkyMarginal m;
     try {
-        m.z0 = required_double(j, "z0");
-        m.dz = required_double(j, "dz");
-        for (const Json& v : required_array(j, "values")) m.values.push_back(as_double(v, "values"));
+        read_fields(marginal_fields(), j, m);
     } catch (const Error& e) {
         throw Error("marginal." + e.field() + ": " + e.message(), {}, 0, "marginal");
     }
@@ -93,34 +98,60 @@ SkyMarginal SkyMarginal::from_json(const Json& j) {
 // ---------------------------------------------------------------------------------------------
 // The record
 
-NoiseRecord NoiseRecord::from_json(const Json& j) {
-    const std::string s = required_string(j, "schema");
-    if (s != schema)
-        throw Error(std::string("expected \"") + schema + "\", got \"" + s + "\"", {}, 0, "schema");
-    NoiseRecord r;
-    r.id = required_string(j, "id");
-    r.rms = required_double(j, "rms");
-    r.mad_sigma = required_double(j, "mad_sigma");
-    r.pixels = required_int(j, "pixels");
-    if (auto f = optional_double(j, "noise_correlation")) r.noise_correlation = *f;
+namespace {
+void read_correlation_radius(NoiseRecord& r, const Json& j, NumberPairs*) {
     r.correlation.radius = required_int(j, "correlation_radius");
     if (r.correlation.radius < 0 || r.correlation.radius > 64)
         throw Error("must be within [0, 64]", {}, 0, "correlation_radius");
-    const Json& values = required_array(j, "correlation");
-    for (const Json& v : values) r.correlation.values.push_back(as_double(v, "correlation"));
+}
+void write_correlation_radius(const NoiseRecord& r, Json& j) {
+    j["correlation_radius"] = r.correlation.radius;
+}
+void read_correlation(NoiseRecord& r, const Json& j, NumberPairs*) {
+    for (const Json& v : required_array(j, "correlation"))
+        r.correlation.values.push_back(as_double(v, "correlation"));
+}
+void write_correlation(const NoiseRecord& r, Json& j) { j["correlation"] = r.correlation.values; }
+// The quantiles and how many pixels they summarise, written when there are any.
+void read_quantiles(NoiseRecord& r, const Json& j, NumberPairs*) {
     if (const Json* q = optional_array(j, "quantiles"))
         for (const Json& v : *q) r.quantiles.push_back(as_double(v, "quantiles"));
     if (auto n = optional_int(j, "quantile_pixels")) r.quantile_pixels = *n;
+}
+void write_quantiles(const NoiseRecord& r, Json& j) {
+    if (r.quantiles.empty()) return;
+    j["quantile_pixels"] = r.quantile_pixels;
+    j["quantiles"] = r.quantiles;
+}
+void read_marginal(NoiseRecord& r, const Json& j, NumberPairs*) {
     if (j.contains("marginal")) r.marginal = SkyMarginal::from_json(j["marginal"]);
+}
+void write_marginal(const NoiseRecord& r, Json& j) {
+    if (!r.marginal.empty()) j["marginal"] = r.marginal.to_json();
+}
 
-    for (const auto& [key, value] : j.items())
-        if (key != "schema" && key != "id" && key != "rms" && key != "mad_sigma" &&
-            key != "pixels" && key != "noise_correlation" && key != "correlation_radius" &&
-            key != "correlation" && key != "quantiles" && key != "quantile_pixels" &&
-            key != "marginal")
-            r.extra[key] = value;
-    r.validate();
-    return r;
+// The scalars, `extra`, then the arrays.
+const Fields<NoiseRecord>& noise_fields() {
+    using R = NoiseRecord;
+    constexpr FieldPlace last = FieldPlace::after_extra;
+    static const Fields<R> fields = {
+        {"id", &R::id},
+        {"rms", &R::rms},
+        {"mad_sigma", &R::mad_sigma},
+        {"pixels", &R::pixels},
+        {"noise_correlation", &R::noise_correlation, FieldRule::optional},
+        {"correlation_radius", read_correlation_radius, write_correlation_radius, last},
+        {"correlation", read_correlation, write_correlation, last},
+        {"quantile_pixels", read_quantiles, write_quantiles, last},  // with quantiles
+        {"quantiles"},
+        {"marginal", read_marginal, write_marginal, last},
+    };
+    return fields;
+}
+}  // namespace
+
+NoiseRecord NoiseRecord::from_json(const Json& j) {
+    return read_valid_record(noise_fields(), j);
 }
 
 void NoiseRecord::validate() const {
@@ -142,25 +173,7 @@ void NoiseRecord::validate() const {
     if (!marginal.empty()) marginal.validate();
 }
 
-Json NoiseRecord::to_json() const {
-    validate();
-    Json j;
-    j["schema"] = schema;
-    j["id"] = id;
-    j["rms"] = rms;
-    j["mad_sigma"] = mad_sigma;
-    j["pixels"] = pixels;
-    j["noise_correlation"] = noise_correlation;
-    for (const auto& [key, value] : extra.items()) j[key] = value;
-    j["correlation_radius"] = correlation.radius;
-    j["correlation"] = correlation.values;
-    if (!quantiles.empty()) {
-        j["quantile_pixels"] = quantile_pixels;
-        j["quantiles"] = quantiles;
-    }
-    if (!marginal.empty()) j["marginal"] = marginal.to_json();
-    return j;
-}
+Json NoiseRecord::to_json() const { return write_valid_record(noise_fields(), *this); }
 
 NoiseRecord read_noise_record(const std::string& path) {
     JsonlReader reader(path, {NoiseRecord::schema});

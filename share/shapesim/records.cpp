@@ -1,6 +1,7 @@
 #include "shapesim/records.hpp"
 
 #include "shapesim/constants.hpp"
+#include "shapesim/record_fields.hpp"
 
 #include <algorithm>
 #include <cmath>
@@ -12,8 +13,6 @@ namespace shapesim {
 
 namespace {
 
-using Names = std::vector<std::string>;
-
 std::string number(double v) {
     std::ostringstream s;
     s.precision(17);
@@ -21,48 +20,32 @@ std::string number(double v) {
     return s.str();
 }
 
-// Every record names its schema; nested records (a PSF inside another line) are checked here,
-// top-level lines already by JsonlReader.
-void check_schema(const Json& j, const char* expected) {
-    const std::string s = required_string(j, "schema");
-    if (s != expected)
-        throw Error(std::string("expected \"") + expected + "\", got \"" + s + "\"", {}, 0,
-                    "schema");
+// The numbers' checks (Field::Check), run by validate().
+void finite(std::string_view field, double v) {
+    if (!std::isfinite(v)) throw Error("must be finite", {}, 0, std::string(field));
+}
+void non_negative(std::string_view field, double v) {
+    if (!(v >= 0.0)) throw Error("must be >= 0, got " + number(v), {}, 0, std::string(field));
+}
+void finite_non_negative(std::string_view field, double v) {
+    non_negative(field, v);
+    finite(field, v);
+}
+void positive(std::string_view field, double v) {
+    if (!(v > 0.0) || !std::isfinite(v))
+        throw Error("must be finite and > 0, got " + number(v), {}, 0, std::string(field));
+}
+void declination(std::string_view field, double v) {
+    if (!(std::abs(v) <= 90.0))
+        throw Error("must be within [-90, 90] degrees, got " + number(v), {}, 0,
+                    std::string(field));
+}
+void fraction(std::string_view field, double v) {
+    if (!(v >= 0.0 && v <= 1.0))
+        throw Error("must be within [0, 1], got " + number(v), {}, 0, std::string(field));
 }
 
-// Ids are strings; an integer id (e.g. from a SExtractor-numbered catalogue) is read as its
-// decimal text.
-std::string read_id(const Json& j, const std::string& field = "id") {
-    const auto it = j.find(field);
-    if (it != j.end() && it->is_number_integer()) return it->dump();
-    std::string id = required_string(j, field);
-    if (id.empty()) throw Error("must not be empty", {}, 0, field);
-    return id;
-}
-
-// The fields of `j` no record member reads, in their order.
-Json extra_fields(const Json& j, const Names& known) {
-    Json extra = Json::object();
-    for (const auto& [key, value] : j.items()) {
-        bool is_known = key == "schema";
-        for (const auto& k : known) is_known = is_known || key == k;
-        if (!is_known) extra[key] = value;
-    }
-    return extra;
-}
-
-void put_extra(Json& j, const Json& extra, const Names& known) {
-    for (const auto& [key, value] : extra.items()) {
-        bool is_known = key == "schema";
-        for (const auto& k : known) is_known = is_known || key == k;
-        if (!is_known) j[key] = value;
-    }
-}
-
-void put(Json& j, const char* field, const std::optional<double>& value) {
-    if (value) j[field] = *value;
-}
-
+// n_max is checked as it is read: the coefficient arrays are sized by it.
 int read_n_max(const Json& j) {
     const int n_max = required_int(j, "n_max");
     if (n_max < 0 || n_max > record_n_max_limit)
@@ -70,6 +53,15 @@ int read_n_max(const Json& j) {
                         std::to_string(n_max),
                     {}, 0, "n_max");
     return n_max;
+}
+
+template <class Record>
+void read_n_max_of(Record& r, const Json& j, NumberPairs*) {
+    r.n_max = read_n_max(j);
+}
+template <class Record>
+void write_n_max_of(const Record& r, Json& j) {
+    j["n_max"] = r.n_max;
 }
 
 void check_pair_count(std::size_t count, int n_max) {
@@ -102,18 +94,19 @@ std::vector<Complex> read_coeffs(const Json& j, int n_max) {
     return coeffs;
 }
 
-Json write_coeffs(const std::vector<Complex>& coeffs) {
+// Written after `extra`, when there are any (a star's or a band's may have none).
+template <class Record>
+void write_coeffs_of(const Record& r, Json& j) {
+    if (r.coeffs.empty()) return;
     Json list = Json::array();
-    for (const auto& c : coeffs) list.push_back(Json::array({c.real(), c.imag()}));
-    return list;
+    for (const auto& c : r.coeffs) list.push_back(Json::array({c.real(), c.imag()}));
+    j["coeffs"] = std::move(list);
 }
 
 // The checks every shape shares (DESIGN §2; model.hpp's packed order).
 void check_shape(double beta, double pixel_scale, int n_max, const std::vector<Complex>& coeffs) {
-    if (!(beta > 0.0) || !std::isfinite(beta))
-        throw Error("must be finite and > 0, got " + number(beta), {}, 0, "beta");
-    if (!(pixel_scale > 0.0) || !std::isfinite(pixel_scale))
-        throw Error("must be finite and > 0, got " + number(pixel_scale), {}, 0, "pixel_scale");
+    positive("beta", beta);
+    positive("pixel_scale", pixel_scale);
     if (n_max < 0 || n_max > record_n_max_limit)
         throw Error("must be in [0, " + std::to_string(record_n_max_limit) + "]", {}, 0, "n_max");
     if (coeffs.size() != std::size_t(polar_count(n_max)))
@@ -133,58 +126,27 @@ void check_shape(double beta, double pixel_scale, int n_max, const std::vector<C
     }
 }
 
-void check_finite(const char* field, double v) {
-    if (!std::isfinite(v)) throw Error("must be finite", {}, 0, field);
-}
-void check_non_negative(const char* field, const std::optional<double>& v) {
-    if (v && !(*v >= 0.0)) throw Error("must be >= 0, got " + number(*v), {}, 0, field);
-}
-void check_dec(const char* field, const std::optional<double>& v) {
-    if (v && !(std::abs(*v) <= 90.0))
-        throw Error("must be within [-90, 90] degrees, got " + number(*v), {}, 0, field);
-}
-
-// A nested record (`psf`, `result`): its errors name the path, e.g. `psf.beta`.
-ShapeletRecord nested_shapelet(const Json& j, const std::string& field) {
-    try {
-        return ShapeletRecord::from_json(required_object(j, field));
-    } catch (const Error& e) {
-        if (e.field() == field) throw;
-        throw Error(e.message(), e.file(), e.line(),
-                    field + (e.field().empty() ? "" : ".") + e.field());
-    }
-}
-
-// 2√π β_pix Σ_{n even} Re a_{n,0} (DESIGN §2, §3).
-double model_flux(const ShapeletModel& model) {
-    double sum = 0.0;
-    for (int n = 0; n <= model.n_max; n += 2) sum += model.at(n, 0).real();
-    return 2.0 * std::sqrt(pi) * model.beta_pix * sum;
-}
-
-const Names source_fields = {"id",  "x", "y", "ra",    "dec",  "flux",       "flux_err",
-                             "mag", "a", "b", "theta", "fwhm", "stellarity", "flags"};
-const Names shapelet_fields = {"id",    "x",    "y",   "beta",  "pixel_scale", "n_max",
-                               "chi2r", "flux", "mag", "flags", "coeffs",      "bands"};
-const Names object_fields = {"id",   "kind",        "ra",   "dec",   "x",      "y",
-                             "mag",  "flux",        "pixel_scale",   "beta",   "n_max",
-                             "parent", "flags",     "coeffs",        "bands",  "lensing"};
-const Names band_fields = {"band", "image", "weight", "weight_type", "zero_point", "gain", "psf"};
-const Names band_coefficient_fields = {"band", "flux", "flux_err", "mag", "chi2r", "coeffs"};
-
 // `bands` of a multi-band record of order n_max: unique names, each its coefficients.
-std::vector<BandCoefficients> read_bands(const Json& j, int n_max) {
-    std::vector<BandCoefficients> bands;
-    if (!j.contains("bands") || j.at("bands").is_null()) return bands;
+template <class Record>
+void read_bands_of(Record& r, const Json& j, NumberPairs*) {
+    r.bands.clear();
+    if (!j.contains("bands") || j.at("bands").is_null()) return;
     const Json& list = required_array(j, "bands");
     for (std::size_t k = 0; k < list.size(); ++k) {
         const std::string field = "bands[" + std::to_string(k) + "]";
-        bands.push_back(BandCoefficients::from_json(list[k], n_max, field));
-        for (std::size_t other = 0; other + 1 < bands.size(); ++other)
-            if (bands[other].band == bands.back().band)
-                throw Error("band \"" + bands.back().band + "\" appears twice", {}, 0, field);
+        r.bands.push_back(BandCoefficients::from_json(list[k], r.n_max, field));
+        for (std::size_t other = 0; other + 1 < r.bands.size(); ++other)
+            if (r.bands[other].band == r.bands.back().band)
+                throw Error("band \"" + r.bands.back().band + "\" appears twice", {}, 0, field);
     }
-    return bands;
+}
+
+template <class Record>
+void write_bands_of(const Record& r, Json& j) {
+    if (r.bands.empty()) return;
+    Json list = Json::array();
+    for (const BandCoefficients& b : r.bands) list.push_back(b.to_json());
+    j["bands"] = std::move(list);
 }
 
 // Each band's coefficients as check_shape() checks the record's own.
@@ -199,134 +161,88 @@ void check_bands(double beta, double pixel_scale, int n_max,
     }
 }
 
-void put_bands(Json& j, const std::vector<BandCoefficients>& bands) {
-    if (bands.empty()) return;
-    Json list = Json::array();
-    for (const BandCoefficients& b : bands) list.push_back(b.to_json());
-    j["bands"] = std::move(list);
+// An object's and a truth's kind.
+void check_kind(const std::string& kind) {
+    if (kind != "galaxy" && kind != "star")
+        throw Error("must be \"galaxy\" or \"star\", got \"" + kind + "\"", {}, 0, "kind");
 }
-const Names morph_fields = {"id", "x",       "y", "mag",   "fwhm", "a",    "b",   "theta", "e1",
-                            "e2", "r_petro", "c", "a_sym", "s",    "gini", "m20", "flags"};
-const Names truth_fields = {"id",           "kind",         "ra",    "dec",  "x",
-                            "y",            "flux",         "mag",   "clipped_flux",
-                            "e1",           "e2",           "rms_radius",   "lensing_error",
-                            "e1_intrinsic", "e2_intrinsic", "g1",    "g2",   "kappa",
-                            "mu",           "n_max",        "stamp_radius"};
-const Names convolution_fields = {"galaxy_id", "psf", "hdu",  "x",     "y",
-                                  "nx",        "ny",  "flux", "result"};
+
+// 2√π β_pix Σ_{n even} Re a_{n,0} (DESIGN §2, §3).
+double model_flux(const ShapeletModel& model) {
+    double sum = 0.0;
+    for (int n = 0; n <= model.n_max; n += 2) sum += model.at(n, 0).real();
+    return 2.0 * std::sqrt(pi) * model.beta_pix * sum;
+}
 
 }  // namespace
 
 // ---------------------------------------------------------------------------- SourceRecord
 
+namespace {
+const Fields<SourceRecord>& source_fields() {
+    using R = SourceRecord;
+    static const Fields<R> fields = {
+        {"id", &R::id, FieldRule::id},
+        {"x", &R::x, finite}, {"y", &R::y, finite},
+        {"ra", &R::ra}, {"dec", &R::dec, declination},
+        {"flux", &R::flux, finite},
+        {"flux_err", &R::flux_err, non_negative},
+        {"mag", &R::mag},
+        {"a", &R::a, non_negative}, {"b", &R::b, non_negative},
+        {"theta", &R::theta},
+        {"fwhm", &R::fwhm, non_negative},
+        {"stellarity", &R::stellarity, fraction},
+        {"flags", &R::flags},
+    };
+    return fields;
+}
+}  // namespace
+
 SourceRecord SourceRecord::from_json(const Json& j) {
-    check_schema(j, schema);
-    SourceRecord r;
-    r.id = read_id(j);
-    r.x = required_double(j, "x");
-    r.y = required_double(j, "y");
-    r.ra = optional_double(j, "ra");
-    r.dec = optional_double(j, "dec");
-    r.flux = required_double(j, "flux");
-    r.flux_err = optional_double(j, "flux_err");
-    r.mag = optional_double(j, "mag");
-    r.a = optional_double(j, "a");
-    r.b = optional_double(j, "b");
-    r.theta = optional_double(j, "theta");
-    r.fwhm = optional_double(j, "fwhm");
-    r.stellarity = optional_double(j, "stellarity");
-    r.flags = optional_strings(j, "flags");
-    r.extra = extra_fields(j, source_fields);
-    r.validate();
-    return r;
+    return read_valid_record(source_fields(), j);
 }
 
-void SourceRecord::validate() const {
-    if (id.empty()) throw Error("must not be empty", {}, 0, "id");
-    check_finite("x", x);
-    check_finite("y", y);
-    check_finite("flux", flux);
-    check_dec("dec", dec);
-    check_non_negative("flux_err", flux_err);
-    check_non_negative("a", a);
-    check_non_negative("b", b);
-    check_non_negative("fwhm", fwhm);
-    if (stellarity && !(*stellarity >= 0.0 && *stellarity <= 1.0))
-        throw Error("must be within [0, 1], got " + number(*stellarity), {}, 0, "stellarity");
-}
+void SourceRecord::validate() const { check_fields(source_fields(), *this); }
 
-Json SourceRecord::to_json() const {
-    validate();
-    Json j;
-    j["schema"] = schema;
-    j["id"] = id;
-    j["x"] = x;
-    j["y"] = y;
-    put(j, "ra", ra);
-    put(j, "dec", dec);
-    j["flux"] = flux;
-    put(j, "flux_err", flux_err);
-    put(j, "mag", mag);
-    put(j, "a", a);
-    put(j, "b", b);
-    put(j, "theta", theta);
-    put(j, "fwhm", fwhm);
-    put(j, "stellarity", stellarity);
-    j["flags"] = flags;
-    put_extra(j, extra, source_fields);
-    return j;
-}
+Json SourceRecord::to_json() const { return write_valid_record(source_fields(), *this); }
 
 // -------------------------------------------------------------------------- ShapeletRecord
 
-ShapeletRecord ShapeletRecord::from_json(const Json& j) {
-    check_schema(j, schema);
-    ShapeletRecord r;
-    r.id = read_id(j);
-    r.x = required_double(j, "x");
-    r.y = required_double(j, "y");
-    r.beta = required_double(j, "beta");
-    r.pixel_scale = required_double(j, "pixel_scale");
-    r.n_max = read_n_max(j);
+namespace {
+void read_shapelet_coeffs(ShapeletRecord& r, const Json& j, NumberPairs*) {
     r.coeffs = read_coeffs(j, r.n_max);
-    r.chi2r = optional_double(j, "chi2r");
-    r.flux = optional_double(j, "flux");
-    r.mag = optional_double(j, "mag");
-    r.flags = optional_strings(j, "flags");
-    r.extra = extra_fields(j, shapelet_fields);
-    r.bands = read_bands(j, r.n_max);
-    r.validate();
-    return r;
+}
+
+const Fields<ShapeletRecord>& shapelet_fields() {
+    using R = ShapeletRecord;
+    static const Fields<R> fields = {
+        {"id", &R::id, FieldRule::id},
+        {"x", &R::x, finite}, {"y", &R::y, finite},
+        {"beta", &R::beta},  // β, pixel_scale, n_max: checked with the coefficients
+        {"pixel_scale", &R::pixel_scale},
+        {"n_max", read_n_max_of<R>, write_n_max_of<R>},
+        {"coeffs", read_shapelet_coeffs, write_coeffs_of<R>, FieldPlace::after_extra},
+        {"flux", &R::flux},
+        {"mag", &R::mag},
+        {"chi2r", &R::chi2r, non_negative},
+        {"flags", &R::flags},
+        {"bands", read_bands_of<R>, write_bands_of<R>, FieldPlace::after_extra},
+    };
+    return fields;
+}
+}  // namespace
+
+ShapeletRecord ShapeletRecord::from_json(const Json& j) {
+    return read_valid_record(shapelet_fields(), j);
 }
 
 void ShapeletRecord::validate() const {
-    if (id.empty()) throw Error("must not be empty", {}, 0, "id");
-    check_finite("x", x);
-    check_finite("y", y);
+    check_fields(shapelet_fields(), *this);
     check_shape(beta, pixel_scale, n_max, coeffs);
     check_bands(beta, pixel_scale, n_max, bands);  // a model: every band its coefficients
-    check_non_negative("chi2r", chi2r);
 }
 
-Json ShapeletRecord::to_json() const {
-    validate();
-    Json j;
-    j["schema"] = schema;
-    j["id"] = id;
-    j["x"] = x;
-    j["y"] = y;
-    j["beta"] = beta;
-    j["pixel_scale"] = pixel_scale;
-    j["n_max"] = n_max;
-    put(j, "flux", flux);
-    put(j, "mag", mag);
-    put(j, "chi2r", chi2r);
-    j["flags"] = flags;
-    put_extra(j, extra, shapelet_fields);
-    j["coeffs"] = write_coeffs(coeffs);
-    put_bands(j, bands);
-    return j;
-}
+Json ShapeletRecord::to_json() const { return write_valid_record(shapelet_fields(), *this); }
 
 ShapeletModel ShapeletRecord::to_model() const {
     ShapeletModel model(x, y, beta / pixel_scale, n_max);
@@ -353,73 +269,91 @@ ShapeletRecord ShapeletRecord::from_model(const ShapeletModel& model, double pix
 // ---------------------------------------------------------------------------- ObjectRecord
 
 namespace {
-// An object's id (not empty) and kind (galaxy or star), as objects and truths carry them.
-void check_id_and_kind(const std::string& id, const std::string& kind) {
-    if (id.empty()) throw Error("must not be empty", {}, 0, "id");
-    if (kind != "galaxy" && kind != "star")
-        throw Error("must be \"galaxy\" or \"star\", got \"" + kind + "\"", {}, 0, "kind");
+// The shape, β, pixel_scale, n_max and coefficients together: a galaxy must carry it; a star
+// may (it is otherwise drawn as the PSF). The coefficients come as number pairs when
+// JsonlReader read them so.
+void read_object_shape(ObjectRecord& r, const Json& j, NumberPairs* pairs) {
+    const bool pairs_read = pairs && pairs->found;
+    if (r.kind != "galaxy" && !j.contains("coeffs") && !pairs_read) return;
+    r.beta = required_double(j, "beta");
+    r.pixel_scale = required_double(j, "pixel_scale");
+    r.n_max = read_n_max(j);
+    if (pairs_read) {
+        check_pair_count(pairs->values.size(), r.n_max);
+        r.coeffs = std::move(pairs->values);
+    } else {
+        r.coeffs = read_coeffs(j, r.n_max);
+    }
+}
+
+void write_object_shape(const ObjectRecord& r, Json& j) {
+    if (!r.has_shape()) return;
+    j["beta"] = r.beta;
+    j["pixel_scale"] = r.pixel_scale;
+    j["n_max"] = r.n_max;
+}
+
+void read_lensing(ObjectRecord& r, const Json& j, NumberPairs*) {
+    if (!j.contains("lensing")) return;
+    const Json& l = j.at("lensing");
+    if (!l.is_object())
+        throw Error("must be an object {\"g1\", \"g2\", \"kappa\", \"magnify\"}", {}, 0, "lensing");
+    try {
+        Lensing lensing;
+        lensing.g1 = required_double(l, "g1");
+        lensing.g2 = required_double(l, "g2");
+        lensing.kappa = optional_double(l, "kappa").value_or(0.0);
+        if (l.contains("magnify")) {
+            if (!l.at("magnify").is_boolean())
+                throw Error("must be true or false", {}, 0, "magnify");
+            lensing.conserve_flux = !l.at("magnify").get<bool>();
+        }
+        r.lensing = lensing;
+    } catch (const Error& e) {
+        throw Error(e.message(), {}, 0, "lensing." + e.field());
+    }
+}
+
+void write_lensing(const ObjectRecord& r, Json& j) {
+    if (!r.lensing) return;
+    j["lensing"] = {{"g1", r.lensing->g1},
+                    {"g2", r.lensing->g2},
+                    {"kappa", r.lensing->kappa},
+                    {"magnify", !r.lensing->conserve_flux}};
+}
+
+const Fields<ObjectRecord>& object_fields() {
+    using R = ObjectRecord;
+    static const Fields<R> fields = {
+        {"id", &R::id, FieldRule::id},
+        {"kind", &R::kind},
+        {"ra", &R::ra, finite}, {"dec", &R::dec, declination},
+        {"x", &R::x}, {"y", &R::y},
+        {"mag", &R::mag},
+        {"flux", &R::flux, finite},
+        {"beta", read_object_shape, write_object_shape},  // with pixel_scale, n_max, coeffs
+        {"pixel_scale"}, {"n_max"},
+        {"coeffs", nullptr, write_coeffs_of<R>, FieldPlace::after_extra},
+        {"parent", &R::parent},
+        {"flags", &R::flags},
+        {"lensing", read_lensing, write_lensing},
+        {"bands", read_bands_of<R>, write_bands_of<R>, FieldPlace::after_extra},
+    };
+    return fields;
 }
 }  // namespace
 
 ObjectRecord ObjectRecord::from_json(const Json& j) {
-    NumberPairs none;
-    return from_json(j, none);
+    return read_valid_record(object_fields(), j);
 }
 
 ObjectRecord ObjectRecord::from_json(const Json& j, NumberPairs& coeffs) {
-    check_schema(j, schema);
-    ObjectRecord r;
-    r.id = read_id(j);
-    r.kind = required_string(j, "kind");
-    r.ra = required_double(j, "ra");
-    r.dec = required_double(j, "dec");
-    r.x = optional_double(j, "x");
-    r.y = optional_double(j, "y");
-    r.mag = optional_double(j, "mag");
-    r.flux = required_double(j, "flux");
-    // A galaxy must carry its shape; a star may (it is otherwise drawn as the PSF).
-    if (r.kind == "galaxy" || j.contains("coeffs") || coeffs.found) {
-        r.beta = required_double(j, "beta");
-        r.pixel_scale = required_double(j, "pixel_scale");
-        r.n_max = read_n_max(j);
-        if (coeffs.found) {
-            check_pair_count(coeffs.values.size(), r.n_max);
-            r.coeffs = std::move(coeffs.values);
-        } else {
-            r.coeffs = read_coeffs(j, r.n_max);
-        }
-    }
-    r.parent = optional_string(j, "parent");
-    r.flags = optional_strings(j, "flags");
-    if (j.contains("lensing")) {
-        const Json& l = j.at("lensing");
-        if (!l.is_object())
-            throw Error("must be an object {\"g1\", \"g2\", \"kappa\", \"magnify\"}", {}, 0, "lensing");
-        try {
-            Lensing lensing;
-            lensing.g1 = required_double(l, "g1");
-            lensing.g2 = required_double(l, "g2");
-            lensing.kappa = optional_double(l, "kappa").value_or(0.0);
-            if (l.contains("magnify")) {
-                if (!l.at("magnify").is_boolean()) throw Error("must be true or false", {}, 0, "magnify");
-                lensing.conserve_flux = !l.at("magnify").get<bool>();
-            }
-            r.lensing = lensing;
-        } catch (const Error& e) {
-            throw Error(e.message(), {}, 0, "lensing." + e.field());
-        }
-    }
-    r.extra = extra_fields(j, object_fields);
-    r.bands = read_bands(j, r.n_max);
-    r.validate();
-    return r;
+    return read_valid_record(object_fields(), j, &coeffs);
 }
 
 void ObjectRecord::validate() const {
-    check_id_and_kind(id, kind);
-    check_finite("ra", ra);
-    check_dec("dec", dec);
-    check_finite("flux", flux);
+    check_fields(object_fields(), *this);
+    check_kind(kind);
     // A magnitude is written with the flux drawn: a flux of 0, −0 or a denormal would turn the
     // truth's magnitude into ±∞ or NaN after the whole image was painted. Refused at the door.
     if (mag && !(flux >= std::numeric_limits<double>::min()))
@@ -430,9 +364,9 @@ void ObjectRecord::validate() const {
     if (has_shape()) check_shape(beta, pixel_scale, n_max, coeffs);
     if (has_shape()) check_bands(beta, pixel_scale, n_max, bands);
     if (lensing) {
-        check_finite("lensing.g1", lensing->g1);
-        check_finite("lensing.g2", lensing->g2);
-        check_finite("lensing.kappa", lensing->kappa);
+        finite("lensing.g1", lensing->g1);
+        finite("lensing.g2", lensing->g2);
+        finite("lensing.kappa", lensing->kappa);
         if (!(lensing->g1 * lensing->g1 + lensing->g2 * lensing->g2 < 1.0))
             throw Error("|g| must be < 1 (weak lensing), got g = (" + number(lensing->g1) + ", " +
                             number(lensing->g2) + ")",
@@ -444,35 +378,7 @@ void ObjectRecord::validate() const {
     }
 }
 
-Json ObjectRecord::to_json() const {
-    validate();
-    Json j;
-    j["schema"] = schema;
-    j["id"] = id;
-    j["kind"] = kind;
-    j["ra"] = ra;
-    j["dec"] = dec;
-    put(j, "x", x);
-    put(j, "y", y);
-    put(j, "mag", mag);
-    j["flux"] = flux;
-    if (has_shape()) {
-        j["beta"] = beta;
-        j["pixel_scale"] = pixel_scale;
-        j["n_max"] = n_max;
-    }
-    if (parent) j["parent"] = *parent;
-    j["flags"] = flags;
-    if (lensing)
-        j["lensing"] = {{"g1", lensing->g1},
-                        {"g2", lensing->g2},
-                        {"kappa", lensing->kappa},
-                        {"magnify", !lensing->conserve_flux}};
-    put_extra(j, extra, object_fields);
-    if (has_shape()) j["coeffs"] = write_coeffs(coeffs);
-    put_bands(j, bands);
-    return j;
-}
+Json ObjectRecord::to_json() const { return write_valid_record(object_fields(), *this); }
 
 ShapeletModel ObjectRecord::to_model(double x_pix, double y_pix) const {
     if (!has_shape()) throw Error("object " + id + " has no shape", {}, 0, "coeffs");
@@ -498,19 +404,24 @@ ObjectRecord ObjectRecord::in_band(const std::string& name) const {
 
 // ------------------------------------------------------------------------------ BandRecord
 
+namespace {
+const Fields<BandRecord>& band_fields() {
+    using R = BandRecord;
+    static const Fields<R> fields = {
+        {"band", &R::band},
+        {"image", &R::image},
+        {"weight", &R::weight, FieldRule::optional},
+        {"weight_type", &R::weight_type, FieldRule::optional},
+        {"zero_point", &R::zero_point, finite},
+        {"gain", &R::gain, finite_non_negative},
+        {"psf", &R::psf, FieldRule::optional},
+    };
+    return fields;
+}
+}  // namespace
+
 BandRecord BandRecord::from_json(const Json& j) {
-    check_schema(j, schema);
-    BandRecord r;
-    r.band = required_string(j, "band");
-    r.image = required_string(j, "image");
-    if (auto w = optional_string(j, "weight")) r.weight = *w;
-    if (auto t = optional_string(j, "weight_type")) r.weight_type = *t;
-    r.zero_point = optional_double(j, "zero_point");
-    r.gain = optional_double(j, "gain");
-    if (auto p = optional_string(j, "psf")) r.psf = *p;
-    r.extra = extra_fields(j, band_fields);
-    r.validate();
-    return r;
+    return read_valid_record(band_fields(), j);
 }
 
 void BandRecord::validate() const {
@@ -519,25 +430,10 @@ void BandRecord::validate() const {
     if (weight_type != "weight" && weight_type != "rms" && weight_type != "variance")
         throw Error("must be \"weight\", \"rms\" or \"variance\", got \"" + weight_type + "\"",
                     {}, 0, "weight_type");
-    if (zero_point) check_finite("zero_point", *zero_point);
-    check_non_negative("gain", gain);
-    if (gain) check_finite("gain", *gain);
+    check_fields(band_fields(), *this);
 }
 
-Json BandRecord::to_json() const {
-    validate();
-    Json j;
-    j["schema"] = schema;
-    j["band"] = band;
-    j["image"] = image;
-    if (!weight.empty()) j["weight"] = weight;
-    j["weight_type"] = weight_type;
-    put(j, "zero_point", zero_point);
-    put(j, "gain", gain);
-    if (!psf.empty()) j["psf"] = psf;
-    put_extra(j, extra, band_fields);
-    return j;
-}
+Json BandRecord::to_json() const { return write_valid_record(band_fields(), *this); }
 
 std::vector<BandRecord> BandRecord::read_all(const std::string& path) {
     JsonlReader reader(path, {schema});
@@ -554,20 +450,32 @@ std::vector<BandRecord> BandRecord::read_all(const std::string& path) {
     return bands;
 }
 
+// ------------------------------------------------------------------------ BandCoefficients
+
+namespace {
+const Fields<BandCoefficients>& band_coefficient_fields() {
+    using R = BandCoefficients;
+    static const Fields<R> fields = {
+        {"band", &R::band},
+        {"flux", &R::flux},
+        {"flux_err", &R::flux_err, non_negative},
+        {"mag", &R::mag},
+        {"chi2r", &R::chi2r, non_negative},
+        {"coeffs", nullptr, write_coeffs_of<R>, FieldPlace::after_extra},  // read at n_max
+    };
+    return fields;
+}
+}  // namespace
+
 BandCoefficients BandCoefficients::from_json(const Json& j, int n_max, const std::string& field) {
     try {
         if (!j.is_object()) throw Error("expected an object, got " + j.dump(), {}, 0, "");
         BandCoefficients b;
-        b.band = required_string(j, "band");
+        read_fields(band_coefficient_fields(), j, b);
         if (b.band.empty()) throw Error("must not be empty", {}, 0, "band");
         if (j.contains("coeffs")) b.coeffs = read_coeffs(j, n_max);  // a star's: none
-        b.flux = optional_double(j, "flux");
-        b.flux_err = optional_double(j, "flux_err");
-        b.mag = optional_double(j, "mag");
-        b.chi2r = optional_double(j, "chi2r");
-        check_non_negative("flux_err", b.flux_err);
-        check_non_negative("chi2r", b.chi2r);
-        b.extra = extra_fields(j, band_coefficient_fields);
+        check_fields(band_coefficient_fields(), b);
+        b.extra = unknown_fields(band_coefficient_fields(), j);
         return b;
     } catch (const Error& e) {
         throw Error(e.message(), e.file(), e.line(),
@@ -577,149 +485,109 @@ BandCoefficients BandCoefficients::from_json(const Json& j, int n_max, const std
 
 Json BandCoefficients::to_json() const {
     Json j;
-    j["band"] = band;
-    put(j, "flux", flux);
-    put(j, "flux_err", flux_err);
-    put(j, "mag", mag);
-    put(j, "chi2r", chi2r);
-    put_extra(j, extra, band_coefficient_fields);
-    if (!coeffs.empty()) j["coeffs"] = write_coeffs(coeffs);
+    write_fields(band_coefficient_fields(), *this, j, &extra);
     return j;
 }
 
 // ----------------------------------------------------------------------------- MorphRecord
 
+namespace {
+const Fields<MorphRecord>& morph_fields() {
+    using R = MorphRecord;
+    static const Fields<R> fields = {
+        {"id", &R::id, FieldRule::id},
+        {"x", &R::x, finite}, {"y", &R::y, finite},
+        {"mag", &R::mag},
+        {"fwhm", &R::fwhm, non_negative},
+        {"a", &R::a, non_negative}, {"b", &R::b, non_negative},
+        {"theta", &R::theta},
+        {"e1", &R::e1}, {"e2", &R::e2},
+        {"r_petro", &R::r_petro, non_negative},
+        {"c", &R::c}, {"a_sym", &R::a_sym}, {"s", &R::s}, {"gini", &R::gini}, {"m20", &R::m20},
+        {"flags", &R::flags},
+    };
+    return fields;
+}
+}  // namespace
+
 MorphRecord MorphRecord::from_json(const Json& j) {
-    check_schema(j, schema);
-    MorphRecord r;
-    r.id = read_id(j);
-    r.x = required_double(j, "x");
-    r.y = required_double(j, "y");
-    r.mag = optional_double(j, "mag");
-    r.fwhm = optional_double(j, "fwhm");
-    r.a = optional_double(j, "a");
-    r.b = optional_double(j, "b");
-    r.theta = optional_double(j, "theta");
-    r.e1 = optional_double(j, "e1");
-    r.e2 = optional_double(j, "e2");
-    r.r_petro = optional_double(j, "r_petro");
-    r.c = optional_double(j, "c");
-    r.a_sym = optional_double(j, "a_sym");
-    r.s = optional_double(j, "s");
-    r.gini = optional_double(j, "gini");
-    r.m20 = optional_double(j, "m20");
-    r.flags = optional_strings(j, "flags");
-    r.extra = extra_fields(j, morph_fields);
-    r.validate();
-    return r;
+    return read_valid_record(morph_fields(), j);
 }
 
-void MorphRecord::validate() const {
-    if (id.empty()) throw Error("must not be empty", {}, 0, "id");
-    check_finite("x", x);
-    check_finite("y", y);
-    check_non_negative("fwhm", fwhm);
-    check_non_negative("a", a);
-    check_non_negative("b", b);
-    check_non_negative("r_petro", r_petro);
-}
+void MorphRecord::validate() const { check_fields(morph_fields(), *this); }
 
-Json MorphRecord::to_json() const {
-    validate();
-    Json j;
-    j["schema"] = schema;
-    j["id"] = id;
-    j["x"] = x;
-    j["y"] = y;
-    const std::pair<const char*, const std::optional<double>*> values[] = {
-        {"mag", &mag},     {"fwhm", &fwhm},   {"a", &a},   {"b", &b},
-        {"theta", &theta}, {"e1", &e1},       {"e2", &e2}, {"r_petro", &r_petro},
-        {"c", &c},         {"a_sym", &a_sym}, {"s", &s},   {"gini", &gini},
-        {"m20", &m20}};
-    for (const auto& [field, value] : values) put(j, field, *value);
-    j["flags"] = flags;
-    put_extra(j, extra, morph_fields);
-    return j;
-}
+Json MorphRecord::to_json() const { return write_valid_record(morph_fields(), *this); }
 
 // ------------------------------------------------------------------------------ TruthRecord
 
+namespace {
+// A galaxy's shape always carries its lensing error; e1, e2, rms_radius may be null.
+void read_truth_shape(TruthRecord& r, const Json& j, NumberPairs*) {
+    if (!j.contains("lensing_error")) return;
+    TruthRecord::Shape& s = r.shape.emplace();
+    s.e1 = optional_double(j, "e1");
+    s.e2 = optional_double(j, "e2");
+    s.rms_radius = optional_double(j, "rms_radius");
+    s.lensing_error = required_double(j, "lensing_error");
+    // Older truth files have neither: unlensed then, unless they say otherwise.
+    s.e1_intrinsic = j.contains("e1_intrinsic") ? optional_double(j, "e1_intrinsic") : s.e1;
+    s.e2_intrinsic = j.contains("e2_intrinsic") ? optional_double(j, "e2_intrinsic") : s.e2;
+    if (auto v = optional_double(j, "g1")) s.g1 = *v;
+    if (auto v = optional_double(j, "g2")) s.g2 = *v;
+    if (auto v = optional_double(j, "kappa")) s.kappa = *v;
+    if (auto v = optional_double(j, "mu")) s.mu = *v;
+}
+
+void write_truth_shape(const TruthRecord& r, Json& j) {
+    if (!r.shape) return;
+    const TruthRecord::Shape& s = *r.shape;
+    auto or_null = [](const std::optional<double>& v) { return v ? Json(*v) : Json(nullptr); };
+    j["e1"] = or_null(s.e1);
+    j["e2"] = or_null(s.e2);
+    j["rms_radius"] = or_null(s.rms_radius);
+    j["lensing_error"] = s.lensing_error;
+    j["e1_intrinsic"] = or_null(s.e1_intrinsic);
+    j["e2_intrinsic"] = or_null(s.e2_intrinsic);
+    j["g1"] = s.g1;
+    j["g2"] = s.g2;
+    j["kappa"] = s.kappa;
+    j["mu"] = s.mu;
+}
+
+const Fields<TruthRecord>& truth_fields() {
+    using R = TruthRecord;
+    static const Fields<R> fields = {
+        {"id", &R::id, FieldRule::id},
+        {"kind", &R::kind},
+        {"ra", &R::ra}, {"dec", &R::dec, declination},
+        {"x", &R::x}, {"y", &R::y},
+        {"flux", &R::flux},
+        {"mag", &R::mag},
+        {"clipped_flux", &R::clipped_flux, non_negative},
+        {"e1", read_truth_shape, write_truth_shape},  // the shape, e1 … mu together
+        {"e2"}, {"rms_radius"}, {"lensing_error"}, {"e1_intrinsic"}, {"e2_intrinsic"},
+        {"g1"}, {"g2"}, {"kappa"}, {"mu"},
+        {"n_max", read_n_max_of<R>, write_n_max_of<R>},
+        {"stamp_radius", &R::stamp_radius, non_negative},
+    };
+    return fields;
+}
+}  // namespace
+
 TruthRecord TruthRecord::from_json(const Json& j) {
-    check_schema(j, schema);
-    TruthRecord r;
-    r.id = read_id(j);
-    r.kind = required_string(j, "kind");
-    r.ra = required_double(j, "ra");
-    r.dec = required_double(j, "dec");
-    r.x = required_double(j, "x");
-    r.y = required_double(j, "y");
-    r.flux = required_double(j, "flux");
-    r.mag = optional_double(j, "mag");
-    r.clipped_flux = optional_double(j, "clipped_flux");
-    // A galaxy's shape always carries its lensing error; e1, e2, rms_radius may be null.
-    if (j.contains("lensing_error")) {
-        r.shape = Shape{optional_double(j, "e1"), optional_double(j, "e2"),
-                        optional_double(j, "rms_radius"), required_double(j, "lensing_error"),
-                        {}, {}};
-        // Older truth files have neither: unlensed then, unless they say otherwise.
-        r.shape->e1_intrinsic = j.contains("e1_intrinsic") ? optional_double(j, "e1_intrinsic")
-                                                           : r.shape->e1;
-        r.shape->e2_intrinsic = j.contains("e2_intrinsic") ? optional_double(j, "e2_intrinsic")
-                                                           : r.shape->e2;
-        if (auto v = optional_double(j, "g1")) r.shape->g1 = *v;
-        if (auto v = optional_double(j, "g2")) r.shape->g2 = *v;
-        if (auto v = optional_double(j, "kappa")) r.shape->kappa = *v;
-        if (auto v = optional_double(j, "mu")) r.shape->mu = *v;
-    }
-    r.n_max = read_n_max(j);
-    r.stamp_radius = required_double(j, "stamp_radius");
-    r.extra = extra_fields(j, truth_fields);
-    r.validate();
-    return r;
+    return read_valid_record(truth_fields(), j);
 }
 
 void TruthRecord::validate() const {
-    check_id_and_kind(id, kind);
-    check_dec("dec", dec);
-    check_non_negative("clipped_flux", clipped_flux);
-    check_non_negative("stamp_radius", stamp_radius);
+    check_fields(truth_fields(), *this);
+    check_kind(kind);
     if (shape) {
-        check_non_negative("lensing_error", shape->lensing_error);
-        if (!(shape->mu > 0.0) || !std::isfinite(shape->mu))
-            throw Error("must be finite and > 0, got " + number(shape->mu), {}, 0, "mu");
+        non_negative("lensing_error", shape->lensing_error);
+        positive("mu", shape->mu);
     }
 }
 
-Json TruthRecord::to_json() const {
-    Json j;
-    j["schema"] = schema;
-    j["id"] = id;
-    j["kind"] = kind;
-    j["ra"] = ra;
-    j["dec"] = dec;
-    j["x"] = x;
-    j["y"] = y;
-    j["flux"] = flux;
-    put(j, "mag", mag);
-    put(j, "clipped_flux", clipped_flux);
-    if (shape) {
-        auto or_null = [](const std::optional<double>& v) { return v ? Json(*v) : Json(nullptr); };
-        j["e1"] = or_null(shape->e1);
-        j["e2"] = or_null(shape->e2);
-        j["rms_radius"] = or_null(shape->rms_radius);
-        j["lensing_error"] = shape->lensing_error;
-        j["e1_intrinsic"] = or_null(shape->e1_intrinsic);
-        j["e2_intrinsic"] = or_null(shape->e2_intrinsic);
-        j["g1"] = shape->g1;
-        j["g2"] = shape->g2;
-        j["kappa"] = shape->kappa;
-        j["mu"] = shape->mu;
-    }
-    j["n_max"] = n_max;
-    j["stamp_radius"] = stamp_radius;
-    put_extra(j, extra, truth_fields);
-    return j;
-}
+Json TruthRecord::to_json() const { return write_record(truth_fields(), *this); }
 
 // ---------------------------------------------------------------------------- field units
 
@@ -740,37 +608,49 @@ std::string field_unit(const std::string& field, const std::string& flux_unit) {
 
 // -------------------------------------------------------------- ReferenceConvolutionRecord
 
-ReferenceConvolutionRecord ReferenceConvolutionRecord::from_json(const Json& j) {
-    check_schema(j, schema);
-    ReferenceConvolutionRecord r;
-    r.galaxy_id = read_id(j, "galaxy_id");
-    r.psf = nested_shapelet(j, "psf");
-    r.hdu = required_string(j, "hdu");
-    r.x = required_double(j, "x");
-    r.y = required_double(j, "y");
-    r.nx = required_int(j, "nx");
-    r.ny = required_int(j, "ny");
-    if (r.nx <= 0 || r.ny <= 0) throw Error("stamp size must be positive", {}, 0, "nx");
-    r.flux = required_double(j, "flux");
+namespace {
+// A nested record (`psf`, `result`): its errors name the path, e.g. `psf.beta`.
+ShapeletRecord nested_shapelet(const Json& j, const std::string& field) {
+    try {
+        return ShapeletRecord::from_json(required_object(j, field));
+    } catch (const Error& e) {
+        if (e.field() == field) throw;
+        throw Error(e.message(), e.file(), e.line(),
+                    field + (e.field().empty() ? "" : ".") + e.field());
+    }
+}
+
+using Convolution = ReferenceConvolutionRecord;
+void read_psf(Convolution& r, const Json& j, NumberPairs*) { r.psf = nested_shapelet(j, "psf"); }
+void write_psf(const Convolution& r, Json& j) { j["psf"] = r.psf.to_json(); }
+void read_result(Convolution& r, const Json& j, NumberPairs*) {
     r.result = nested_shapelet(j, "result");
-    r.extra = extra_fields(j, convolution_fields);
+}
+void write_result(const Convolution& r, Json& j) { j["result"] = r.result.to_json(); }
+
+const Fields<Convolution>& convolution_fields() {
+    using R = Convolution;
+    static const Fields<R> fields = {
+        {"galaxy_id", &R::galaxy_id, FieldRule::id},
+        {"psf", read_psf, write_psf},
+        {"hdu", &R::hdu},
+        {"x", &R::x}, {"y", &R::y},
+        {"nx", &R::nx}, {"ny", &R::ny},
+        {"flux", &R::flux},
+        {"result", read_result, write_result},
+    };
+    return fields;
+}
+}  // namespace
+
+ReferenceConvolutionRecord ReferenceConvolutionRecord::from_json(const Json& j) {
+    ReferenceConvolutionRecord r = read_record(convolution_fields(), j);
+    if (r.nx <= 0 || r.ny <= 0) throw Error("stamp size must be positive", {}, 0, "nx");
     return r;
 }
 
 Json ReferenceConvolutionRecord::to_json() const {
-    Json j;
-    j["schema"] = schema;
-    j["galaxy_id"] = galaxy_id;
-    j["psf"] = psf.to_json();
-    j["hdu"] = hdu;
-    j["x"] = x;
-    j["y"] = y;
-    j["nx"] = nx;
-    j["ny"] = ny;
-    j["flux"] = flux;
-    j["result"] = result.to_json();
-    put_extra(j, extra, convolution_fields);
-    return j;
+    return write_record(convolution_fields(), *this);
 }
 
 bool has_flag(const std::vector<std::string>& flags, const std::string& flag) {

@@ -1,29 +1,7 @@
-// Catalogue records: one struct per JSON-lines schema of DESIGN §2.
-//
-//   SourceRecord    shapesim.source/1    detect     what was found, where, how bright
-//   ShapeletRecord  shapesim.shapelet/1  decompose  a shapelet model (galaxies and the PSF)
-//   ObjectRecord    shapesim.object/1    sample     a simulated object placed on the sky
-//   TruthRecord     shapesim.truth/1     render     what was drawn into an image
-//   MorphRecord     shapesim.morph/1     measure    morphology diagnostics
-//   BandRecord      shapesim.band/1      the user  one band of a multi-band field (issue 17)
-//   ReferenceConvolutionRecord           the exact convolution fixtures (tests/data/reference)
-//
-// Multi-band models (issue 17): a shapelet or object record may carry `bands`, a list of
-// BandCoefficients, one per band, all at the record's centre, β and n_max; the record's own
-// coefficients, flux and mag are those of its reference band (`band`), so a one-band program
-// reads a multi-band record as the reference band's model.
-//
-// Conventions (DESIGN §2): x, y are FITS pixel coordinates (first pixel centred at (1, 1));
-// ra, dec, theta in degrees (theta counter-clockwise from +x); a, b, fwhm in pixels; beta in
-// arcsec with `pixel_scale` (arcsec per pixel) alongside, so beta_pix = beta / pixel_scale;
-// coefficients as [[re, im], …] in the packed order of model.hpp (a_{n,m}, m ≥ 0), in image
-// units per pixel; `flags` a list of strings (a good fit has "converged").
-//
-// Each struct reads with `from_json` (typed accessors: errors name the field, the reader
-// adds file and line) and writes with `to_json` ("schema" and "id" first, then the known
-// fields, then `extra`, then long coefficient arrays). Fields a record does not know are kept
-// in `extra`, in their order, and written back: a program passes on what it does not read.
-// Optional fields absent (or null) on input are nullopt and are not written.
+// Catalogue records: one struct per JSON-lines schema (DESIGN §2), each read and written through
+// its table of fields (record_fields.hpp). `from_json` reads with errors naming the field and
+// keeps unknown fields in `extra`, written back by `to_json`. The schemas, their units and the
+// multi-band `bands`: docs/library.md, "Records".
 #pragma once
 
 #include "shapesim/jsonl.hpp"
