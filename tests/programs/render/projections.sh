@@ -10,7 +10,7 @@ models=$(cd ../../../share/data/models && pwd)
 cd "$TMPDIR"
 for projection in tpv zpn; do
   # The fixture's header on a 768 x 768 field.
-  python3 - "$wcsdir/$projection.fits" "$projection-field.fits" <<'PY'
+  /usr/bin/python3 - "$wcsdir/$projection.fits" "$projection-field.fits" <<'PY'
 import sys, numpy as np
 from astropy.io import fits
 header = fits.getheader(sys.argv[1])
@@ -23,7 +23,7 @@ PY
     fail "render --like a $projection field failed"
   "$BIN/shapesim-detect" -q "$projection.fits" --zero-point 30 >"$projection.sources.jsonl" ||
     fail "detect on the $projection field failed"
-  python3 - "$projection" <<'PY' || fail "$projection: world coordinates differ from astropy's"
+  /usr/bin/python3 - "$projection" <<'PY' || fail "$projection: world coordinates differ from astropy's"
 import json, sys, numpy as np
 from astropy.io import fits
 from astropy.wcs import WCS
@@ -49,7 +49,7 @@ print(f"{name}: {len(sources)} detections, RA/Dec within {worst:.1e} deg of astr
 PY
 done
 # A projection wcslib does not know: one line naming the file and CTYPE1, no image.
-python3 - "$wcsdir/zpn.fits" <<'PY'
+/usr/bin/python3 - "$wcsdir/zpn.fits" <<'PY'
 import sys
 from astropy.io import fits
 header = fits.getheader(sys.argv[1])
