@@ -145,13 +145,19 @@ struct Wcs::Engine {
         wcsprm* parsed = nullptr;
         int status = wcspih(header.data(), int(header.size() / 80), WCSHDR_all, 0, &rejected,
                             &count, &parsed);
-        if (status != 0 || count < 1)
+        if (status != 0 || count < 1) {
+            if (parsed) wcsvfree(&count, &parsed);
             throw Error("wcslib cannot read the WCS keywords (status " + std::to_string(status) + ")",
                         {}, 0, "CTYPE1");
+        }
         w.flag = -1;
         status = wcssub(1, parsed, nullptr, nullptr, &w);
         wcsvfree(&count, &parsed);
-        if (status != 0) throw Error(wcslib_message(w, status), {}, 0, "CTYPE1");
+        if (status != 0) {
+            const std::string why = wcslib_message(w, status);
+            wcsfree(&w);
+            throw Error(why, {}, 0, "CTYPE1");
+        }
         status = wcsset(&w);
         if (status != 0) {
             const std::string why = wcslib_message(w, status);
