@@ -77,7 +77,7 @@ std::string header_of(const WcsKeywords& w) {
 
 // wcslib's words for a failed call: its status text. (Its longer messages, wcserr_enable(),
 // leak an allocation per error in Debian's wcslib 7.12 under LeakSanitizer.)
-std::string wcslib_message(const wcsprm&, int status) {
+std::string wcslib_message(int status) {
     if (status > 0 && status < 14) return std::string("wcslib: ") + wcs_errmsg[status];
     return "wcslib: status " + std::to_string(status);
 }
@@ -106,7 +106,8 @@ void check_keywords(const WcsKeywords& w) {
     if (det_cd(w) == 0.0) throw Error("CD matrix is singular", {}, 0, "CD1_1");
     const std::string c1 = trimmed(w.ctype1), c2 = trimmed(w.ctype2);
     if (c1.size() < 8 || c1.compare(0, 5, "RA---") != 0)
-        throw Error("expected RA---XXX (a celestial projection, RA first), got '" + w.ctype1 + "'",
+        throw Error("expected RA--- and a projection code (e.g. RA---TAN; RA first), got '" +
+                        w.ctype1 + "'",
                     {}, 0, "CTYPE1");
     const bool sip_ctype = c1.size() == 12 && c1.substr(8) == "-SIP";
     if (sip_ctype != w.has_sip())
@@ -132,6 +133,7 @@ std::string WcsKeywords::projection() const {
 struct Wcs::Engine {
     mutable wcsprm w{};
     mutable std::mutex turn;
+    bool tan = false;  ///< TAN (any distortion): sky_to_pixel refuses θ ≤ 0
 
     explicit Engine(const WcsKeywords& keywords) {
         // wcspih's header parser is not documented as reentrant: one header at a time.
@@ -150,21 +152,16 @@ struct Wcs::Engine {
         w.flag = -1;
         status = wcssub(1, parsed, nullptr, nullptr, &w);
         wcsvfree(&count, &parsed);
+        if (status == 0) status = wcsset(&w);
         if (status != 0) {
-            const std::string why = wcslib_message(w, status);
             wcsfree(&w);
-            throw Error(why, {}, 0, "CTYPE1");
-        }
-        status = wcsset(&w);
-        if (status != 0) {
-            const std::string why = wcslib_message(w, status);
-            wcsfree(&w);
-            throw Error(why, {}, 0, suspect_keyword(status));
+            throw Error(wcslib_message(status), {}, 0, suspect_keyword(status));
         }
         if (w.naxis != 2 || w.lng != 0 || w.lat != 1) {
             wcsfree(&w);
             throw Error("not a celestial WCS with RA first and Dec second", {}, 0, "CTYPE1");
         }
+        tan = keywords.projection() == "TAN";
     }
     ~Engine() { wcsfree(&w); }
     Engine(const Engine&) = delete;
@@ -203,7 +200,7 @@ PixelPosition Wcs::sky_to_pixel(double ra, double dec) const {
         status = wcss2p(&engine_->w, 1, 2, world, &phi, &theta, image, pixel, &stat);
     }
     // TAN reaches only the hemisphere about its reference point (θ > 0).
-    if (status != 0 || (keywords_.projection() == "TAN" && !(theta > 0.0)))
+    if (status != 0 || (engine_->tan && !(theta > 0.0)))
         throw Error("(" + std::to_string(ra) + ", " + std::to_string(dec) +
                     ") is 90 degrees or more from the WCS reference point, or beyond the "
                     "projection's reach");

@@ -307,7 +307,8 @@ TEST_F(GeometryTest, SipWithoutOrdersAndNonCelestialAxesAreRefused) {
     EXPECT_NE(error_with({{"CTYPE1", "RA---TAN-SIP"}, {"CTYPE2", "DEC--TAN-SIP"}}).find("A_ORDER"),
               std::string::npos);
     EXPECT_NE(error_with({{"CTYPE1", "GLON-TAN"}, {"CTYPE2", "GLAT-TAN"}})
-                  .find("CTYPE1: expected RA---XXX (a celestial projection, RA first), got 'GLON-TAN'"),
+                  .find("CTYPE1: expected RA--- and a projection code (e.g. RA---TAN; RA first), got "
+                        "'GLON-TAN'"),
               std::string::npos);
     EXPECT_NE(error_with({{"CTYPE1", "RA---TAN"}, {"CTYPE2", "DEC--SIN"}})
                   .find("CTYPE2: expected DEC--TAN (the projection of CTYPE1), got 'DEC--SIN'"),
