@@ -131,7 +131,7 @@ FUZZ_LIB   := $(FUZZ_BUILD)/libshapesim.a
 $(FUZZ_BUILD)/%.o: %.cpp | deps
 	@mkdir -p $(@D)
 	$(if $(Q),@echo "  FUZZ $<")
-	$(Q)$(FUZZ_CXX) $(CPPFLAGS) -MMD -MP $(FUZZ_FLAGS) -fsanitize=fuzzer-no-link -c $< -o $@.tmp.o
+	$(Q)$(FUZZ_CXX) $(CPPFLAGS) -MMD -MP -MT $@ -MF $(@:.o=.d) $(FUZZ_FLAGS) -fsanitize=fuzzer-no-link -c $< -o $@.tmp.o
 	$(Q)mv $@.tmp.o $@
 
 $(FUZZ_LIB): $(LIB_SRCS:%.cpp=$(FUZZ_BUILD)/%.o)

@@ -27,7 +27,9 @@ constexpr std::uint32_t kW0 = 0x9E3779B9u, kW1 = 0xBB67AE85u;
 // make a full 64 × 64-bit multiply of it, three times the work), and the last step of the
 // transpose to block-major order, across 128-bit groups. Their methods carry the width's
 // target and are inlined into its caller (which has the same target), not forced: GCC refuses
-// to force a target's code into the target-less templates below.
+// to force a target's code into the target-less templates below. They take and give lanes by
+// reference: clang refuses, as an ABI change, a lane passed by value from a target-less
+// function into one with AVX.
 struct OneBlock {
     using V = std::uint32_t;
 };
@@ -41,11 +43,12 @@ struct Lanes {
 };
 
 struct Avx2Blocks : Lanes<32> {
-    __attribute__((target("avx2"))) static V mul_even(V a, std::uint32_t m) {
-        return V(_mm256_mul_epu32(__m256i(a), _mm256_set1_epi32(int(m))));
+    __attribute__((target("avx2"))) static void mul_even(const V& a, std::uint32_t m, V& p) {
+        p = V(_mm256_mul_epu32(__m256i(a), _mm256_set1_epi32(int(m))));
     }
     // s_j holds block j in its low 128 bits, block 4 + j in its high ones.
-    __attribute__((target("avx2"))) static void store(V s0, V s1, V s2, V s3, std::uint32_t* out) {
+    __attribute__((target("avx2"))) static void store(const V& s0, const V& s1, const V& s2,
+                                                      const V& s3, std::uint32_t* out) {
         __m256i* o = reinterpret_cast<__m256i*>(out);
         _mm256_storeu_si256(o + 0, _mm256_permute2x128_si256(__m256i(s0), __m256i(s1), 0x20));
         _mm256_storeu_si256(o + 1, _mm256_permute2x128_si256(__m256i(s2), __m256i(s3), 0x20));
@@ -62,12 +65,13 @@ struct Avx2Blocks : Lanes<32> {
 #pragma GCC diagnostic ignored "-Wuninitialized"
 #endif
 struct Avx512Blocks : Lanes<64> {
-    __attribute__((target("avx512f"))) static V mul_even(V a, std::uint32_t m) {
-        return V(_mm512_mul_epu32(__m512i(a), _mm512_set1_epi32(int(m))));
+    __attribute__((target("avx512f"))) static void mul_even(const V& a, std::uint32_t m, V& p) {
+        p = V(_mm512_mul_epu32(__m512i(a), _mm512_set1_epi32(int(m))));
     }
     // Group q of s_j holds block 4q + j: the groups transposed so that each register holds
     // four consecutive blocks.
-    __attribute__((target("avx512f"))) static void store(V s0, V s1, V s2, V s3, std::uint32_t* out) {
+    __attribute__((target("avx512f"))) static void store(const V& s0, const V& s1, const V& s2,
+                                                         const V& s3, std::uint32_t* out) {
         const __m512i u0 = _mm512_shuffle_i64x2(__m512i(s0), __m512i(s1), 0x44);
         const __m512i u1 = _mm512_shuffle_i64x2(__m512i(s0), __m512i(s1), 0xEE);
         const __m512i u2 = _mm512_shuffle_i64x2(__m512i(s2), __m512i(s3), 0x44);
@@ -112,7 +116,9 @@ SHAPESIM_LANES void mulhilo(typename L::V a, std::uint32_t m, typename L::V& hi,
     } else {
         using Pairs = typename L::Pairs;
         constexpr auto words = std::make_index_sequence<sizeof(V) / sizeof(std::uint32_t)>();
-        const V even = L::mul_even(a, m), odd = L::mul_even(V(Pairs(a) >> 32), m);
+        V even, odd;
+        L::mul_even(a, m, even);
+        L::mul_even(V(Pairs(a) >> 32), m, odd);
         lo = blend_odd(even, V(Pairs(odd) << 32), words);
         hi = blend_odd(V(Pairs(even) >> 32), odd, words);
     }
@@ -131,8 +137,9 @@ SHAPESIM_LANES void store_blocks(typename L::V x0, typename L::V x1, typename L:
         constexpr auto words = std::make_index_sequence<sizeof(V) / sizeof(std::uint32_t)>();
         const V t0 = unpack<0, 1>(x0, x1, words), t1 = unpack<0, 1>(x2, x3, words);
         const V t2 = unpack<1, 1>(x0, x1, words), t3 = unpack<1, 1>(x2, x3, words);
-        L::store(unpack<0, 2>(t0, t1, words), unpack<1, 2>(t0, t1, words),
-                 unpack<0, 2>(t2, t3, words), unpack<1, 2>(t2, t3, words), out);
+        const V s0 = unpack<0, 2>(t0, t1, words), s1 = unpack<1, 2>(t0, t1, words);
+        const V s2 = unpack<0, 2>(t2, t3, words), s3 = unpack<1, 2>(t2, t3, words);
+        L::store(s0, s1, s2, s3, out);
     }
 }
 

@@ -524,7 +524,10 @@ namespace {
 // A galaxy's shape always carries its lensing error; e1, e2, rms_radius may be null.
 void read_truth_shape(TruthRecord& r, const Json& j, NumberPairs*) {
     if (!j.contains("lensing_error")) return;
-    TruthRecord::Shape& s = r.shape.emplace();
+    // (Not emplace(): clang judges Shape not default-constructible, its member initialisers
+    // being read while TruthRecord was still incomplete.)
+    r.shape = TruthRecord::Shape{};
+    TruthRecord::Shape& s = *r.shape;
     s.e1 = optional_double(j, "e1");
     s.e2 = optional_double(j, "e2");
     s.rms_radius = optional_double(j, "rms_radius");
