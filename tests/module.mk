@@ -120,7 +120,7 @@ corpus-check: all
 FUZZ_BUILD := build-fuzz
 FUZZ_CXX   ?= clang++
 FUZZ_FLAGS := -std=c++17 -O1 -gline-tables-only -fno-omit-frame-pointer -fno-sanitize-recover=all \
-              -fsanitize=address,undefined
+              -fsanitize=address,undefined -Wno-psabi
 FUZZ_RUNS  ?= 1000000
 FUZZ_TIME  ?= 900
 # FUZZ_SEED=N makes a run repeatable (CI: the same commit fuzzes the same inputs every time).

@@ -10,10 +10,6 @@
 #include <memory>
 #include <mutex>
 
-// Lanes (lane_math.hpp) stay in always-inlined code and AVX2 functions: GCC's warning about
-// the AVX calling convention is moot.
-#pragma GCC diagnostic ignored "-Wpsabi"
-
 namespace shapesim {
 
 namespace {
@@ -137,7 +133,7 @@ private:
     double shared_u_ = std::numeric_limits<double>::quiet_NaN(), shared_tail_ = 0.0;
 };
 
-#if defined(__x86_64__)
+#ifdef SHAPESIM_LANES_X86
 using lane::Doubles4;
 
 // hermite_functions at four points in lanes (points[j] and their e^{−u²/2}), at[k · stride + j]
@@ -236,7 +232,7 @@ void pixel_basis_1d(int n_max, double beta_pix, double first_offset, int npix,
                 edges.cols() == npix + 1,
             "pixel_basis_1d: wrong buffer sizes");
     if (npix == 0) return;
-#if defined(__x86_64__)
+#ifdef SHAPESIM_LANES_X86
     if (lane::have_avx2())
         return pixel_basis_avx2(n_max, beta_pix, first_offset, npix, out, edges.data());
 #endif

@@ -6,10 +6,6 @@
 #include <cmath>
 #include <vector>
 
-// Lanes (lane_math.hpp) pass by value to always-inlined helpers; GCC still warns, at each call
-// built without AVX, that AVX code would pass them differently (none is ever out of line).
-#pragma GCC diagnostic ignored "-Wpsabi"
-
 namespace shapesim {
 
 double circle_overlap(double xmin, double ymin, double xmax, double ymax, double r) {

@@ -10,7 +10,7 @@ namespace {
 enum class Simd { none, avx2, avx512 };
 
 Simd simd() {
-#if defined(__x86_64__)
+#ifdef SHAPESIM_LANES_X86
     static const Simd level = [] {
         const char* asked = std::getenv("SHAPESIM_SIMD");
         const std::string want = asked ? asked : "";

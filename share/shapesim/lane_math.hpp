@@ -9,12 +9,17 @@
 #include <cstdint>
 #include <cstring>
 
+// On x86-64 the AVX2 and AVX-512 paths are built, each function carrying its target, and
+// chosen at run time (have_avx2, have_avx512); elsewhere only the scalar code.
+#if defined(__x86_64__)
+#include <immintrin.h>
+#define SHAPESIM_LANES_X86 1
+#endif
+
 // Four-double vectors are passed in AVX registers by AVX code and in memory by other code: an
 // out-of-line copy of a function taking lanes, emitted by one and called by the other, would
-// read garbage. So everything taking or returning lanes is always inlined (GCC's -Wpsabi
-// warning about the two conventions is then moot and silenced).
-#pragma GCC diagnostic push
-#pragma GCC diagnostic ignored "-Wpsabi"
+// read garbage. So everything taking or returning lanes is always inlined, and GCC's -Wpsabi
+// warning about the two conventions is moot (the Makefile turns it off).
 #define SHAPESIM_LANES inline __attribute__((always_inline))
 
 namespace shapesim::lane {
@@ -146,4 +151,3 @@ SHAPESIM_LANES D asin(D x) {
 
 }  // namespace shapesim::lane
 
-#pragma GCC diagnostic pop

@@ -16,9 +16,6 @@
 #include <numeric>
 #include <type_traits>
 
-// Lanes are passed only within always-inlined code and AVX2 functions (lane_math.hpp).
-#pragma GCC diagnostic ignored "-Wpsabi"
-
 namespace shapesim {
 
 namespace {

@@ -11,11 +11,7 @@
 #include <cmath>
 #include <cstdint>
 #include <cstring>
-#include <immintrin.h>
 #include <limits>
-
-// Lanes are passed only within always-inlined code and AVX2 functions (lane_math.hpp).
-#pragma GCC diagnostic ignored "-Wpsabi"
 
 namespace shapesim {
 
@@ -244,7 +240,6 @@ private:
             sums.add(int((i - begin) & 3), z_(j, i), rot, weights[i - begin]);
         }
     }
-
 
     const Grid& z_;
     // All bits set where the pixel is unmasked, none where it is masked.

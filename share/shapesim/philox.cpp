@@ -5,15 +5,6 @@
 #include <cstring>
 #include <utility>
 
-#if defined(__x86_64__)
-#include <immintrin.h>
-#define SHAPESIM_PHILOX_SIMD 1
-#endif
-
-// Lanes pass by value to always-inlined helpers; GCC still warns, at each call built without
-// AVX, that AVX code would pass them differently (none is ever out of line: lane_math.hpp).
-#pragma GCC diagnostic ignored "-Wpsabi"
-
 namespace shapesim {
 
 namespace {
@@ -34,7 +25,7 @@ struct OneBlock {
     using V = std::uint32_t;
 };
 
-#ifdef SHAPESIM_PHILOX_SIMD
+#ifdef SHAPESIM_LANES_X86
 // Lanes of `bytes`: as words, and as pairs of words.
 template <int bytes>
 struct Lanes {
@@ -182,7 +173,7 @@ SHAPESIM_LANES std::size_t philox_lanes(std::uint64_t key, std::uint32_t first, 
     return b;
 }
 
-#ifdef SHAPESIM_PHILOX_SIMD
+#ifdef SHAPESIM_LANES_X86
 __attribute__((target("avx512f"))) std::size_t philox_avx512(std::uint64_t key, std::uint32_t first,
                                                             std::uint32_t c1, std::uint32_t c2,
                                                             std::uint32_t c3, std::size_t count,
@@ -202,7 +193,7 @@ __attribute__((target("avx2"))) std::size_t philox_avx2(std::uint64_t key, std::
 void philox4x32_blocks(std::uint64_t key, std::uint32_t first, std::uint32_t c1,
                        std::uint32_t c2, std::uint32_t c3, std::size_t count, std::uint32_t* out) {
     std::size_t done = 0;
-#ifdef SHAPESIM_PHILOX_SIMD
+#ifdef SHAPESIM_LANES_X86
     if (lane::have_avx512()) done = philox_avx512(key, first, c1, c2, c3, count, out);
     if (lane::have_avx2())
         done += philox_avx2(key, first + std::uint32_t(done), c1, c2, c3, count - done, out + 4 * done);

@@ -11,15 +11,6 @@
 #include <cmath>
 #include <vector>
 
-#if defined(__x86_64__)
-#include <immintrin.h>
-#define SHAPESIM_NOISE_SIMD 1
-#endif
-
-// Lanes (lane_math.hpp) pass by value to always-inlined helpers; GCC still warns, at each call
-// built without AVX, that AVX code would pass them differently (none is ever out of line).
-#pragma GCC diagnostic ignored "-Wpsabi"
-
 namespace shapesim {
 
 namespace {
@@ -65,7 +56,7 @@ long ziggurat_scalar(const std::uint32_t* words, long begin, long n, float* out,
     return count;
 }
 
-#ifdef SHAPESIM_NOISE_SIMD
+#ifdef SHAPESIM_LANES_X86
 __attribute__((target("avx2"))) long ziggurat_avx2(const std::uint32_t* words, long begin, long n,
                                                    float* out, long* slow, long* done) {
     const Ziggurat32& t = ziggurat32();
@@ -199,7 +190,7 @@ __attribute__((always_inline)) inline long settle_slow_lanes(const std::uint32_t
     return unsettled;
 }
 
-#ifdef SHAPESIM_NOISE_SIMD
+#ifdef SHAPESIM_LANES_X86
 __attribute__((target("avx2"))) long settle_slow_avx2(const std::uint32_t* words, long* slow,
                                                       std::array<std::uint64_t, 4>* blocks, long n,
                                                       float* out) {
@@ -209,7 +200,7 @@ __attribute__((target("avx2"))) long settle_slow_avx2(const std::uint32_t* words
 
 long settle_slow(const std::uint32_t* words, long* slow, std::array<std::uint64_t, 4>* blocks,
                  long n, float* out) {
-#ifdef SHAPESIM_NOISE_SIMD
+#ifdef SHAPESIM_LANES_X86
     if (have_avx2()) return settle_slow_avx2(words, slow, blocks, n, out);
 #endif
     return settle_slow_lanes(words, slow, blocks, n, out);
@@ -231,7 +222,7 @@ void WhiteNoise::row(long row, long first, long count, float* out) const {
                       std::uint32_t(purpose >> 32), b1 - b0, words_.data());
     const std::uint32_t* w = words_.data() + (q0 - 4 * b0);
     long done = 0, slow = 0;
-#ifdef SHAPESIM_NOISE_SIMD
+#ifdef SHAPESIM_LANES_X86
     if (have_avx512()) slow = ziggurat_avx512(w, 0, count, out, slow_.data(), &done);
     if (have_avx2()) slow += ziggurat_avx2(w, done, count, out, slow_.data() + slow, &done);
 #endif

@@ -10,14 +10,6 @@
 #include <cstring>
 #include <vector>
 
-#if defined(__x86_64__)
-#define SHAPESIM_NOISE_SIMD 1
-#endif
-
-// Lanes pass by value to always-inlined helpers; GCC still warns, at each call built without
-// AVX, that AVX code would pass them differently (none is ever out of line: lane_math.hpp).
-#pragma GCC diagnostic ignored "-Wpsabi"
-
 namespace shapesim {
 
 namespace {
@@ -111,7 +103,7 @@ __attribute__((target_clones("avx2", "default"))) void sum_taps(const TapRows& t
     sum_taps_tail(taps, nx, out, i);
 }
 
-#ifdef SHAPESIM_NOISE_SIMD
+#ifdef SHAPESIM_LANES_X86
 // Sixteen pixels a lane group (the HDF's measured kernel has ~145 taps).
 __attribute__((target("avx512f"))) void sum_taps_avx512(const TapRows& taps, long nx, float* out) {
     using Floats16 = float __attribute__((vector_size(64)));
@@ -180,7 +172,7 @@ const float* CorrelatedNoise::row(long row) {
         b_[t] = tap.paired ? white(row - tap.dy) + K - tap.dx : nullptr;
     }
     const TapRows rows{a_.data(), b_.data(), weights_.data(), taps_.size()};
-#ifdef SHAPESIM_NOISE_SIMD
+#ifdef SHAPESIM_LANES_X86
     if (have_avx512()) {
         sum_taps_avx512(rows, nx_, out_.data());
         return out_.data();

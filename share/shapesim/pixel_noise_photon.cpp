@@ -11,15 +11,6 @@
 #include <cstring>
 #include <vector>
 
-#if defined(__x86_64__)
-#include <immintrin.h>
-#define SHAPESIM_NOISE_SIMD 1
-#endif
-
-// Lanes (lane_math.hpp) pass by value to always-inlined helpers; GCC still warns, at each call
-// built without AVX, that AVX code would pass them differently (none is ever out of line).
-#pragma GCC diagnostic ignored "-Wpsabi"
-
 namespace shapesim {
 
 namespace {
@@ -178,7 +169,7 @@ __attribute__((always_inline)) inline void settle_open(const long* index, const 
 
 // photon_run and settle_open compiled for AVX2 and for the baseline, chosen as the generators
 // are (SHAPESIM_SIMD=none takes the baseline: the program tests compare the bytes).
-#ifdef SHAPESIM_NOISE_SIMD
+#ifdef SHAPESIM_LANES_X86
 __attribute__((target("avx2"))) void photon_run_avx2(const std::uint32_t* words, long n, double gain,
                                                      double* pixels, long offset,
                                                      std::vector<long>& open_pixels,
@@ -214,7 +205,7 @@ long next_bright_scalar(const double* pixels, long from, long count, double leas
     return count;
 }
 
-#ifdef SHAPESIM_NOISE_SIMD
+#ifdef SHAPESIM_LANES_X86
 // Bit k set where pixel k of the four at `s` is bright (NaN is not).
 __attribute__((target("avx2"))) inline unsigned bright_bits(const double* s, __m256d least) {
     const __m256d v = _mm256_loadu_pd(s);
@@ -241,7 +232,7 @@ __attribute__((target("avx2"))) long next_bright_avx2(const double* pixels, long
 #endif
 
 long next_bright(const double* pixels, long from, long count, double least, bool bright) {
-#ifdef SHAPESIM_NOISE_SIMD
+#ifdef SHAPESIM_LANES_X86
     if (have_avx2()) return next_bright_avx2(pixels, from, count, least, bright);
 #endif
     return next_bright_scalar(pixels, from, count, least, bright);
@@ -267,7 +258,7 @@ void PhotonNoise::row(long row, long first, long count, double gain, double leas
         philox4x32_blocks(seed_, std::uint32_t(q0), std::uint32_t(row + WhiteNoise::margin),
                           std::uint32_t(purpose), std::uint32_t(purpose >> 32), std::size_t(i1 - i0),
                           words_.data());
-#ifdef SHAPESIM_NOISE_SIMD
+#ifdef SHAPESIM_LANES_X86
         if (have_avx2())
             photon_run_avx2(words_.data(), i1 - i0, gain, pixels + i0, i0, open_pixels_, open_means_);
         else
@@ -284,7 +275,7 @@ void PhotonNoise::row(long row, long first, long count, double gain, double leas
     const std::uint64_t key0 = row_key + std::uint64_t(first + WhiteNoise::margin);
     for (std::size_t k = 0; k < open; ++k) keys_[k] = key0 + std::uint64_t(open_pixels_[k]);
     RandomStream::first_blocks(seed_, keys_.data(), open, more_purpose, blocks_.data());
-#ifdef SHAPESIM_NOISE_SIMD
+#ifdef SHAPESIM_LANES_X86
     if (have_avx2())
         settle_open_avx2(open_pixels_.data(), open_means_.data(), blocks_.data(), keys_.data(),
                          long(open), gain, pixels, seed_);

@@ -125,8 +125,6 @@ struct Reciprocals {
 inline constexpr Reciprocals reciprocals{};  // constant-initialised: no static-order hazard
 
 // The templates below take lanes (lane_math.hpp's four-double vectors) as well as doubles.
-#pragma GCC diagnostic push
-#pragma GCC diagnostic ignored "-Wpsabi"
 
 /// ln k! for k = 0 … 20: lane::log of the exact product.
 const double* small_log_factorials();
@@ -190,8 +188,6 @@ struct Ptrs {
         return exact(k, us, v, small);
     }
 };
-
-#pragma GCC diagnostic pop
 
 }  // namespace detail
 

@@ -1,8 +1,6 @@
 // lane::log, lane::exp and lane::asin: within 1 ulp of libm over their domains, and the same bits in a
 // vector lane as for a double (what lets photon noise draw four pixels at a time and still
 // give the per-pixel draw).
-// Lanes by value in code built without AVX (see lane_math.hpp: all inlined).
-#pragma GCC diagnostic ignored "-Wpsabi"
 
 #include "shapesim/lane_math.hpp"
 #include "shapesim/rng.hpp"
