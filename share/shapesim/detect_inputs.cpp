@@ -3,6 +3,7 @@
 #include "shapesim/detect.hpp"
 
 #include "shapesim/error.hpp"
+#include "shapesim/text_rows.hpp"
 
 #include <cerrno>
 #include <cmath>
@@ -20,26 +21,18 @@ FilterKernel default_filter_kernel() {
 FilterKernel parse_filter_kernel(std::istream& in, const std::string& name) {
     FilterKernel kernel;
     kernel.name = name;
-    std::string text;
-    long line_number = 0;
     bool header_seen = false;
-    while (std::getline(in, text)) {
-        ++line_number;
-        const auto hash = text.find('#');
-        if (hash != std::string::npos) text.erase(hash);
-        std::istringstream line(text);
-        std::string first;
-        if (!(line >> first)) continue;
+    for_each_text_row(in, name, [&](const std::string& text, long line_number) {
+        std::istringstream row(text);
         if (!header_seen) {
-            std::string norm;
-            line >> norm;
+            std::string first, norm;
+            row >> first >> norm;
             if (first != "CONV" || (norm != "NORM" && norm != "NONORM"))
                 throw Error("not a SExtractor filter: first line must be CONV NORM or "
                             "CONV NONORM", name, line_number);
             header_seen = true;
-            continue;
+            return;
         }
-        std::istringstream row(text);
         std::vector<float> values;
         std::string token;
         while (row >> token) {
@@ -57,7 +50,7 @@ FilterKernel parse_filter_kernel(std::istream& in, const std::string& name) {
                         name, line_number);
         kernel.values.insert(kernel.values.end(), values.begin(), values.end());
         ++kernel.ny;
-    }
+    });
     if (!header_seen) throw Error("empty filter file (no CONV line)", name);
     if (kernel.ny == 0) throw Error("filter has no rows", name);
     double sum = 0.0;

@@ -4,6 +4,7 @@
 #include "shapesim/error.hpp"
 #include "shapesim/moments.hpp"
 #include "shapesim/rng.hpp"
+#include "shapesim/text_rows.hpp"
 #include "shapesim/transform.hpp"
 
 #include <algorithm>
@@ -74,22 +75,16 @@ std::vector<StarCounts::Bin> read_star_histogram(const std::string& path) {
     std::ifstream in(path);
     if (!in) throw Error("cannot open", path);
     std::vector<StarCounts::Bin> bins;
-    std::string line;
-    long number = 0;
-    while (std::getline(in, line)) {
-        ++number;
-        const auto hash = line.find('#');
-        if (hash != std::string::npos) line.erase(hash);
-        std::istringstream fields(line);
+    for_each_text_row(in, path, [&](const std::string& text, long number) {
+        std::istringstream fields(text);
         StarCounts::Bin b;
-        if (!(fields >> b.lo)) continue;  // blank or comment
         std::string rest;
-        if (!(fields >> b.hi >> b.count) || (fields >> rest))
+        if (!(fields >> b.lo >> b.hi >> b.count) || (fields >> rest))
             throw Error("expected three numbers: mag_lo mag_hi count", path, number);
         if (!(b.hi > b.lo) || !(b.count >= 0.0) || !std::isfinite(b.count))
             throw Error("needs mag_lo < mag_hi and count ≥ 0", path, number);
         bins.push_back(b);
-    }
+    });
     if (bins.empty()) throw Error("no bins", path);
     return bins;
 }
