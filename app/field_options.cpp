@@ -17,8 +17,8 @@ void FieldOptions::declare(ProgramOptions& options, const std::string& title,
          "a field NX NY pixels of --pixel-scale (one value: square)")
         ("pixel-scale", po::value(&pixel_scale)->default_value(0.0398)
              ->notifier(in_range("pixel-scale", 1e-6, 3600.0)),
-         "arcsec per pixel with --area/--size/--pixels (the HDF's by default), or of a --like image "
-         "whose header has no WCS")
+         "arcsec per pixel with --area/--size/--pixels (the HDF's by default), or of a --like "
+         "image whose header has no WCS")
         ("ra", po::value(&ra)->default_value(0.0)->notifier(in_range("ra", -360.0, 360.0)),
          "field centre RA, degrees, with --area/--size (or a --like image without a WCS)")
         ("dec", po::value(&dec)->default_value(0.0)->notifier(in_range("dec", -90.0, 90.0)),
@@ -34,10 +34,11 @@ FieldGeometry FieldOptions::field(const ProgramOptions& options) const {
     if (kinds != 1) throw po::error("give exactly one of --like, --area, --size, --pixels");
     // --like an image without a WCS takes --pixel-scale (and --ra/--dec), as detect does.
     if (!options.common().like.empty())
-        return read_field_geometry(options.common().like,
-                                   options.given("pixel-scale") ? std::optional(pixel_scale) : std::nullopt,
-                                   ra, dec);
-    if (options.given("area")) return make_field(std::sqrt(area), std::sqrt(area), pixel_scale, ra, dec);
+        return read_field_geometry(
+            options.common().like,
+            options.given("pixel-scale") ? std::optional(pixel_scale) : std::nullopt, ra, dec);
+    if (options.given("area"))
+        return make_field(std::sqrt(area), std::sqrt(area), pixel_scale, ra, dec);
     if (options.given("pixels")) {
         if (pixels.empty() || pixels.size() > 2) throw po::error("--pixels takes NX [NY]");
         const long nx = pixels[0], ny = pixels.size() == 2 ? pixels[1] : pixels[0];
@@ -77,7 +78,8 @@ void declare_star_options(ProgramOptions& options, StarCounts& stars, std::uint6
              ->notifier(in_range("star-slope", -10.0, 10.0)), "d log10 N / dm of the star counts")
         ("star-mag-min", po::value(&stars.mag_min)->default_value(18.0)
              ->notifier(in_range("star-mag-min", -100.0, 100.0)), "brightest star")
-        ("star-mag-max", po::value(&stars.mag_max)->notifier(in_range("star-mag-max", -100.0, 100.0)),
+        ("star-mag-max", po::value(&stars.mag_max)
+             ->notifier(in_range("star-mag-max", -100.0, 100.0)),
          "faintest star (default: --mag-limit)")
         ("star-histogram", po::value(&histogram)->value_name("FILE"),
          "star counts from lines 'mag_lo mag_hi count' instead of the power law");

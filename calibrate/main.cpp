@@ -126,7 +126,8 @@ std::vector<TrueGalaxy> read_truth(const std::string& path, std::size_t image, b
         // A ring's members are one bootstrap block; else the galaxy is.
         std::string block = std::to_string(image) + ":" + t.id;
         if (const auto ring = t.extra.find("ring"); ring != t.extra.end() && ring->is_object() &&
-                                                    ring->contains("first") && (*ring)["first"].is_string()) {
+                                                    ring->contains("first") &&
+                                                    (*ring)["first"].is_string()) {
             block = std::to_string(image) + ":ring:" + (*ring)["first"].get<std::string>();
             if (ring->contains("of") && (*ring)["of"].is_number_integer())
                 g.ring_size = std::max<long>(1, (*ring)["of"].get<long>());
@@ -157,7 +158,10 @@ Json fit_json(const ShearCalibration& c) {
     auto component = [](const ComponentFit& f) {
         return Json{{"m", f.m}, {"m_err", f.m_err}, {"c", f.c}, {"c_err", f.c_err}};
     };
-    return Json{{"galaxies", c.galaxies}, {"blocks", c.blocks}, {"g1", component(c.one)}, {"g2", component(c.two)}};
+    return Json{{"galaxies", c.galaxies},
+                {"blocks", c.blocks},
+                {"g1", component(c.one)},
+                {"g2", component(c.two)}};
 }
 
 // The figure: <e − g> in ten equal-count bins of g per component (mean and its error) with
@@ -174,18 +178,20 @@ bool write_figures(const std::string& dir, const std::vector<ShearPoint>& points
         for (int component = 1; component <= 2; ++component) {
             std::vector<std::pair<double, double>> ge;
             for (const ShearPoint& p : points)
-                ge.emplace_back(component == 1 ? p.g1 : p.g2, component == 1 ? p.e1 - p.g1 : p.e2 - p.g2);
+                ge.emplace_back(component == 1 ? p.g1 : p.g2,
+                                component == 1 ? p.e1 - p.g1 : p.e2 - p.g2);
             std::sort(ge.begin(), ge.end());
             const std::size_t n = ge.size();
             for (std::size_t b = 0; b < 10; ++b) {
                 const std::size_t lo = n * b / 10, hi = n * (b + 1) / 10;
                 if (hi - lo < 2) continue;
                 double sg = 0.0, sr = 0.0, srr = 0.0;
-                for (std::size_t k = lo; k < hi; ++k) sg += ge[k].first, sr += ge[k].second, srr += ge[k].second * ge[k].second;
+                for (std::size_t k = lo; k < hi; ++k)
+                    sg += ge[k].first, sr += ge[k].second, srr += ge[k].second * ge[k].second;
                 const double m = double(hi - lo), mean = sr / m;
                 const double sd = std::sqrt(std::max(0.0, srr / m - mean * mean) * m / (m - 1.0));
-                data.stream() << component << ' ' << sg / m << ' ' << mean << ' ' << sd / std::sqrt(m) << ' '
-                              << hi - lo << '\n';
+                data.stream() << component << ' ' << sg / m << ' ' << mean << ' '
+                              << sd / std::sqrt(m) << ' ' << hi - lo << '\n';
             }
             data.stream() << "\n\n";
         }
@@ -197,12 +203,14 @@ bool write_figures(const std::string& dir, const std::vector<ShearPoint>& points
         data.stream() << "# " << bin_name << "_lo " << bin_name << "_hi m1 m1_error m2 m2_error\n";
         for (const CalibrationBin& b : bins)
             if (b.fit)
-                data.stream() << b.lo << ' ' << b.hi << ' ' << b.fit->one.m << ' ' << b.fit->one.m_err << ' '
-                              << b.fit->two.m << ' ' << b.fit->two.m_err << '\n';
+                data.stream() << b.lo << ' ' << b.hi << ' ' << b.fit->one.m << ' '
+                              << b.fit->one.m_err << ' ' << b.fit->two.m << ' ' << b.fit->two.m_err
+                              << '\n';
         data.commit();
     }
     // A column spanning decades (S/N, flux) on a log axis.
-    const bool wide = !bins.empty() && bins.front().lo > 0.0 && bins.back().hi > 20.0 * bins.front().lo;
+    const bool wide =
+        !bins.empty() && bins.front().lo > 0.0 && bins.back().hi > 20.0 * bins.front().lo;
     {
         AtomicTextFile gp(dir + "/calibration.gp");
         gp.stream() << "# gnuplot " << dir << "/calibration.gp\n"
@@ -212,15 +220,19 @@ bool write_figures(const std::string& dir, const std::vector<ShearPoint>& points
                     << "set xlabel 'true g'\nset ylabel '<e - g>'\n"
                     << "set title 'e = (1 + m) g + c: m_1 = " << cell(all.one.m, all.one.m_err)
                     << ", m_2 = " << cell(all.two.m, all.two.m_err) << "'\n"
-                    << "plot '" << dir << "/residuals.dat' index 0 using 2:3:4 with yerrorbars pt 7 lc 1 title 'e_1', "
+                    << "plot '" << dir
+                    << "/residuals.dat' index 0 using 2:3:4 with yerrorbars pt 7 lc 1 title 'e_1', "
                     << all.one.m << " * x + " << all.one.c << " lc 1 title 'fit 1', '" << dir
                     << "/residuals.dat' index 1 using 2:3:4 with yerrorbars pt 5 lc 2 title 'e_2', "
                     << all.two.m << " * x + " << all.two.c << " lc 2 title 'fit 2'\n"
-                    << "set xlabel '" << bin_name << "' noenhanced\nset ylabel 'm'\nset title 'm in bins of "
+                    << "set xlabel '" << bin_name << "' noenhanced\nset ylabel 'm'\n"
+                    << "set title 'm in bins of "
                     << bin_name << "' noenhanced\n"
                     << (wide ? "set logscale x\n" : "")
-                    << "plot '" << dir << "/bins.dat' using (sqrt(abs($1*$2))):3:4 with yerrorbars pt 7 lc 1 title 'm_1', '"
-                    << dir << "/bins.dat' using (sqrt(abs($1*$2))):5:6 with yerrorbars pt 5 lc 2 title 'm_2', "
+                    << "plot '" << dir << "/bins.dat' using (sqrt(abs($1*$2))):3:4 "
+                    << "with yerrorbars pt 7 lc 1 title 'm_1', '" << dir
+                    << "/bins.dat' using (sqrt(abs($1*$2))):5:6 with yerrorbars pt 5 lc 2 "
+                    << "title 'm_2', "
                     << "0 lc 0 notitle\nunset multiplot\n";
         gp.commit();
     }
@@ -239,8 +251,10 @@ int run(int argc, const char* const argv[]) {
         ("files", po::value(&s.files)->value_name("TRUTH SHAPES")->composing(),
          "a truth catalogue and the shape catalogue measured on its image; repeat the pair for "
          "more images")
-        ("e1", po::value(&s.e1)->value_name("NAME")->default_value("e1"), "the shape catalogue's e1 column")
-        ("e2", po::value(&s.e2)->value_name("NAME")->default_value("e2"), "the shape catalogue's e2 column")
+        ("e1", po::value(&s.e1)->value_name("NAME")->default_value("e1"),
+         "the shape catalogue's e1 column")
+        ("e2", po::value(&s.e2)->value_name("NAME")->default_value("e2"),
+         "the shape catalogue's e2 column")
         ("moments", po::value(&s.moments)->value_name("XX,YY,XY"),
          "the shape from second-moment columns instead of --e1/--e2 (SExtractor's windowed "
          "X2WIN_IMAGE,Y2WIN_IMAGE,XYWIN_IMAGE): e = (a−b)/(a+b) e^{2iθ} of their ellipse, not "
@@ -282,7 +296,8 @@ int run(int argc, const char* const argv[]) {
     const auto [px, py] = split_pair(s.position, "position");
     std::vector<std::string> moment_names;
     if (!s.moments.empty()) {
-        if (options.given("e1") || options.given("e2")) throw po::error("--moments: not with --e1/--e2");
+        if (options.given("e1") || options.given("e2"))
+            throw po::error("--moments: not with --e1/--e2");
         std::istringstream names(s.moments);
         for (std::string name; std::getline(names, name, ',');) moment_names.push_back(name);
         if (moment_names.size() != 3 || std::any_of(moment_names.begin(), moment_names.end(),
@@ -322,7 +337,8 @@ int run(int argc, const char* const argv[]) {
                                 truth_bin_list() + ")",
                             shapes_path);
         if (e_defaulted && columns.count("shear_e1"))
-            log.info("note: ", shapes_path, " has shear_e1, shear_e2 (shapesim-measure --shear-estimate): "
+            log.info("note: ", shapes_path,
+                     " has shear_e1, shear_e2 (shapesim-measure --shear-estimate): "
                      "its e1, e2 are the PSF-blurred distortion; calibrate the estimate with --e1 "
                      "shear_e1 --e2 shear_e2");
         std::vector<double> mx = columns.at(px), my = columns.at(py);
@@ -331,7 +347,8 @@ int run(int argc, const char* const argv[]) {
             e1 = columns.at(s.e1);
             e2 = columns.at(s.e2);
         } else {
-            // ε of the moments' ellipse: χ = (Qxx − Qyy + 2i Qxy)/(Qxx + Qyy), ε = χ/(1 + √(1 − |χ|²)).
+            // ε of the moments' ellipse: χ = (Qxx − Qyy + 2i Qxy)/(Qxx + Qyy),
+            // ε = χ/(1 + √(1 − |χ|²)).
             const std::vector<double>& xx = columns.at(moment_names[0]);
             const std::vector<double>& yy = columns.at(moment_names[1]);
             const std::vector<double>& xy = columns.at(moment_names[2]);
@@ -350,7 +367,8 @@ int run(int argc, const char* const argv[]) {
         // Rows without a position or a shape are no measurement.
         std::vector<std::size_t> rows;
         for (std::size_t k = 0; k < mx.size(); ++k)
-            if (std::isfinite(mx[k]) && std::isfinite(my[k]) && std::isfinite(e1[k]) && std::isfinite(e2[k]))
+            if (std::isfinite(mx[k]) && std::isfinite(my[k]) && std::isfinite(e1[k]) &&
+                std::isfinite(e2[k]))
                 rows.push_back(k);
         std::vector<double> qx, qy;
         for (std::size_t k : rows) {
@@ -424,15 +442,21 @@ int run(int argc, const char* const argv[]) {
        << " matched galaxies (" << all.blocks << " bootstrap blocks, " << s.bootstrap
        << " resamples; errors 1σ). " << measured_total << " measurements of " << truth_total
        << " true galaxies in " << s.files.size() / 2 << " image(s)"
-       << (without_shape ? " (and " + std::to_string(without_shape) + " rows without a position or a shape)" : "")
-       << "; " << blends_or_strays
-       << " measurements unmatched within " << radius << (s.sky ? "\"" : " px")
-       << " (blends, spurious detections); responsivity " << s.responsivity
-       << (s.complete_rings ? "; " + std::to_string(incomplete) + " galaxies of rings with a copy lost left out" : "")
+       << (without_shape
+               ? " (and " + std::to_string(without_shape) + " rows without a position or a shape)"
+               : "")
+       << "; " << blends_or_strays << " measurements unmatched within " << radius
+       << (s.sky ? "\"" : " px") << " (blends, spurious detections); responsivity "
+       << s.responsivity
+       << (s.complete_rings
+               ? "; " + std::to_string(incomplete) + " galaxies of rings with a copy lost left out"
+               : "")
        << ".\n\n"
        << "| component | m | c |\n|---|---|---|\n"
-       << "| 1 | " << cell(all.one.m, all.one.m_err) << " | " << cell(all.one.c, all.one.c_err) << " |\n"
-       << "| 2 | " << cell(all.two.m, all.two.m_err) << " | " << cell(all.two.c, all.two.c_err) << " |\n";
+       << "| 1 | " << cell(all.one.m, all.one.m_err) << " | " << cell(all.one.c, all.one.c_err)
+       << " |\n"
+       << "| 2 | " << cell(all.two.m, all.two.m_err) << " | " << cell(all.two.c, all.two.c_err)
+       << " |\n";
     Json json{{"all", fit_json(all)}, {"matched", all.galaxies}, {"measured", measured_total},
               {"true_galaxies", truth_total}, {"unmatched", blends_or_strays},
               {"match_radius", radius}, {"responsivity", s.responsivity},
@@ -450,7 +474,8 @@ int run(int argc, const char* const argv[]) {
         }
         md << "| " << b.name << " | galaxies | m1 | c1 | m2 | c2 |\n|---|---|---|---|---|---|\n";
         Json rows = Json::array();
-        const std::vector<CalibrationBin> fitted = fit_in_bins(points, v, b.count, s.bootstrap, seed);
+        const std::vector<CalibrationBin> fitted =
+            fit_in_bins(points, v, b.count, s.bootstrap, seed);
         if (&b == &bins.front()) first_bins = fitted;
         for (const CalibrationBin& bin : fitted) {
             char range[64];
@@ -458,8 +483,9 @@ int run(int argc, const char* const argv[]) {
             md << "| " << range << " | " << bin.galaxies << " | ";
             Json row{{"lo", bin.lo}, {"hi", bin.hi}, {"galaxies", bin.galaxies}};
             if (bin.fit) {
-                md << cell(bin.fit->one.m, bin.fit->one.m_err) << " | " << cell(bin.fit->one.c, bin.fit->one.c_err)
-                   << " | " << cell(bin.fit->two.m, bin.fit->two.m_err) << " | "
+                md << cell(bin.fit->one.m, bin.fit->one.m_err) << " | "
+                   << cell(bin.fit->one.c, bin.fit->one.c_err) << " | "
+                   << cell(bin.fit->two.m, bin.fit->two.m_err) << " | "
                    << cell(bin.fit->two.c, bin.fit->two.c_err) << " |\n";
                 row["fit"] = fit_json(*bin.fit);
             } else {
@@ -473,7 +499,8 @@ int run(int argc, const char* const argv[]) {
         if (write_figures(s.figures, points, all, bins.front().name, first_bins))
             log.info("figure: ", s.figures, "/calibration.png");
         else
-            log.warn("gnuplot not found: the figure not drawn (run gnuplot ", s.figures, "/calibration.gp)");
+            log.warn("gnuplot not found: the figure not drawn (run gnuplot ", s.figures,
+                     "/calibration.gp)");
     }
     if (!s.json.empty()) {
         AtomicTextFile file(s.json);

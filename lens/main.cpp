@@ -55,23 +55,29 @@ struct Settings {
 // field's WCS scaled to the blocks (a SIP distortion is left out of the map's).
 void write_map(const std::string& path, const LensingSources& lenses, const FieldGeometry& field,
                long binning, const app::Log& log) {
-    const long b = binning > 0 ? binning : std::max(1L, (std::max(long(field.nx), long(field.ny)) + 1023) / 1024);
+    const long b = binning > 0
+                       ? binning
+                       : std::max(1L, (std::max(long(field.nx), long(field.ny)) + 1023) / 1024);
     const long mx = (field.nx + b - 1) / b, my = (field.ny + b - 1) / b;
     ImageArray kappa(my, mx), gamma1(my, mx), gamma2(my, mx);
     for (long j = 0; j < my; ++j)
         for (long i = 0; i < mx; ++i) {
             // Map pixel (i+1, j+1) is centred on field pixel B (i + ½) + ½.
-            const Convergence c = lenses.at(double(b) * (double(i) + 0.5) + 0.5, double(b) * (double(j) + 0.5) + 0.5);
+            const Convergence c =
+                lenses.at(double(b) * (double(i) + 0.5) + 0.5, double(b) * (double(j) + 0.5) + 0.5);
             kappa(j, i) = c.kappa;
             gamma1(j, i) = c.gamma1;
             gamma2(j, i) = c.gamma2;
         }
     const Wcs wcs = field.wcs.binned(int(b));
     FitsWriter out(path, "shapesim-lens");
-    const std::vector<FitsKeyword> keywords{FitsKeyword("BINNING", double(b), "field pixels per map pixel")};
+    const std::vector<FitsKeyword> keywords{
+        FitsKeyword("BINNING", double(b), "field pixels per map pixel")};
     out.write_image(kappa, FitsImageSpec{"KAPPA", -32, "", wcs, keywords, {"convergence"}});
-    out.write_image(gamma1, FitsImageSpec{"GAMMA1", -32, "", wcs, keywords, {"shear gamma1 (image frame)"}});
-    out.write_image(gamma2, FitsImageSpec{"GAMMA2", -32, "", wcs, keywords, {"shear gamma2 (image frame)"}});
+    out.write_image(
+        gamma1, FitsImageSpec{"GAMMA1", -32, "", wcs, keywords, {"shear gamma1 (image frame)"}});
+    out.write_image(
+        gamma2, FitsImageSpec{"GAMMA2", -32, "", wcs, keywords, {"shear gamma2 (image frame)"}});
     out.commit();
     log.verbose("map: ", mx, " x ", my, " pixels of ", b, " x ", b, " field pixels in ", path);
 }
@@ -95,16 +101,19 @@ int run(int argc, const char* const argv[]) {
          "a B mode of this power spectrum too (a systematics test; none by default)")
         ("spacing", po::value(&s.gaussian.spacing)->value_name("ARCSEC")
              ->notifier(in_range("spacing", 1e-6, 1e7)),
-         "the random field holds power at ell < pi/spacing (default: the field's longer side / 128)")
+         "the random field holds power at ell < pi/spacing (default: the field's "
+         "longer side / 128)")
         ("padding", po::value(&s.gaussian.padding)->value_name("F")->default_value(2.0)
              ->notifier(in_range("padding", 1.0, 16.0)),
          "the random field's period over the field's size (it repeats beyond; 1: the field's)")
         ("halo", po::value(&s.halos)->value_name("X Y M200 C Z")->multitoken()->composing(),
          "an NFW halo centred at field pixel X Y, of M200 (critical) in M_sun, concentration C, "
          "redshift Z; repeat for more")
-        ("source-z", po::value(&s.source_z)->value_name("Z")->notifier(in_range("source-z", 1e-6, 20.0)),
+        ("source-z", po::value(&s.source_z)->value_name("Z")
+             ->notifier(in_range("source-z", 1e-6, 20.0)),
          "the redshift of every lensed galaxy (needed with --halo)")
-        ("h0", po::value(&s.cosmology.h0)->default_value(70.0)->notifier(in_range("h0", 1.0, 1000.0)),
+        ("h0", po::value(&s.cosmology.h0)->default_value(70.0)
+             ->notifier(in_range("h0", 1.0, 1000.0)),
          "Hubble constant, km/s/Mpc (flat LCDM)")
         ("omega-m", po::value(&s.cosmology.omega_m)->default_value(0.3)
              ->notifier(in_range("omega-m", 1e-6, 1.0)),
@@ -117,7 +126,8 @@ int run(int argc, const char* const argv[]) {
         ("map", po::value(&s.map)->value_name("FITS"),
          "also write the lensing over the field: image HDUs KAPPA, GAMMA1, GAMMA2 (the field's "
          "WCS, binned)")
-        ("map-binning", po::value(&s.map_binning)->value_name("B")->notifier(in_range("map-binning", 1L, 100000L)),
+        ("map-binning", po::value(&s.map_binning)->value_name("B")
+             ->notifier(in_range("map-binning", 1L, 100000L)),
          "field pixels per map pixel (default: a map at most 1024 pixels a side)")
         ("no-magnify", po::bool_switch(&s.no_magnify),
          "keep every galaxy's flux (shear and size only; by default flux and area grow by mu)")
@@ -125,7 +135,8 @@ int run(int argc, const char* const argv[]) {
              ->notifier(in_range("max-shear", 1e-6, 0.999)),
          "the strongest reduced shear |g| drawn: the lens acts on a galaxy as one matrix, which "
          "near a critical curve stretches it into a straight bar, not an arc")
-        ("max-magnification", po::value(&s.limits.max_magnification)->value_name("MU")->default_value(10.0)
+        ("max-magnification", po::value(&s.limits.max_magnification)->value_name("MU")
+             ->default_value(10.0)
              ->notifier(in_range("max-magnification", 1.0, 1e6)),
          "the largest magnification drawn (the same reason)")
         ("drop-strong", po::bool_switch(&s.drop_strong),
@@ -135,7 +146,8 @@ int run(int argc, const char* const argv[]) {
     if (!options.parse(argc, argv)) return 0;
     const app::Log log("shapesim-lens", options.common().verbosity);
 
-    if (!s.shear.empty() && s.shear.size() != 2) throw po::error("--shear takes two numbers: G1 G2");
+    if (!s.shear.empty() && s.shear.size() != 2)
+        throw po::error("--shear takes two numbers: G1 G2");
     if (s.halos.size() % 5 != 0)
         throw po::error("--halo takes five numbers each: X Y M200 C Z");
     if (!s.halos.empty() && !options.given("source-z"))
@@ -156,7 +168,8 @@ int run(int argc, const char* const argv[]) {
     }
     lenses.constant.kappa = s.kappa;
     for (std::size_t k = 0; k < s.halos.size(); k += 5) {
-        const NfwHalo halo{s.halos[k], s.halos[k + 1], s.halos[k + 2], s.halos[k + 3], s.halos[k + 4]};
+        const NfwHalo halo{s.halos[k], s.halos[k + 1], s.halos[k + 2], s.halos[k + 3],
+                           s.halos[k + 4]};
         try {
             lenses.halos.emplace_back(halo, s.cosmology, s.source_z, field.pixel_scale);
         } catch (const Error& e) {
@@ -173,7 +186,8 @@ int run(int argc, const char* const argv[]) {
         s.gaussian.seed = options.common().seed;
         lenses.gaussian.emplace(e, b, field, s.gaussian);
         const GaussianLensingField& g = *lenses.gaussian;
-        const double ell_min = 2.0 * pi / (std::max(field.nx, field.ny) * field.pixel_scale * arcsec);
+        const double ell_min =
+            2.0 * pi / (std::max(field.nx, field.ny) * field.pixel_scale * arcsec);
         log.verbose("random field: ", g.nodes_x(), " x ", g.nodes_y(), " nodes ", g.node_spacing(),
                     " arcsec apart; ell from ", ell_min, " (the field) to ", g.ell_limit());
         if (e.ell_min() > ell_min || e.ell_max() < g.ell_limit())
@@ -200,8 +214,9 @@ int run(int argc, const char* const argv[]) {
             // A ring of rotated copies (shapesim-sample --ring) shares one lensing: its first
             // copy's, so its shape noise cancels in the mean shear.
             double at_x = *r.x, at_y = *r.y;
-            if (const auto ring = r.extra.find("ring"); ring != r.extra.end() && ring->is_object() &&
-                                                        ring->contains("x") && ring->contains("y")) {
+            if (const auto ring = r.extra.find("ring"); ring != r.extra.end() &&
+                                                        ring->is_object() && ring->contains("x") &&
+                                                        ring->contains("y")) {
                 at_x = as_double((*ring)["x"], "ring.x");
                 at_y = as_double((*ring)["y"], "ring.y");
                 ++in_rings;
@@ -213,13 +228,14 @@ int run(int argc, const char* const argv[]) {
                     ++dropped;
                     continue;
                 }
-                throw reader.locate(Error(
-                    "object " + r.id + " at (" + std::to_string(*r.x) + ", " + std::to_string(*r.y) +
-                        ") is strongly lensed (kappa " + std::to_string(c.kappa) + ", gamma (" +
-                        std::to_string(c.gamma1) + ", " + std::to_string(c.gamma2) +
-                        ")): beyond weak lensing (kappa >= 1, |g| > --max-shear or mu > "
-                        "--max-magnification; see --drop-strong)",
-                    "", 0, "lensing"));
+                throw reader.locate(
+                    Error("object " + r.id + " at (" + std::to_string(*r.x) + ", " +
+                              std::to_string(*r.y) + ") is strongly lensed (kappa " +
+                              std::to_string(c.kappa) + ", gamma (" + std::to_string(c.gamma1) +
+                              ", " + std::to_string(c.gamma2) +
+                              ")): beyond weak lensing (kappa >= 1, |g| > --max-shear or mu > "
+                              "--max-magnification; see --drop-strong)",
+                          "", 0, "lensing"));
             }
             r.lensing = l;
             ++galaxies;
@@ -235,9 +251,12 @@ int run(int argc, const char* const argv[]) {
         log.info(galaxies, " galaxies lensed: rms |g| ", std::sqrt(sum_g2 / double(galaxies)),
                  ", largest ", max_g, ", mean kappa ", sum_kappa / double(galaxies),
                  dropped ? ", " + std::to_string(dropped) + " strongly lensed left out" : "",
-                 in_rings ? ", " + std::to_string(in_rings) + " in rings (each ring lensed as its first copy)" : "");
+                 in_rings ? ", " + std::to_string(in_rings) +
+                                " in rings (each ring lensed as its first copy)"
+                          : "");
     else
-        log.info("no galaxy to lens", dropped ? " (" + std::to_string(dropped) + " strongly lensed left out)" : "");
+        log.info("no galaxy to lens",
+                 dropped ? " (" + std::to_string(dropped) + " strongly lensed left out)" : "");
     return 0;
 }
 

@@ -67,7 +67,8 @@ int run(int argc, const char* const argv[]) {
              ->notifier(in_range("aperture", 0.0, 3600.0)),
          "also a circular aperture of this diameter about each centroid (SExtractor's "
          "MAG_APER): flux_aper and mag_aper")
-        ("mag-limit", po::value(&mag_limit)->value_name("MAG")->notifier(in_range("mag-limit", -100.0, 100.0)),
+        ("mag-limit", po::value(&mag_limit)->value_name("MAG")
+             ->notifier(in_range("mag-limit", -100.0, 100.0)),
          "leave out objects fainter than this Kron magnitude (and those without one)")
         ("min-petrosian", po::value(&measure.min_petrosian)->default_value(2.0)
              ->notifier(in_range("min-petrosian", 0.0, 1e6)),
@@ -187,7 +188,8 @@ int run(int argc, const char* const argv[]) {
             app::Progress progress(log, "measured", "objects", jobs.size());
             parallel_for(jobs.size(), options.common().threads, [&](std::size_t k, int) {
                 try {
-                    jobs[k].record = measure_object(field, *jobs[k].object, jobs[k].source, measure);
+                    jobs[k].record =
+                        measure_object(field, *jobs[k].object, jobs[k].source, measure);
                     jobs[k].record->extra["pixel_scale"] = detected.context.pixel_scale;
                 } catch (const std::exception& e) {
                     jobs[k].error = e.what();
@@ -207,11 +209,13 @@ int run(int argc, const char* const argv[]) {
             id_offset += long(field.objects.size());
         });
     file.commit();
-    log.info(out.count(), " objects measured", skipped ? ", " + std::to_string(skipped) + " skipped" : "",
-             too_faint ? ", " + std::to_string(too_faint) + " fainter than --mag-limit left out" : "",
-             tiled.tiled() ? ", in " + std::to_string(tiled.tiles.size()) + " tiles" : "",
-             " in ", log.elapsed(), " s (peak memory ", std::lround(log.peak_memory_mib()),
-             " MiB); stars (", stars ? "measured" : "left out", ") through ", locus_note);
+    log.info(
+        out.count(), " objects measured",
+        skipped ? ", " + std::to_string(skipped) + " skipped" : "",
+        too_faint ? ", " + std::to_string(too_faint) + " fainter than --mag-limit left out" : "",
+        tiled.tiled() ? ", in " + std::to_string(tiled.tiles.size()) + " tiles" : "", " in ",
+        log.elapsed(), " s (peak memory ", std::lround(log.peak_memory_mib()), " MiB); stars (",
+        stars ? "measured" : "left out", ") through ", locus_note);
     return 0;
 }
 

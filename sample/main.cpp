@@ -96,14 +96,17 @@ int run(int argc, const char* const argv[]) {
         ("tile-grid", po::value(&s.tile_grid)->value_name("W [H]")->multitoken(),
          "print the field's grid of W x H pixel tiles, one 'IX IY X0 Y0 X1 Y1' line each (the\n"
          "--tile arguments; IX, IY from 0), and exit; no MODEL needed")
-        ("margin", po::value(&s.margin)->default_value(0.5)->notifier(in_range("margin", 0.0, 3600.0)),
+        ("margin", po::value(&s.margin)->default_value(0.5)
+             ->notifier(in_range("margin", 0.0, 3600.0)),
          "arcsec added to every object's reach for the tile test (PSF wings)")
-        ("cell", po::value(&o.cell)->default_value(4096)->notifier(in_range<long>("cell", 1, 1L << 30)),
+        ("cell", po::value(&o.cell)->default_value(4096)
+             ->notifier(in_range<long>("cell", 1, 1L << 30)),
          "sky cells of this many pixels a side key the draws: a tile reads only the cells it\n"
          "reaches (a field of one cell draws as before cells; another size, another sky)");
     options.group("Galaxies").add_options()
         ("density", po::value(&o.density)->default_value(700.0)
-             ->notifier(in_range("density", 0.0, 1e8)), "galaxies per arcmin^2 (Poisson; default: the model's real field, else 700)")
+             ->notifier(in_range("density", 0.0, 1e8)),
+         "galaxies per arcmin^2 (Poisson; default: the model's real field, else 700)")
         ("count", po::value(&s.count), "exactly this many galaxies instead")
         ("ring", po::value(&o.ring)->value_name("N")->default_value(1)
              ->notifier(in_range("ring", 1, 1000)),
@@ -150,7 +153,8 @@ int run(int argc, const char* const argv[]) {
     const FieldGeometry field = s.field.field(options);
     AtomicTextFile file(options.common().output_or_stdout());
     if (options.given("tile-grid")) {
-        if (s.tile_grid.empty() || s.tile_grid.size() > 2 || s.tile_grid.front() < 1 || s.tile_grid.back() < 1)
+        if (s.tile_grid.empty() || s.tile_grid.size() > 2 || s.tile_grid.front() < 1 ||
+            s.tile_grid.back() < 1)
             throw po::error("--tile-grid takes W [H], whole numbers of pixels >= 1");
         write_tile_grid(file.stream(), file.name(), field.nx, field.ny, s.tile_grid.front(),
                         s.tile_grid.back());
@@ -197,13 +201,15 @@ int run(int argc, const char* const argv[]) {
 
     const long shape_only = count_shape_only(morphology);
     if (shape_only > 0 && o.draw.neighbours == 0)
-        log.info(shape_only, " shape-only models unused: only --neighbours draws take their shapes");
+        log.info(shape_only,
+                 " shape-only models unused: only --neighbours draws take their shapes");
     JsonlWriter out(file.stream(), file.name());
     ParentShares parents;
-    const SampleSummary summary = sample_field(morphology, field, o, tile, [&](const ObjectRecord& r) {
-        out.write(r.to_json());
-        parents.add(r);
-    });
+    const SampleSummary summary =
+        sample_field(morphology, field, o, tile, [&](const ObjectRecord& r) {
+            out.write(r.to_json());
+            parents.add(r);
+        });
     file.commit();
     log.info(summary.describe(field, o.density, tile.has_value()), log.elapsed(), " s");
     log.info("largest share of one parent among the galaxies written: ", parents.summary());

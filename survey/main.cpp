@@ -109,8 +109,9 @@ std::string find_file(const std::string& name, const fs::path& survey_dir, const
 }
 
 std::string quoted(const std::string& word) {
-    if (!word.empty() && word.find_first_not_of("abcdefghijklmnopqrstuvwxyzABCDEFGHIJKLMNOPQRSTUVWXYZ"
-                                                "0123456789-_./:,=+@%") == std::string::npos)
+    if (!word.empty() &&
+        word.find_first_not_of("abcdefghijklmnopqrstuvwxyzABCDEFGHIJKLMNOPQRSTUVWXYZ"
+                               "0123456789-_./:,=+@%") == std::string::npos)
         return word;
     std::string q = "'";
     for (char c : word) q += c == '\'' ? std::string("'\\''") : std::string(1, c);
@@ -195,9 +196,11 @@ int run_survey(int argc_given, const char* const argv_given[]) {
              ->notifier(in_range("full-well", 0.0, 1e15)),
          "a pixel's full well, electrons (sky included): brighter pixels saturate at it "
          "(SATURATE in the header, in image units); 0: none")
-        ("sky", po::value(&s.sky)->value_name("MAG_ARCSEC2")->notifier(in_range("sky", -100.0, 100.0)),
+        ("sky", po::value(&s.sky)->value_name("MAG_ARCSEC2")
+             ->notifier(in_range("sky", -100.0, 100.0)),
          "sky brightness, AB mag/arcsec^2 (its photon noise is drawn)")
-        ("sky-electrons", po::value(&s.sky_electrons)->notifier(in_range("sky-electrons", 0.0, 1e15)),
+        ("sky-electrons", po::value(&s.sky_electrons)
+             ->notifier(in_range("sky-electrons", 0.0, 1e15)),
          "sky, electrons per pixel over the exposure, instead of --sky")
         ("units", po::value(&s.units)->default_value("e/s"),
          "image units: e/s (electron/s, as HST's drizzled images) or adu (counts over the "
@@ -209,9 +212,11 @@ int run_survey(int argc_given, const char* const argv_given[]) {
          "also the unresolved galaxies down to this magnitude (shapesim-sample --faint-limit)")
         ("star-density", po::value(&s.star_density)->notifier(in_range("star-density", 0.0, 1e8)),
          "stars per arcmin^2")
-        ("star-mag-min", po::value(&s.star_mag_min)->notifier(in_range("star-mag-min", -100.0, 100.0)),
+        ("star-mag-min", po::value(&s.star_mag_min)
+             ->notifier(in_range("star-mag-min", -100.0, 100.0)),
          "brightest star, AB")
-        ("star-mag-max", po::value(&s.star_mag_max)->notifier(in_range("star-mag-max", -100.0, 100.0)),
+        ("star-mag-max", po::value(&s.star_mag_max)
+             ->notifier(in_range("star-mag-max", -100.0, 100.0)),
          "faintest star, AB")
         ("shear", po::value(&s.shear)->value_name("G1 G2")->multitoken(),
          "reduced shear applied to every galaxy")
@@ -225,13 +230,16 @@ int run_survey(int argc_given, const char* const argv_given[]) {
 
     const std::string& config = options.common().config;
     if (config.empty()) throw po::error("give the survey file (or --config FILE)");
-    if (!options.given("zero-point")) throw po::error("the survey needs zero-point (AB mag of 1 e-/s)");
+    if (!options.given("zero-point"))
+        throw po::error("the survey needs zero-point (AB mag of 1 e-/s)");
     if (!options.given("exposure")) throw po::error("the survey needs exposure (seconds)");
-    if (!options.given("psf")) throw po::error("the survey needs psf (an analytic SPEC or a record)");
+    if (!options.given("psf"))
+        throw po::error("the survey needs psf (an analytic SPEC or a record)");
     if (options.given("sky") && options.given("sky-electrons"))
         throw po::error("give sky (mag/arcsec^2) or sky-electrons, not both");
     if (s.units != "e/s" && s.units != "adu") throw po::error("--units: e/s or adu");
-    if (!s.shear.empty() && s.shear.size() != 2) throw po::error("--shear takes two numbers: G1 G2");
+    if (!s.shear.empty() && s.shear.size() != 2)
+        throw po::error("--shear takes two numbers: G1 G2");
     const std::string& out = options.common().output;
     if (out.empty() && !s.dry_run) throw po::error("give the output directory: -o DIR");
 
@@ -312,7 +320,8 @@ int run_survey(int argc_given, const char* const argv_given[]) {
     std::vector<std::string> sample = {(bin / "shapesim-sample").string(), model};
     sample.insert(sample.end(), field.begin(), field.end());
     sample.insert(sample.end(), {"--zero-point", app::double_text(zp_image), "--seed", seed});
-    if (options.given("mag-limit")) sample.insert(sample.end(), {"--mag-limit", app::double_text(s.mag_limit)});
+    if (options.given("mag-limit"))
+        sample.insert(sample.end(), {"--mag-limit", app::double_text(s.mag_limit)});
     if (options.given("faint-limit"))
         sample.insert(sample.end(), {"--faint-limit", app::double_text(s.faint_limit)});
     if (options.given("star-density"))
@@ -340,9 +349,11 @@ int run_survey(int argc_given, const char* const argv_given[]) {
                           {"--saturation", app::double_text(s.full_well / electrons_per_unit)});
     }
     render.insert(render.end(), {adu ? "--exptime" : "--exposure", app::double_text(T)});
-    render.insert(render.end(), {"--sky", app::double_text(sky_image), "--bunit", adu ? "adu" : "electron/s"});
+    render.insert(render.end(),
+                  {"--sky", app::double_text(sky_image), "--bunit", adu ? "adu" : "electron/s"});
     if (!s.shear.empty())
-        render.insert(render.end(), {"--shear", app::double_text(s.shear[0]), app::double_text(s.shear[1])});
+        render.insert(render.end(),
+                      {"--shear", app::double_text(s.shear[0]), app::double_text(s.shear[1])});
     if (options.given("kappa")) render.insert(render.end(), {"--kappa", app::double_text(s.kappa)});
     render.insert(render.end(), {"--seed", seed, "-j", std::to_string(options.common().threads)});
     if (options.common().verbosity == app::Verbosity::quiet) render.push_back("-q");
@@ -362,8 +373,10 @@ int run_survey(int argc_given, const char* const argv_given[]) {
     fs::create_directories(dir, ec);
     if (ec) throw Error("cannot make the directory: " + ec.message(), dir.string());
     AtomicTextFile commands((dir / "commands.sh").string());
-    commands.stream() << "#!/bin/sh\n# shapesim-survey " << config << ": the commands it ran\nset -e\n"
-                      << command_line(sample) << '\n' << command_line(render) << '\n'
+    commands.stream() << "#!/bin/sh\n# shapesim-survey " << config
+                      << ": the commands it ran\nset -e\n"
+                      << command_line(sample) << '\n'
+                      << command_line(render) << '\n'
                       << command_line(table) << '\n';
     log.info("sky ", sky_electrons, " e-/pixel, read noise ", s.read_noise, " e-; image unit ",
              adu ? "adu" : "electron/s", ", zero point ", zp_image);

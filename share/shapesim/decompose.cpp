@@ -25,7 +25,8 @@ void DecomposeOptions::validate() const {
     if (n_max_cap > 100) fail("n_max_cap", "must be ≤ 100");
     if (!(chi2_target > 0.0)) fail("chi2_target", "must be > 0");
     if (!(chi2_sigmas >= 0.0)) fail("chi2_sigmas", "must be ≥ 0");
-    if (!(beta_tolerance > 0.0 && beta_tolerance < 1.0)) fail("beta_tolerance", "must be in (0, 1)");
+    if (!(beta_tolerance > 0.0 && beta_tolerance < 1.0))
+        fail("beta_tolerance", "must be in (0, 1)");
     if (!(theta_min > 0.0)) fail("theta_min", "must be > 0");
     if (!(centre_tolerance > 0.0)) fail("centre_tolerance", "must be > 0");
     if (centre_iterations < 0) fail("centre_iterations", "must be ≥ 0");

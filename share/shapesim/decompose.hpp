@@ -226,9 +226,9 @@ double flux_error(const ShapeletFit& fit);
 ///    "unsupported" (more than max_unsupported of its light off the data, `unsupported_light`);
 ///    "neighbour" (the source was
 ///    deblended, or more than 5% of the pixels within the model's reach β√(n_max+1) belong
-///    to a neighbour); "edge" (the segment or the paper's 3a + 5 square cut by the image edge); "noise" (model flux
-///    below 3σ of the noise, truncation's share left out: a probable noise detection). ("bright_star", near_bright_star(), is the
-///    caller's: it needs the star list.)
+///    to a neighbour); "edge" (the segment or the paper's 3a + 5 square cut by the image edge);
+///    "noise" (model flux below 3σ of the noise, truncation's share left out: a probable noise
+///    detection). ("bright_star", near_bright_star(), is the caller's: it needs the star list.)
 ///  - the source's fields are carried through; those the schema reuses (x, y, flux, flux_err,
 ///    mag, flags, …) as `source_x`, `source_flux`, `source_flags`, ….
 /// Without a zero point (absent or null in the source record) `mag` is left out. A model fitted
@@ -253,8 +253,9 @@ ShapeletRecord shapelet_record(const SourceRecord& source, const Decomposition& 
 /// galaxy's model: the star's circle of twice its radius — its Kron radius (kron_radius·a, or
 /// 1.5·FWHM when the record has neither) or, for a galaxy ten times fainter than the star, its
 /// isophote's, √(iso_area/π), when that is larger (the XDF's I = 19 star: 3.9 against 41
-/// pixels, its halo deblended into "galaxies" 5000 times fainter) — overlaps the model's reach, β√(n_max+1) about its centre. All in
-/// the parent image's FITS pixels; `galaxy_flux` and the stars' fluxes in the same units.
+/// pixels, its halo deblended into "galaxies" 5000 times fainter) — overlaps the model's reach,
+/// β√(n_max+1) about its centre. All in the parent image's FITS pixels; `galaxy_flux` and the
+/// stars' fluxes in the same units.
 bool near_bright_star(double x, double y, double reach, double galaxy_flux,
                       const std::vector<SourceRecord>& stars);
 

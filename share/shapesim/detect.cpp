@@ -645,13 +645,14 @@ std::vector<ApertureFlux> forced_auto_fluxes(const DetectionResult& band,
     std::vector<ApertureFlux> out;
     out.reserve(objects.size());
     for (const Detection& d : objects) {
-        const AutoAperture ap{d.label,
-                              d.x - 1.0,
-                              d.y - 1.0,
-                              std::max(d.a, 0.5),
-                              std::max(d.b, 0.5),
-                              d.theta * pi / 180.0,
-                              std::max(options.kron_factor * d.kron_radius, options.kron_min_radius)};
+        const AutoAperture ap{
+            d.label,
+            d.x - 1.0,
+            d.y - 1.0,
+            std::max(d.a, 0.5),
+            std::max(d.b, 0.5),
+            d.theta * pi / 180.0,
+            std::max(options.kron_factor * d.kron_radius, options.kron_min_radius)};
         out.push_back(auto_flux(band, sep_sigma, ap, options));
     }
     return out;

@@ -17,10 +17,11 @@
 //      cleaned (CLEAN_PARAM). The objects' pixels give the segmentation map.
 //   5. Per object: isophotal barycentre, second moments → a, b, θ; peak; isophotal area above
 //      ANALYSIS_THRESH·σ on the unfiltered image; FWHM as SExtractor 2.25 fits it (ln I
-//      against r² over the pixels above max(peak/5, threshold), weights I²); Kron ("AUTO") flux in an ellipse of PHOT_AUTOPARAMS (2.5 r_Kron,
-//      at least 3.5) a × b, neighbours' pixels replaced by their mirror images (MASK_TYPE
-//      CORRECT); flux error from σ, times the measured correlated-noise factor (drizzling
-//      correlates neighbouring pixels, so √Σσ² alone understates it), plus Poisson with GAIN.
+//      against r² over the pixels above max(peak/5, threshold), weights I²); Kron ("AUTO") flux in
+//      an ellipse of PHOT_AUTOPARAMS (2.5 r_Kron, at least 3.5) a × b, neighbours' pixels replaced
+//      by their mirror images (MASK_TYPE CORRECT); flux error from σ, times the measured
+//      correlated-noise factor (drizzling correlates neighbouring pixels, so √Σσ² alone understates
+//      it), plus Poisson with GAIN.
 //
 // Positions in Detection are FITS pixel coordinates (first pixel centred at (1, 1)), like
 // X_IMAGE; libsep's 0-based values are shifted once, here.

@@ -163,9 +163,9 @@ void check_header_bytes(const std::string& file) {
                     const unsigned char b = (unsigned char)card[k];
                     if (b < 32 || b > 126)
                         throw Error("not a FITS file: header " + std::to_string(hdu) + ", card " +
-                                        std::to_string(c + 1) + " (" + key.substr(0, key.find(' ')) +
-                                        ") holds byte " + std::to_string(int(b)) +
-                                        ", not printable ASCII",
+                                        std::to_string(c + 1) + " (" +
+                                        key.substr(0, key.find(' ')) + ") holds byte " +
+                                        std::to_string(int(b)) + ", not printable ASCII",
                                     file);
                 }
                 if (key == "END     ") end = true;
@@ -182,7 +182,8 @@ void check_header_bytes(const std::string& file) {
                     while (k < 80 && card[k] == ' ') ++k;
                     if (k < 80 && card[k] != '\'')
                         throw Error("not a FITS file: header " + std::to_string(hdu) + ", card " +
-                                        std::to_string(c + 1) + " (" + key.substr(0, key.find(' ')) +
+                                        std::to_string(c + 1) + " (" +
+                                        key.substr(0, key.find(' ')) +
                                         ") holds an unquoted value where the standard asks for a "
                                         "quoted string",
                                     file);

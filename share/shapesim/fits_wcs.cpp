@@ -1,5 +1,5 @@
-// The FITS side of a WCS: a header's celestial WCS keywords (wcslib evaluates them) and the geometry
-// of a `--like` image, read through cfitsio (declared in fits_io.hpp; the WCS itself is
+// The FITS side of a WCS: a header's celestial WCS keywords (wcslib evaluates them) and the
+// geometry of a `--like` image, read through cfitsio (declared in fits_io.hpp; the WCS itself is
 // geometry.hpp's).
 #include "shapesim/fits_io.hpp"
 
@@ -127,7 +127,8 @@ FieldGeometry read_field_geometry(const std::string& path, std::optional<double>
     }
     g.pixel_scale = g.wcs.pixel_scale_arcsec();
     g.bunit = fits.optional_string("BUNIT").value_or("");
-    if (const auto level = fits.optional_double("SATURATE"); level && *level > 0.0 && std::isfinite(*level))
+    if (const auto level = fits.optional_double("SATURATE");
+        level && *level > 0.0 && std::isfinite(*level))
         g.saturate = *level;
     return g;
 }

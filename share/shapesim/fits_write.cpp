@@ -78,7 +78,8 @@ void write_wcs(fitsfile* f, const Wcs& written, const std::string& place) {
     if (wcs.lonpole) write_keyword(f, {"LONPOLE", *wcs.lonpole}, place);
     if (wcs.latpole) write_keyword(f, {"LATPOLE", *wcs.latpole}, place);
     for (const auto& pv : wcs.pv)  // projection parameters, TPV terms
-        write_keyword(f, {"PV" + std::to_string(pv.i) + "_" + std::to_string(pv.m), pv.value}, place);
+        write_keyword(f, {"PV" + std::to_string(pv.i) + "_" + std::to_string(pv.m), pv.value},
+                      place);
     if (wcs.has_sip()) {  // the distortion travels with the WCS (a render --like keeps it)
         for (const char* order : {"A_ORDER", "B_ORDER"})
             write_keyword(f, {order, (long long)wcs.sip_order, "SIP polynomial order"}, place);
@@ -190,8 +191,8 @@ __attribute__((target_clones("avx2", "default"))) bool float_bytes(const double*
             any |= ((a < lowest) & (a != 0.0)) | ((a > highest) & (a != inf));
             if (!out) continue;
             const Bytes16 bytes = Bytes16(__builtin_convertvector(v, Floats4));
-            const Bytes16 swapped =
-                __builtin_shufflevector(bytes, bytes, 3, 2, 1, 0, 7, 6, 5, 4, 11, 10, 9, 8, 15, 14, 13, 12);
+            const Bytes16 swapped = __builtin_shufflevector(bytes, bytes, 3, 2, 1, 0, 7, 6, 5, 4,
+                                                            11, 10, 9, 8, 15, 14, 13, 12);
             std::memcpy(out + i, &swapped, sizeof swapped);
         }
         if (any[0] | any[1] | any[2] | any[3]) return false;

@@ -68,9 +68,11 @@ std::string header_of(const WcsKeywords& w) {
         for (const auto& [prefix, terms] : {std::pair{"A", &w.sip_a}, std::pair{"B", &w.sip_b}})
             for (std::size_t p = 0; p < terms->size(); ++p)
                 for (std::size_t q = 0; q < (*terms)[p].size(); ++q)
-                    if ((*terms)[p][q] != 0.0)
-                        card(h, std::string(prefix) + "_" + std::to_string(p) + "_" + std::to_string(q),
-                             number((*terms)[p][q]));
+                    if ((*terms)[p][q] != 0.0) {
+                        const std::string key =
+                            std::string(prefix) + "_" + std::to_string(p) + "_" + std::to_string(q);
+                        card(h, key, number((*terms)[p][q]));
+                    }
     }
     return h;
 }
@@ -100,7 +102,8 @@ void check_keywords(const WcsKeywords& w) {
         if (!std::isfinite(v)) throw Error("WCS value is not finite", {}, 0, "CD1_1");
     for (const auto& pv : w.pv)
         if (!std::isfinite(pv.value))
-            throw Error("is not finite", {}, 0, "PV" + std::to_string(pv.i) + "_" + std::to_string(pv.m));
+            throw Error("is not finite", {}, 0,
+                        "PV" + std::to_string(pv.i) + "_" + std::to_string(pv.m));
     if (!(std::abs(w.crval2) <= 90.0))
         throw Error("must be within [-90, 90] degrees", {}, 0, "CRVAL2");
     if (det_cd(w) == 0.0) throw Error("CD matrix is singular", {}, 0, "CD1_1");
@@ -146,8 +149,8 @@ struct Wcs::Engine {
                             &count, &parsed);
         if (status != 0 || count < 1) {
             if (parsed) wcsvfree(&count, &parsed);
-            throw Error("wcslib cannot read the WCS keywords (status " + std::to_string(status) + ")",
-                        {}, 0, "CTYPE1");
+            const std::string why = "status " + std::to_string(status);
+            throw Error("wcslib cannot read the WCS keywords (" + why + ")", {}, 0, "CTYPE1");
         }
         w.flag = -1;
         status = wcssub(1, parsed, nullptr, nullptr, &w);
@@ -278,7 +281,8 @@ bool Tile::reaches(double x, double y, double radius) const {
 }
 
 bool Tile::owns(double x, double y) const {
-    return x >= double(x0) - 0.5 && x < double(x1) + 0.5 && y >= double(y0) - 0.5 && y < double(y1) + 0.5;
+    return x >= double(x0) - 0.5 && x < double(x1) + 0.5 && y >= double(y0) - 0.5 &&
+           y < double(y1) + 0.5;
 }
 
 std::vector<Tile> tile_grid(long field_nx, long field_ny, long width, long height) {
@@ -286,7 +290,8 @@ std::vector<Tile> tile_grid(long field_nx, long field_ny, long width, long heigh
     std::vector<Tile> tiles;
     for (long y0 = 1; y0 <= field_ny; y0 += height)
         for (long x0 = 1; x0 <= field_nx; x0 += width)
-            tiles.push_back({x0, y0, std::min(x0 + width - 1, field_nx), std::min(y0 + height - 1, field_ny)});
+            tiles.push_back(
+                {x0, y0, std::min(x0 + width - 1, field_nx), std::min(y0 + height - 1, field_ny)});
     return tiles;
 }
 

@@ -81,8 +81,9 @@ void add_run(const AsymmetryRun& run, AsymmetrySums& sums) {
     for (long i = run.begin; i < run.end; ++i) {
         const long k = i - run.begin, i0 = run.first_source - k;
         if (!(run.keep_here[i] & run.keep_mirror[i0 + run.mirror_step])) continue;
-        const double rot = (1 - run.fy) * ((1 - run.fx) * run.above[i0] + run.fx * run.above[i0 + 1]) +
-                           run.fy * ((1 - run.fx) * run.below[i0] + run.fx * run.below[i0 + 1]);
+        const double rot =
+            (1 - run.fy) * ((1 - run.fx) * run.above[i0] + run.fx * run.above[i0 + 1]) +
+            run.fy * ((1 - run.fx) * run.below[i0] + run.fx * run.below[i0 + 1]);
         sums.add(int(k & 3), run.here[i], rot, run.weights[k]);
     }
 }

@@ -518,12 +518,14 @@ SkyComparison compare_sky(const NoiseRecord& a, const NoiseRecord& b) {
         return out;
     };
     double median_a = 0.0, median_b = 0.0;
-    const std::vector<double> qa = centred(a.quantiles, median_a), qb = centred(b.quantiles, median_b);
+    const std::vector<double> qa = centred(a.quantiles, median_a),
+                              qb = centred(b.quantiles, median_b);
     c.median_offset = median_b - median_a;
     // D = sup |F_a − F_b|, over both samples' quantiles (the CDFs are linear between them).
     for (const auto* q : {&qa, &qb})
         for (double x : *q)
-            c.ks_d = std::max(c.ks_d, std::abs(cdf_from_quantiles(qa, x) - cdf_from_quantiles(qb, x)));
+            c.ks_d =
+                std::max(c.ks_d, std::abs(cdf_from_quantiles(qa, x) - cdf_from_quantiles(qb, x)));
     const double na = double(std::max(1L, a.quantile_pixels));
     const double nb = double(std::max(1L, b.quantile_pixels));
     const double ne = na * nb / (na + nb);

@@ -59,7 +59,8 @@ struct SkyMarginal {
         // Beyond the table: along the mean slope of its last tail_steps steps.
         const std::size_t s = std::size_t(tail_steps);
         if (at < 0.0) return values[0] + at * (values[s] - values[0]) / double(s);
-        return values[n - 1] + (at - double(n - 1)) * (values[n - 1] - values[n - 1 - s]) / double(s);
+        return values[n - 1] +
+               (at - double(n - 1)) * (values[n - 1] - values[n - 1 - s]) / double(s);
     }
     /// out[i] = T(in[i]) for i < count, rounded to float (a row of deviates).
     void map(const float* in, float* out, long count) const;

@@ -46,7 +46,8 @@ std::array<double, N> nelder_mead(const F& f, const std::array<double, N>& start
     const auto sort = [&] {
         std::array<std::size_t, N + 1> order;
         std::iota(order.begin(), order.end(), std::size_t(0));
-        std::stable_sort(order.begin(), order.end(), [&](std::size_t a, std::size_t b) { return fv[a] < fv[b]; });
+        std::stable_sort(order.begin(), order.end(),
+                         [&](std::size_t a, std::size_t b) { return fv[a] < fv[b]; });
         std::array<V, N + 1> v2;
         std::array<double, N + 1> f2;
         for (std::size_t k = 0; k <= N; ++k) {

@@ -98,7 +98,8 @@ SHAPESIM_LANES V blend_odd(V a, V b, std::index_sequence<K...>) {
 // (hi, lo) = m · a, 32 × 32 → 64 bits, in each lane: in vector lanes the even words' products
 // and the odd ones' (shifted down), their halves blended back in place.
 template <class L>
-SHAPESIM_LANES void mulhilo(typename L::V a, std::uint32_t m, typename L::V& hi, typename L::V& lo) {
+SHAPESIM_LANES void mulhilo(typename L::V a, std::uint32_t m, typename L::V& hi,
+                            typename L::V& lo) {
     using V = typename L::V;
     if constexpr (sizeof(V) == sizeof(std::uint32_t)) {
         const std::uint64_t p = std::uint64_t(a) * m;
@@ -196,9 +197,11 @@ void philox4x32_blocks(std::uint64_t key, std::uint32_t first, std::uint32_t c1,
 #ifdef SHAPESIM_LANES_X86
     if (lane::have_avx512()) done = philox_avx512(key, first, c1, c2, c3, count, out);
     if (lane::have_avx2())
-        done += philox_avx2(key, first + std::uint32_t(done), c1, c2, c3, count - done, out + 4 * done);
+        done +=
+            philox_avx2(key, first + std::uint32_t(done), c1, c2, c3, count - done, out + 4 * done);
 #endif
-    philox_lanes<OneBlock>(key, first + std::uint32_t(done), c1, c2, c3, count - done, out + 4 * done);
+    philox_lanes<OneBlock>(key, first + std::uint32_t(done), c1, c2, c3, count - done,
+                           out + 4 * done);
 }
 
 }  // namespace shapesim

@@ -70,7 +70,8 @@ __attribute__((target("avx2"))) long ziggurat_avx2(const std::uint32_t* words, l
         const __m256 inner = _mm256_i32gather_ps(t.inner, layer, 4);
         const __m256 sign = _mm256_castsi256_ps(_mm256_slli_epi32(_mm256_and_si256(w, bit7), 24));
         _mm256_storeu_ps(out + i, _mm256_xor_ps(x, sign));
-        unsigned rejected = ~unsigned(_mm256_movemask_ps(_mm256_cmp_ps(x, inner, _CMP_LT_OQ))) & 0xFFu;
+        unsigned rejected =
+            ~unsigned(_mm256_movemask_ps(_mm256_cmp_ps(x, inner, _CMP_LT_OQ))) & 0xFFu;
         while (rejected) {
             slow[count++] = i + __builtin_ctz(rejected);
             rejected &= rejected - 1;
@@ -116,7 +117,8 @@ __attribute__((target("avx512f"))) long ziggurat_avx512(const std::uint32_t* wor
         const __m512 u = _mm512_cvtepi32_ps(_mm512_srli_epi32(w, 8));
         const __m512 x = _mm512_mul_ps(u, lookup128(width, layer));
         const __m512i sign = _mm512_slli_epi32(_mm512_and_si512(w, bit7), 24);
-        _mm512_storeu_ps(out + i, _mm512_castsi512_ps(_mm512_xor_si512(_mm512_castps_si512(x), sign)));
+        _mm512_storeu_ps(out + i,
+                         _mm512_castsi512_ps(_mm512_xor_si512(_mm512_castps_si512(x), sign)));
         unsigned rejected = unsigned(_mm512_cmp_ps_mask(x, lookup128(inner, layer), _CMP_NLT_UQ));
         while (rejected) {
             slow[count++] = i + __builtin_ctz(rejected);
@@ -234,7 +236,8 @@ void WhiteNoise::row(long row, long first, long count, float* out) const {
     const std::uint64_t row_key = (std::uint64_t(row + margin) << 32) + q0;
     ids_.resize(std::size_t(slow));
     blocks_.resize(std::size_t(slow));
-    for (long k = 0; k < slow; ++k) ids_[std::size_t(k)] = row_key + std::uint64_t(slow_[std::size_t(k)]);
+    for (long k = 0; k < slow; ++k)
+        ids_[std::size_t(k)] = row_key + std::uint64_t(slow_[std::size_t(k)]);
     RandomStream::first_blocks(seed_, ids_.data(), ids_.size(), retry, blocks_.data());
     const long unsettled = settle_slow(w, slow_.data(), blocks_.data(), slow, out);
     const Ziggurat& zig = Ziggurat::instance();

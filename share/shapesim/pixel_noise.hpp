@@ -72,7 +72,8 @@ private:
         int dx, dy;       ///< k(dx, dy) multiplies w(p − d)
         bool paired;      ///< also w(p + d): k(−d) = k(d)
     };
-    float* white(long row);  ///< ring slot of white row `row` (columns first − K … first + nx + K − 1)
+    /// The ring slot of white row `row` (columns first − K … first + nx + K − 1).
+    float* white(long row);
 
     WhiteNoise white_;
     int radius_;

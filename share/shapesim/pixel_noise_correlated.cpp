@@ -27,10 +27,12 @@ struct TapRows {
 
 // out[i] = Σ_t weight_t (a_t[i] + b_t[i]) (or weight_t a_t[i]), taps in order, for pixels
 // from `i` on, four lane groups of V at a time (`i` is left at the first pixel of an unfinished
-// four, for sum_taps_one and sum_taps_tail). Four independent sums keep the adder busy (one sum's taps wait on each other),
-// and each pixel is still its own sum in tap order, the same bits in any width.
+// four, for sum_taps_one and sum_taps_tail). Four independent sums keep the adder busy (one sum's
+// taps wait on each other), and each pixel is still its own sum in tap order, the same bits in any
+// width.
 template <class V>
-__attribute__((always_inline)) inline void sum_taps_lanes(const TapRows& taps, long nx, float* out, long& i) {
+__attribute__((always_inline)) inline void sum_taps_lanes(const TapRows& taps, long nx, float* out,
+                                                          long& i) {
     constexpr long w = long(sizeof(V) / sizeof(float));
     auto load = [](const float* from) {
         V v;
@@ -64,7 +66,8 @@ __attribute__((always_inline)) inline void sum_taps_lanes(const TapRows& taps, l
 
 // The same sums one lane group at a time.
 template <class V>
-__attribute__((always_inline)) inline void sum_taps_one(const TapRows& taps, long nx, float* out, long& i) {
+__attribute__((always_inline)) inline void sum_taps_one(const TapRows& taps, long nx, float* out,
+                                                        long& i) {
     constexpr long w = long(sizeof(V) / sizeof(float));
     for (; i + w <= nx; i += w) {
         V acc = {};
@@ -136,7 +139,8 @@ CorrelatedNoise::CorrelatedNoise(const NoiseKernel& kernel, std::uint64_t seed, 
             if (dx == 0 && dy == 0) {
                 if (here != 0.0) taps_.push_back({float(here), 0, 0, false});
             } else if (std::abs(here - there) <= 1e-7 * peak) {
-                if (here != 0.0 || there != 0.0) taps_.push_back({float(0.5 * (here + there)), dx, dy, true});
+                if (here != 0.0 || there != 0.0)
+                    taps_.push_back({float(0.5 * (here + there)), dx, dy, true});
             } else {
                 if (here != 0.0) taps_.push_back({float(here), dx, dy, false});
                 if (there != 0.0) taps_.push_back({float(there), -dx, -dy, false});
@@ -151,7 +155,8 @@ CorrelatedNoise::CorrelatedNoise(const NoiseKernel& kernel, std::uint64_t seed, 
 
 float* CorrelatedNoise::white(long row) {
     const long width = 2 * radius_ + 1;
-    return ring_.data() + std::size_t(((row % width) + width) % width) * std::size_t(nx_ + 2 * radius_);
+    return ring_.data() +
+           std::size_t(((row % width) + width) % width) * std::size_t(nx_ + 2 * radius_);
 }
 
 const float* CorrelatedNoise::row(long row) {

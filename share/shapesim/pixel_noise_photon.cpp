@@ -48,10 +48,10 @@ SHAPESIM_LANES Mask4 ptrs_trial(const detail::Ptrs<Doubles4>& ptrs, Doubles4 u, 
 // operations on the same numbers (lane_math.hpp), so the same bits: inversion below 10, PTRS's
 // first trial above. A pixel whose first trial is rejected is listed (its index from `offset`
 // and its mean) for settle_open, which finishes it from its own stream.
-__attribute__((always_inline)) inline void photon_run(const std::uint32_t* words, long n, double gain,
-                                                     double* pixels, long offset,
-                                                     std::vector<long>& open_pixels,
-                                                     std::vector<double>& open_means) {
+__attribute__((always_inline)) inline void photon_run(const std::uint32_t* words, long n,
+                                                      double gain, double* pixels, long offset,
+                                                      std::vector<long>& open_pixels,
+                                                      std::vector<double>& open_means) {
     const double* small = detail::small_log_factorials();
     for (long i = 0; i < n; i += 4) {
         // Four pixels and their blocks; past the run's end, padding lanes of mean 10.
@@ -170,8 +170,8 @@ __attribute__((always_inline)) inline void settle_open(const long* index, const 
 // photon_run and settle_open compiled for AVX2 and for the baseline, chosen as the generators
 // are (SHAPESIM_SIMD=none takes the baseline: the program tests compare the bytes).
 #ifdef SHAPESIM_LANES_X86
-__attribute__((target("avx2"))) void photon_run_avx2(const std::uint32_t* words, long n, double gain,
-                                                     double* pixels, long offset,
+__attribute__((target("avx2"))) void photon_run_avx2(const std::uint32_t* words, long n,
+                                                     double gain, double* pixels, long offset,
                                                      std::vector<long>& open_pixels,
                                                      std::vector<double>& open_means) {
     photon_run(words, n, gain, pixels, offset, open_pixels, open_means);
@@ -209,8 +209,8 @@ long next_bright_scalar(const double* pixels, long from, long count, double leas
 // Bit k set where pixel k of the four at `s` is bright (NaN is not).
 __attribute__((target("avx2"))) inline unsigned bright_bits(const double* s, __m256d least) {
     const __m256d v = _mm256_loadu_pd(s);
-    return unsigned(_mm256_movemask_pd(_mm256_and_pd(_mm256_cmp_pd(v, _mm256_setzero_pd(), _CMP_GT_OQ),
-                                                     _mm256_cmp_pd(v, least, _CMP_GE_OQ))));
+    return unsigned(_mm256_movemask_pd(_mm256_and_pd(
+        _mm256_cmp_pd(v, _mm256_setzero_pd(), _CMP_GT_OQ), _mm256_cmp_pd(v, least, _CMP_GE_OQ))));
 }
 
 __attribute__((target("avx2"))) long next_bright_avx2(const double* pixels, long from, long count,
@@ -256,11 +256,12 @@ void PhotonNoise::row(long row, long first, long count, double gain, double leas
         const std::uint64_t q0 = std::uint64_t(first + i0 + WhiteNoise::margin);
         words_.resize(4 * std::size_t(i1 - i0));
         philox4x32_blocks(seed_, std::uint32_t(q0), std::uint32_t(row + WhiteNoise::margin),
-                          std::uint32_t(purpose), std::uint32_t(purpose >> 32), std::size_t(i1 - i0),
-                          words_.data());
+                          std::uint32_t(purpose), std::uint32_t(purpose >> 32),
+                          std::size_t(i1 - i0), words_.data());
 #ifdef SHAPESIM_LANES_X86
         if (have_avx2())
-            photon_run_avx2(words_.data(), i1 - i0, gain, pixels + i0, i0, open_pixels_, open_means_);
+            photon_run_avx2(words_.data(), i1 - i0, gain, pixels + i0, i0, open_pixels_,
+                            open_means_);
         else
 #endif
             photon_run_baseline(words_.data(), i1 - i0, gain, pixels + i0, i0, open_pixels_,

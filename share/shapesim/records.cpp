@@ -86,8 +86,9 @@ std::vector<Complex> read_coeffs(const Json& j, int n_max) {
             throw Error("expected a [re, im] pair, got " + pair.dump(), {}, 0, coeff_field(k));
         // The field's name is made only for an error (it is most of the time spent here).
         const auto number = [&](const Json& v) {
-            return v.is_number_float() && std::isfinite(v.get<double>()) ? v.get<double>()
-                                                                          : as_double(v, coeff_field(k));
+            return v.is_number_float() && std::isfinite(v.get<double>())
+                       ? v.get<double>()
+                       : as_double(v, coeff_field(k));
         };
         coeffs.emplace_back(number(pair[0]), number(pair[1]));
     }
@@ -596,12 +597,13 @@ Json TruthRecord::to_json() const { return write_record(truth_fields(), *this); 
 
 std::string field_unit(const std::string& field, const std::string& flux_unit) {
     static const std::map<std::string, std::string> units = {
-        {"ra", "deg"},        {"dec", "deg"},          {"theta", "deg"},   {"rotation", "deg"},
-        {"x", "pix"},         {"y", "pix"},            {"a", "pix"},       {"b", "pix"},
-        {"fwhm", "pix"},      {"fwhm_moffat", "pix"},  {"r_petro", "pix"},      {"rms_radius", "pix"},
-        {"stamp_radius", "pix"}, {"reach", "pix"},     {"beta", "arcsec"}, {"psf_beta", "arcsec"},
-        {"psf_rms_radius", "pix"}, {"shear_sigma", "pix"},
-        {"pixel_scale", "arcsec/pix"}, {"mag", "mag"}, {"zero_point", "mag"}};
+        {"ra", "deg"},           {"dec", "deg"},           {"theta", "deg"},
+        {"rotation", "deg"},     {"x", "pix"},             {"y", "pix"},
+        {"a", "pix"},            {"b", "pix"},             {"fwhm", "pix"},
+        {"fwhm_moffat", "pix"},  {"r_petro", "pix"},       {"rms_radius", "pix"},
+        {"stamp_radius", "pix"}, {"reach", "pix"},         {"beta", "arcsec"},
+        {"psf_beta", "arcsec"},  {"psf_rms_radius", "pix"}, {"shear_sigma", "pix"},
+        {"pixel_scale", "arcsec/pix"}, {"mag", "mag"},     {"zero_point", "mag"}};
     if (field == "flux" || field == "flux_err" || field == "clipped_flux" || field == "flux_aper")
         return flux_unit;
     if (const auto it = units.find(field); it != units.end()) return it->second;

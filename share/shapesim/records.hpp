@@ -152,7 +152,7 @@ struct TruthRecord {
     std::string kind = "galaxy";   ///< "galaxy" or "star", as the object record says
     double ra = 0.0, dec = 0.0;    ///< degrees, the object record's
     double x = 0.0, y = 0.0;       ///< model centre, field FITS pixels
-    double flux = 0.0;             ///< the light drawn, image units (negative light clipped included)
+    double flux = 0.0;             ///< the light drawn, image units (clipped light included)
     std::optional<double> mag;     ///< the record's mag moved by the flux drawn
     std::optional<double> clipped_flux;  ///< negative light set to zero (written when > 0)
     /// A galaxy's lensed shape before the PSF (moments.hpp; absent for stars). e1, e2 and

@@ -47,7 +47,8 @@ void SceneOptions::validate() const {
     check(lensing_tolerance >= 1e-14 && lensing_tolerance < 1.0, "lensing_tolerance",
           "must be in [1e-14, 1)");
     check(threads >= 1, "threads", "must be ≥ 1");
-    check(photon_tolerance >= 0.0 && photon_tolerance < 1.0, "photon_tolerance", "must be in [0, 1)");
+    check(photon_tolerance >= 0.0 && photon_tolerance < 1.0, "photon_tolerance",
+          "must be in [0, 1)");
     check(saturation >= 0.0 && std::isfinite(saturation), "saturation", "must be ≥ 0");
 }
 
@@ -91,7 +92,8 @@ double stamp_radius(const CartesianModel& model, double threshold) {
 }
 
 double truncation_threshold(const CartesianModel& model, const SceneOptions& options) {
-    if (!options.noise_free && options.noise_rms > 0.0) return options.truncation * options.noise_rms;
+    if (!options.noise_free && options.noise_rms > 0.0)
+        return options.truncation * options.noise_rms;
     std::vector<double> phi(std::size_t(model.n_max) + 1);
     hermite_functions(0.0, model.n_max, phi.data());
     double centre = 0.0;
@@ -228,9 +230,11 @@ PreparedObject prepare_object(const ObjectRecord& record, double field_pixel_sca
             m = dilate(m, record.pixel_scale / field_pixel_scale);
         // An intrinsic model (fitted through its image's PSF) is observed through the PSF
         // itself; an observed-frame one through the galaxy kernel.
-        const bool intrinsic = record.extra.contains("frame") && record.extra.at("frame") == "intrinsic";
+        const bool intrinsic =
+            record.extra.contains("frame") && record.extra.at("frame") == "intrinsic";
         if (intrinsic && !kernels.has_psf())
-            throw Error("object " + record.id + " is an intrinsic model: give --psf", "", 0, "frame");
+            throw Error("object " + record.id + " is an intrinsic model: give --psf", "", 0,
+                        "frame");
         std::optional<CartesianModel> here;  // the PSF where it is, when the PSF varies
         if (kernels.field) {
             here = kernels.field->at(*record.x, *record.y);
@@ -399,7 +403,8 @@ RenderedScene prepare_window(const std::vector<ObjectRecord>& records,
     scene.field = field;
     scene.window = window;
     try {
-        scene.objects = prepare_records(records, release, field.pixel_scale, kernels, options, window);
+        scene.objects =
+            prepare_records(records, release, field.pixel_scale, kernels, options, window);
     } catch (const Error& e) {
         throw e.at(source);
     }

@@ -85,8 +85,10 @@ void paint_into(ImageArray& image, const std::vector<PreparedObject>& objects, c
         for (const std::size_t i : order) {
             const PreparedObject& o = objects[i];
             const PixelWindow& w = o.window;
-            const long r0 = std::max<long>(w.row0, row_lo), r1 = std::min<long>(w.row0 + w.ny, row_hi);
-            const long c0 = std::max<long>(w.column0, col_lo), c1 = std::min<long>(w.column0 + w.nx, col_hi);
+            const long r0 = std::max<long>(w.row0, row_lo),
+                       r1 = std::min<long>(w.row0 + w.ny, row_hi);
+            const long c0 = std::max<long>(w.column0, col_lo),
+                       c1 = std::min<long>(w.column0 + w.nx, col_hi);
             // The whole stamp, whatever the window, then its overlap (negative light clipped
             // there, as it is added, where the stamp dips below zero).
             Eigen::Map<ImageArray> stamp(render_window(o.model, w, ws), w.ny, w.nx);
@@ -157,11 +159,13 @@ void add_noise(ImageArray& image, const Tile& window, long field_nx, const Scene
     if (options.noise_free) return;
     const long nx = window.x1 - window.x0 + 1, ny = window.y1 - window.y0 + 1;
     require(image.rows() == ny && image.cols() == nx, "add_noise: image and window differ");
-    const NoiseKernel kernel = options.noise_kernel ? *options.noise_kernel
-                                                    : drizzle_noise_kernel(options.noise_correlation);
+    const NoiseKernel kernel = options.noise_kernel
+                                   ? *options.noise_kernel
+                                   : drizzle_noise_kernel(options.noise_correlation);
     require(kernel.radius <= max_noise_kernel_radius, "add_noise: the noise kernel is too wide");
     const ImageArray* scale = options.noise_scale ? &*options.noise_scale : nullptr;
-    require(!scale || (scale->cols() == field_nx && scale->rows() >= window.y1 && window.x1 <= field_nx),
+    require(!scale ||
+                (scale->cols() == field_nx && scale->rows() >= window.y1 && window.x1 <= field_nx),
             "add_noise: the noise scale map does not cover the field");
     const double sigma = options.noise_rms;
     // Photon noise only where it adds at least `photon_tolerance` of the background variance:
@@ -188,7 +192,8 @@ void add_noise(ImageArray& image, const Tile& window, long field_nx, const Scene
                     options.noise_marginal.map(n, mapped.data(), nx);
                     n = mapped.data();
                 }
-                add_background(pixels, n, sigma, scale ? &(*scale)(row, window.x0 - 1) : nullptr, nx);
+                add_background(pixels, n, sigma, scale ? &(*scale)(row, window.x0 - 1) : nullptr,
+                               nx);
             }
             if (options.saturation > 0.0)
                 for (long i = 0; i < nx; ++i) pixels[i] = std::min(pixels[i], options.saturation);

@@ -51,7 +51,8 @@ TruthRecord truth_record(const PreparedObject& object, const ObjectRecord& recor
     t.n_max = object.model.n_max;
     t.stamp_radius = object.radius;
     // A ring's members (shapesim-sample --ring) stay together in a calibration's bootstrap.
-    if (const auto ring = record.extra.find("ring"); ring != record.extra.end()) t.extra["ring"] = *ring;
+    if (const auto ring = record.extra.find("ring"); ring != record.extra.end())
+        t.extra["ring"] = *ring;
     return t;
 }
 
@@ -126,14 +127,16 @@ FitsImageSpec scene_image_spec(const RenderedScene& scene, const std::vector<Obj
         FitsKeyword("FIELDNX", (long long)scene.field.nx, "field width, pixels"),
         FitsKeyword("FIELDNY", (long long)scene.field.ny, "field height, pixels"),
     };
-    if (!labels.band.empty()) spec.keywords.emplace_back("BAND", labels.band, "band of the objects drawn");
+    if (!labels.band.empty())
+        spec.keywords.emplace_back("BAND", labels.band, "band of the objects drawn");
     if (o.saturation > 0.0 && !o.noise_free)
         spec.keywords.emplace_back("SATURATE", o.saturation, "full well: pixels are at most this");
     if (labels.exposure_time > 0.0)
         spec.keywords.emplace_back("EXPTIME", labels.exposure_time, "exposure time, seconds");
     if (const std::optional<double> zero_point = objects_zero_point(records)) {
         const double zp = std::round(*zero_point * 1e6) / 1e6;
-        spec.keywords.emplace_back("MAGZERO", zp, "AB zero point: mag = MAGZERO - 2.5 log10(value)");
+        spec.keywords.emplace_back("MAGZERO", zp,
+                                   "AB zero point: mag = MAGZERO - 2.5 log10(value)");
         spec.keywords.emplace_back("PHOTZP", zp, "AB zero point (as MAGZERO)");
     }
     return spec;

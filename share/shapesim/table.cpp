@@ -86,7 +86,8 @@ private:
                 return;
             }
             std::string joined;
-            for (const Json& v : value) joined += (joined.empty() ? "" : ",") + v.get<std::string>();
+            for (const Json& v : value)
+                joined += (joined.empty() ? "" : ",") + v.get<std::string>();
             put_text(name, joined);
             return;
         }
@@ -296,7 +297,8 @@ Columns read_fits_columns(const std::string& path, const std::vector<std::string
         }(), path);
     }
     const long rows = fits.table_rows();
-    if (rows > max_rows) throw Error("more than " + std::to_string(max_rows) + " rows", fits.place());
+    if (rows > max_rows)
+        throw Error("more than " + std::to_string(max_rows) + " rows", fits.place());
     Columns out;
     for (const std::string& n : required) out[n] = fits.read_column(n);
     for (const std::string& n : optional)
@@ -335,7 +337,8 @@ std::map<std::string, std::vector<double>> read_numeric_columns(
         if (format == Format::unknown || format == Format::sextractor) {
             const auto first = line.find_first_not_of(" \t");
             if (line[first] == '{') {
-                if (format == Format::sextractor) throw Error("a JSON line after a header", path, number);
+                if (format == Format::sextractor)
+                    throw Error("a JSON line after a header", path, number);
                 format = Format::jsonl;
                 for (const std::string& n : required) out[n];
             } else if (line[first] == '#') {
@@ -347,7 +350,8 @@ std::map<std::string, std::vector<double>> read_numeric_columns(
                     format = Format::sextractor;
                     // A vector column (e.g. "#  5 FLUX_APER") spans to the next header's number.
                     while (long(sextractor_names.size()) < column - 1)
-                        sextractor_names.push_back(sextractor_names.empty() ? "" : sextractor_names.back() + "+");
+                        sextractor_names.push_back(
+                            sextractor_names.empty() ? "" : sextractor_names.back() + "+");
                     sextractor_names.push_back(name);
                 }
                 continue;
@@ -357,7 +361,8 @@ std::map<std::string, std::vector<double>> read_numeric_columns(
                 std::istringstream f(line);
                 std::string cell;
                 while (std::getline(f, cell, ',')) {
-                    const auto b = cell.find_first_not_of(" \t\""), e = cell.find_last_not_of(" \t\"");
+                    const auto b = cell.find_first_not_of(" \t\""),
+                               e = cell.find_last_not_of(" \t\"");
                     names.push_back(b == std::string::npos ? "" : cell.substr(b, e - b + 1));
                 }
                 begin_rows(names);
@@ -367,7 +372,8 @@ std::map<std::string, std::vector<double>> read_numeric_columns(
                 format = Format::sextractor_rows;
             }
         }
-        if (++rows > max_rows) throw Error("more than " + std::to_string(max_rows) + " rows", path, number);
+        if (++rows > max_rows)
+            throw Error("more than " + std::to_string(max_rows) + " rows", path, number);
         if (format == Format::jsonl) {
             Json record;
             try {
@@ -405,8 +411,11 @@ std::map<std::string, std::vector<double>> read_numeric_columns(
         }
         for (const auto& [n, k] : at) {
             double v;
-            if (k >= cells.size()) throw Error("the row has " + std::to_string(cells.size()) + " cells", path, number, n);
-            if (!cell_number(cells[k], v)) throw Error("not a number: " + cells[k].substr(0, 40), path, number, n);
+            if (k >= cells.size())
+                throw Error("the row has " + std::to_string(cells.size()) + " cells", path, number,
+                            n);
+            if (!cell_number(cells[k], v))
+                throw Error("not a number: " + cells[k].substr(0, 40), path, number, n);
             out[n].push_back(v);
         }
     }
