@@ -287,47 +287,11 @@ JsonlReader::JsonlReader(std::istream& in, std::string name, std::vector<std::st
 
 JsonlReader::~JsonlReader() = default;
 
-namespace {
-
-// One line of `in` into `text` (without its newline), read in chunks so that a line longer
-// than max_line_bytes is refused once it passes the limit, not after it has filled memory
-// (`render -i /dev/zero`). False at the end of input.
-bool read_line(std::istream& in, std::string& text, const std::string& name, long line) {
-    text.clear();
-    char chunk[1 << 16];
-    while (true) {
-        in.getline(chunk, sizeof chunk);
-        const std::streamsize got = in.gcount();
-        if (in.bad()) throw Error(std::string("read failed: ") + std::strerror(errno), name);
-        if (in.fail() && !in.eof() && got == std::streamsize(sizeof chunk) - 1) {
-            // The chunk is full and the line goes on.
-            text.append(chunk, std::size_t(got));
-            in.clear();
-            if (text.size() > max_line_bytes)
-                throw Error("a line longer than " + std::to_string(max_line_bytes >> 20) +
-                                " MiB: not a JSON-lines catalogue (no newline?)",
-                            name, line);
-            continue;
-        }
-        if (in.eof()) {
-            // The last line, without a newline; none at all when nothing was read.
-            text.append(chunk, std::size_t(got));
-            if (got == 0 && text.empty()) return false;
-            in.clear(std::ios::eofbit);
-            return true;
-        }
-        if (in.fail()) return false;
-        text.append(chunk, std::size_t(got) - 1);  // the newline was extracted and counted
-        return true;
-    }
-}
-
-}  // namespace
-
 bool JsonlReader::next_line(std::string& text) {
     // Skip blank lines; every line, blank or not, counts for the line number.
     do {
-        if (!read_line(*in_, text, name_, line_ + 1)) return false;
+        if (!read_text_line(*in_, text, name_, line_ + 1, "a JSON-lines catalogue"))
+            return false;
         ++line_;
     } while (is_blank(text));
     return true;

@@ -9,6 +9,7 @@
 
 #include "shapesim/error.hpp"
 #include "shapesim/parallel.hpp"
+#include "shapesim/text_rows.hpp"
 
 #include <nlohmann/json.hpp>
 
@@ -55,10 +56,6 @@ template <class Record, class = void>
 struct has_pairs_key : std::false_type {};
 template <class Record>
 struct has_pairs_key<Record, std::void_t<decltype(Record::pairs_key)>> : std::true_type {};
-
-/// The longest line a JsonlReader reads (256 MiB: a record of n_max 1000, the records' cap,
-/// is about 20 MB); a longer one is an Error naming its line.
-constexpr std::size_t max_line_bytes = std::size_t(256) << 20;
 
 /// Reads a JSON-lines stream, one object per line, checking each record's schema.
 class JsonlReader {

@@ -329,9 +329,8 @@ std::map<std::string, std::vector<double>> read_numeric_columns(
         at = wanted_columns(names, required, optional, path);
         for (const auto& [n, k] : at) out[n];
     };
-    while (std::getline(in, line)) {
+    while (read_text_line(in, line, path, number + 1, "a catalogue")) {
         ++number;
-        if (line.size() > max_line_bytes) throw Error("line too long", path, number);
         if (!line.empty() && line.back() == '\r') line.pop_back();
         if (line.find_first_not_of(" \t") == std::string::npos) continue;
         if (format == Format::unknown || format == Format::sextractor) {

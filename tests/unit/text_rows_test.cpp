@@ -11,6 +11,7 @@
 #include <gtest/gtest.h>
 
 #include <fstream>
+#include <functional>
 #include <sstream>
 #include <utility>
 #include <vector>
@@ -64,13 +65,6 @@ TEST(TextRows, ErrorFromARowKeepsItsLine) {
     }
 }
 
-// The readers on text tables: what each accepts and the line it names when it refuses.
-std::string write_file(const test::TempDir& dir, const std::string& name, const std::string& text) {
-    const std::string path = dir.path() + "/" + name;
-    std::ofstream(path) << text;
-    return path;
-}
-
 std::string refusal(const std::function<void()>& read) {
     try {
         read();
@@ -79,6 +73,30 @@ std::string refusal(const std::function<void()>& read) {
     }
     return "(read)";
 }
+
+// /dev/zero never ends a line: refused once the line passes the bound, not after it has filled
+// memory (the JSON-lines reader and the catalogue tables read their lines the same way).
+TEST(TextRows, EndlessLineRefusedAtTheBound) {
+    std::ifstream zeros("/dev/zero", std::ios::binary);
+    ASSERT_TRUE(zeros);
+    EXPECT_EQ(refusal([&] { for_each_text_row(zeros, "/dev/zero", [](auto&&...) {}); }),
+              "/dev/zero:1: a line longer than 256 MiB: not a text table (no newline?)");
+    std::istringstream two("first\nsecond, no newline");
+    std::string text;
+    ASSERT_TRUE(read_text_line(two, text, "t", 1, "a text table"));
+    EXPECT_EQ(text, "first");
+    ASSERT_TRUE(read_text_line(two, text, "t", 2, "a text table"));
+    EXPECT_EQ(text, "second, no newline");
+    EXPECT_FALSE(read_text_line(two, text, "t", 3, "a text table"));
+}
+
+// The readers on text tables: what each accepts and the line it names when it refuses.
+std::string write_file(const test::TempDir& dir, const std::string& name, const std::string& text) {
+    const std::string path = dir.path() + "/" + name;
+    std::ofstream(path) << text;
+    return path;
+}
+
 
 TEST(TextRows, StarHistogramReadAndRefused) {
     const test::TempDir dir;
