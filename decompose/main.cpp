@@ -137,9 +137,20 @@ int run_psf(const app::DecomposeSettings& s, const app::ProgramOptions& options,
 int run_catalogue(const app::DecomposeSettings& s, const app::ProgramOptions& options,
                   const app::Log& log, AtomicTextFile& file) {
     const std::string& catalogue = s.real_galaxy_catalog;
-    const std::vector<RealGalaxy> galaxies =
-        read_real_galaxy_catalog(catalogue, s.real_galaxy_folder);
+    std::vector<RealGalaxy> galaxies = read_real_galaxy_catalog(catalogue, s.real_galaxy_folder);
     log.info(galaxies.size(), " galaxies in ", catalogue, " (", log.elapsed(), " s)");
+    if (s.real_galaxy_psf.empty())  // refused before any fit, with the way out
+        for (const RealGalaxy& g : galaxies)
+            if (!real_galaxy_psf_present(g))
+                throw Error(g.psf + ": no such file (the catalogue's PSF file is not here: "
+                                "give one with --real-galaxy-psf IMAGE[HDU])",
+                            catalogue, g.row, "PSF_FILENAME");
+    if (const long n = use_substitute_psf(galaxies, s.real_galaxy_psf))
+        log.warn(n, " of ", galaxies.size(), " galaxies' PSF files are absent (first: ",
+                 std::find_if(galaxies.begin(), galaxies.end(), [](const RealGalaxy& g) {
+                     return g.psf_substituted;
+                 })->ident, "): fitted through --real-galaxy-psf ", s.real_galaxy_psf,
+                 " instead (flagged psf_substituted)");
     const int side = odd_psf_stamp(s);
     const std::unique_ptr<FitsWriter> models = models_file(s, options);
     const std::vector<std::string> listed = app::split_list(s.ids);
@@ -181,6 +192,10 @@ int run_catalogue(const app::DecomposeSettings& s, const app::ProgramOptions& op
             ShapeletRecord& r = *o.record;
             r.mag = g.mag;  // the catalogue's: what its sample was selected on
             r.extra["psf_n_max"] = psfs[k]->n_max;
+            if (g.psf_substituted) {
+                r.flags.push_back("psf_substituted");
+                r.extra["psf_image"] = g.psf;
+            }
             r.extra["psf_residual"] = psfs[k]->max_residual_fraction;
             if (!psfs[k]->reached_target) {
                 ++psf_missed;

@@ -40,6 +40,10 @@ void DecomposeSettings::declare(ProgramOptions& options) {
          "the catalogue's MAG their magnitude and the catalogue their \"image\"")
         ("real-galaxy-folder", po::value(&s.real_galaxy_folder)->value_name("DIR"),
          "folder of the catalogue's galaxy and PSF files (default: the catalogue's)")
+        ("real-galaxy-psf", po::value(&s.real_galaxy_psf)->value_name("IMAGE[HDU]"),
+         "with --real-galaxy-catalog: the PSF image of every galaxy whose PSF file is absent "
+         "(a COSMOS sample copied without it), e.g. one real ACS PSF; those records are "
+         "flagged psf_substituted and name it in \"psf_image\" (default: refused)")
         ("gain", po::value(&s.gain)->value_name("E_PER_UNIT")
              ->notifier(in_range("gain", 0.0, 1e30)),
          "with --real-galaxy-catalog: electrons per image unit of its stamps (their exposure "
@@ -164,8 +168,10 @@ void DecomposeSettings::check() {
     if (!real_galaxy_catalog.empty() && (!psf.empty() || !stamps.empty()))
         throw po::error("--real-galaxy-catalog names each galaxy's stamp and PSF: no --psf or "
                         "--stamps with it");
-    if ((!real_galaxy_folder.empty() || gain > 0.0) && real_galaxy_catalog.empty())
-        throw po::error("--real-galaxy-folder and --gain need --real-galaxy-catalog");
+    if ((!real_galaxy_folder.empty() || !real_galaxy_psf.empty() || gain > 0.0) &&
+        real_galaxy_catalog.empty())
+        throw po::error("--real-galaxy-folder, --real-galaxy-psf and --gain need "
+                        "--real-galaxy-catalog");
 }
 
 JobReader DecomposeSettings::job_reader(const ProgramOptions& options) {

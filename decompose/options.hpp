@@ -15,7 +15,7 @@ namespace shapesim::app {
 struct DecomposeSettings {
     std::string stamps, models, ids, stars;
     std::string psf_image, psf, psf_field, reference_band;
-    std::string real_galaxy_catalog, real_galaxy_folder, psf_analytic;
+    std::string real_galaxy_catalog, real_galaxy_folder, real_galaxy_psf, psf_analytic;
     double psf_tolerance = 0.01;
     int batch = 256;
     double gain = 0.0;

@@ -7,6 +7,7 @@
 
 #include <cmath>
 #include <cstdio>
+#include <fstream>
 #include <utility>
 
 namespace shapesim {
@@ -126,6 +127,23 @@ std::vector<RealGalaxy> read_real_galaxy_catalog(const std::string& path,
         galaxies.push_back(std::move(g));
     }
     return galaxies;
+}
+
+bool real_galaxy_psf_present(const RealGalaxy& galaxy) {
+    const std::string file = galaxy.psf.substr(0, galaxy.psf.find('['));
+    return std::ifstream(file).good();
+}
+
+long use_substitute_psf(std::vector<RealGalaxy>& galaxies, const std::string& substitute) {
+    if (substitute.empty()) return 0;
+    long substituted = 0;
+    for (RealGalaxy& g : galaxies)
+        if (!real_galaxy_psf_present(g)) {
+            g.psf = substitute;
+            g.psf_substituted = true;
+            ++substituted;
+        }
+    return substituted;
 }
 
 PsfImage read_real_galaxy_psf(const RealGalaxy& galaxy, const std::string& catalogue) {

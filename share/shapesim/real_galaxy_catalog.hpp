@@ -24,6 +24,8 @@ struct RealGalaxy {
     std::optional<double> ra, dec;  ///< degrees
     std::string image;      ///< cfitsio path of the stamp: `folder/GAL_FILENAME[GAL_HDU]`
     std::string psf;        ///< cfitsio path of the PSF image: `folder/PSF_FILENAME[PSF_HDU]`
+    /// The catalogue's PSF file is absent: `psf` is a stated substitute (use_substitute_psf).
+    bool psf_substituted = false;
     double pixel_scale = 0.0;     ///< arcsec per pixel, > 0
     double noise_mean = 0.0;      ///< image units
     double noise_variance = 0.0;  ///< image units², > 0
@@ -36,6 +38,15 @@ struct RealGalaxy {
 /// fractional HDU, an empty file name, a negative WEIGHT).
 std::vector<RealGalaxy> read_real_galaxy_catalog(const std::string& path,
                                                  const std::string& image_folder = {});
+
+/// Whether the file of `galaxy.psf` (its path before any `[HDU]`) exists. The COSMOS samples
+/// are often copied without their PSF files; a caller then states a substitute.
+bool real_galaxy_psf_present(const RealGalaxy& galaxy);
+
+/// Every galaxy whose PSF file is absent (real_galaxy_psf_present) takes `substitute` (a
+/// cfitsio path of a PSF image, e.g. one real COSMOS PSF) and is marked psf_substituted; an
+/// empty `substitute` changes nothing. Returns how many were substituted.
+long use_substitute_psf(std::vector<RealGalaxy>& galaxies, const std::string& substitute);
 
 /// The PSF image of `galaxy` (its sky removed: read_psf_image()), read on the caller's thread.
 /// Errors name the catalogue, the row and the file's column.
