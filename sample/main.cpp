@@ -4,6 +4,7 @@
 #include "app/field_options.hpp"
 #include "app/options.hpp"
 #include "app/run_main.hpp"
+#include <fstream>
 #include "shapesim/atomic_file.hpp"
 #include "shapesim/geometry.hpp"
 #include "shapesim/jsonl.hpp"
@@ -16,8 +17,8 @@ using namespace shapesim;
 namespace po = app::po;
 
 const char* const description =
-    "Draw new galaxies from the morphology model: each a magnitude from the counts fitted to\n"
-    "the model's fields (--counts), a shape parent among the --neighbours real galaxies\n"
+    "Draw new galaxies from the morphology model: each a magnitude from the published galaxy\n"
+    "counts (--counts), a shape parent among the --neighbours real galaxies\n"
     "nearest that magnitude, mixed with the --mix - 1 galaxies of its window most alike to it\n"
     "(random weights: a new galaxy whose light is nowhere negative), then a uniform position,\n"
     "orientation and flip; add stars; write shapesim.object/1 records. --neighbours 0 is the\n"
@@ -38,7 +39,7 @@ struct Settings {
     bool replay = false;
     app::FieldOptions field;
     double margin = 0.5;
-    std::string star_histogram, counts = "fit";
+    std::string star_histogram, counts = "law";
     std::uint64_t count = 0, star_count = 0;
     std::vector<long> tile_grid;
     SampleOptions sample;
@@ -133,9 +134,12 @@ int run(int argc, const char* const argv[]) {
         ("max-mag-shift", po::value(&o.draw.max_mag_shift)->default_value(2.0)
              ->notifier(in_range("max-mag-shift", 0.0, 100.0)),
          "--neighbours only within this many magnitudes of the draw (the nearest always)")
-        ("counts", po::value(&s.counts)->default_value("fit")->value_name("fit|parents"),
-         "--neighbours draws' magnitudes: 'fit', from a power law fitted to the model's fields'\n"
-         "counts (and the density with it); 'parents', a parent's magnitude perturbed")
+        ("counts", po::value(&s.counts)->default_value("law")->value_name("law|FILE|fit|parents"),
+         "--neighbours draws' magnitudes (and the density with them): 'law', the published\n"
+         "I-band (F814W) galaxy counts, the same at every --mag-limit (COSMOS2020, HDF-N\n"
+         "fainter; docs/sample.md); FILE, a law of lines 'mag log10(dN/dm per deg^2 per mag)';\n"
+         "'fit', a power law fitted to the model's fields up to --mag-limit; 'parents', a\n"
+         "parent's magnitude perturbed")
         ("size-slope", po::value(&o.draw.size_slope)->default_value(0.3)
              ->notifier(in_range("size-slope", -5.0, 5.0)),
          "a shape moved to another magnitude has its beta scaled as L^this")
@@ -173,13 +177,23 @@ int run(int argc, const char* const argv[]) {
             throw po::error("the model has no zero point: give --zero-point");
         o.zero_point = *morphology.zero_point;
     }
-    if (s.counts != "fit" && s.counts != "parents")
-        throw po::error("--counts takes 'fit' or 'parents', not '" + s.counts + "'");
-    // The real field's density at this magnitude limit, when smooth recorded it (--like): the
-    // fitted counts' with them.
+    // The counts: a law (shipped or a file's), fitted to the model's fields, or the parents'.
+    if (s.counts != "law" && s.counts != "fit" && s.counts != "parents" &&
+        !std::ifstream(s.counts).good())
+        throw po::error("--counts takes law, fit, parents or a count-law file; '" + s.counts +
+                        "' is none (no such file)");
+    const CountSource source = s.counts == "fit"       ? CountSource::fit
+                               : s.counts == "parents" ? CountSource::parents
+                                                       : CountSource::law;
+    const CountModel law = s.counts == "law" || source != CountSource::law
+                               ? count_law()
+                               : read_count_law(s.counts);
     if (!options.given("mix")) o.draw.mix = std::min(o.draw.mix, o.draw.neighbours);
-    apply_model_counts(o, morphology, s.counts == "fit", options.given("density"), s.model);
-    if (const std::optional<CountModel>& counts = o.draw.counts)
+    apply_model_counts(o, morphology, source, options.given("density"), s.model, law);
+    if (const std::optional<CountModel>& counts = o.draw.counts; counts && counts->tabulated())
+        log.info("galaxy counts: ", counts->density(), " per arcmin^2 over ", counts->bright,
+                 " - ", counts->faint, ", ", counts->source);
+    else if (counts)
         log.info("galaxy counts: d log10 N / dm = ", counts->slope, ", ", counts->density(),
                  " per arcmin^2 over ", counts->bright, " - ", counts->faint, ", fitted to ",
                  counts->galaxies, " galaxies of ", morphology.source_fields.size(), " field(s)");

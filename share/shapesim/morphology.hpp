@@ -130,18 +130,40 @@ double power_law_magnitude(double u, double slope, double lo, double hi);
 /// at its bright end: drawn as they are (a parent's magnitude, perturbed), a 6 arcmin²
 /// simulation gets their Poisson luck times fifty; fitted, the bright end follows the slope the
 /// whole field measures.
+///
+/// Or a tabulated law (`knot_mag`, `knot_log` non-empty: count_law(), read_count_law()):
+/// log₁₀ dN/dm per arcmin² per magnitude at the knots, exponential (a power law) between them
+/// and along the end segments' slopes beyond; the same galaxies per magnitude whatever the
+/// limit, since nothing is fitted.
 struct CountModel {
     double pivot = 25.0;
     double log_density = 0.0;  ///< log₁₀ dN/dm at the pivot (per arcmin² per magnitude)
     double slope = 0.0;        ///< d log₁₀ N / dm
     double bright = 0.0, faint = 0.0;  ///< the magnitudes drawn
     std::size_t galaxies = 0;  ///< how many real galaxies the fit saw
-    /// Galaxies per arcmin² between lo and hi.
+    std::vector<double> knot_mag, knot_log;  ///< a tabulated law (ascending magnitudes)
+    std::string source;        ///< where a tabulated law comes from (citation or file)
+    bool tabulated() const { return !knot_mag.empty(); }
+    /// log₁₀ dN/dm per arcmin² per magnitude at `mag` (either form).
+    double log_dndm(double mag) const;
+    /// Galaxies per arcmin² between lo and hi (within [bright, faint]).
     double density(double lo, double hi) const;
     double density() const { return density(bright, faint); }
     /// A magnitude in [bright, faint] from one uniform deviate u ∈ [0, 1).
-    double magnitude(double u) const { return power_law_magnitude(u, slope, bright, faint); }
+    double magnitude(double u) const;
 };
+
+/// The I-band (HST F814W, AB) galaxy counts drawn by default, on [16, 31]: the COSMOS2020 i-band
+/// counts (Weaver et al. 2022, ApJS 258, 11, Table 2: log₁₀ dN/dm per deg² per magnitude in
+/// 0.5-mag bins, 19.25–25.75, where the catalogue is complete), fainter along d log₁₀ N / dm =
+/// 0.26 (the HDF-N I₈₁₄ counts to I = 31, Marín-Franch & Aparicio 2003), brighter along the
+/// table's own bright slope (0.44). docs/sample.md#galaxy-counts compares it with the LSST
+/// Science Book's i-band law and the shipped fields.
+CountModel count_law();
+/// A count law from a text file of lines "mag log10_dN_dm" (galaxies per deg² per magnitude,
+/// AB; '#' comments), ascending magnitudes, at least two; drawn on [first − 3, last + 3] along
+/// the end slopes. Error naming the file and line.
+CountModel read_count_law(const std::string& path);
 
 /// The power law of most likelihood (Poisson, unbinned) for the galaxies of every field between
 /// `bright` and the fainter of `faint` and the field's completeness, each field over its own
@@ -336,6 +358,12 @@ struct DrawOptions {
 /// conditional (neighbours 0, δ mode) or the model recorded no field.
 std::optional<CountModel> conditional_counts(const Morphology& morphology, const DrawOptions& draw,
                                              double mag_limit);
+
+/// A count law (`law`, tabulated or not) as a conditional draw's counts: from the law's bright end
+/// to `mag_limit`. None when the draw is not conditional (neighbours 0, δ mode). Error when the
+/// limit is not fainter than the law's bright end.
+std::optional<CountModel> law_counts(const Morphology& morphology, const DrawOptions& draw,
+                                     const CountModel& law, double mag_limit);
 
 /// The half-width of a conditional draw's magnitude kernel about its magnitude parent `p`:
 /// λ_mag, widened to the gap to the nearest counted parent (mag_gap) but never past half of

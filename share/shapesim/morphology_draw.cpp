@@ -80,12 +80,16 @@ double conditional_mag_spread(const MorphologyPoint& p, double lambda_mag,
 namespace {
 
 // The window [lo, hi) of `order` (sorted by magnitude) holding the `k` parents nearest in
-// magnitude to `mag` that lie within `max_shift` of it (the nearest always qualifies).
+// magnitude to `mag` that lie within `max_shift` of it (the nearest always qualifies). A draw
+// brighter than every parent takes the window of the brightest: the k brightest parents (within
+// max_shift of the brightest), each moved up along the size–magnitude relation, so the bright
+// end is many galaxies, not copies of the one brightest.
 std::pair<std::size_t, std::size_t> magnitude_window(const Morphology& morphology,
                                                      const std::vector<std::size_t>& order,
                                                      double mag, std::size_t k, double max_shift) {
     k = std::min(k, order.size());
     const auto at = [&](std::size_t i) { return morphology.points[order[i]].mag; };
+    if (!order.empty()) mag = std::max(mag, at(0));
     // [lo, hi) grows from the insertion point towards the nearer side, ties to the brighter.
     std::size_t hi = std::size_t(
         std::lower_bound(order.begin(), order.end(), mag,
@@ -125,6 +129,18 @@ std::optional<CountModel> conditional_counts(const Morphology& morphology, const
     if (order.empty()) return std::nullopt;
     const double bright = morphology.points[order.front()].mag - 0.5 * draw.max_mag_shift;
     return fit_counts(morphology.source_fields, bright, mag_limit);
+}
+
+std::optional<CountModel> law_counts(const Morphology& morphology, const DrawOptions& draw,
+                                     const CountModel& law, double mag_limit) {
+    if (draw.neighbours <= 0 || morphology.lambda.is_delta()) return std::nullopt;
+    if (!(mag_limit > law.bright))
+        throw Error("the magnitude limit " + std::to_string(mag_limit) +
+                    " is not fainter than the count law's bright end " +
+                    std::to_string(law.bright));
+    CountModel counts = law;
+    counts.faint = mag_limit;
+    return counts;
 }
 
 namespace {
@@ -394,10 +410,12 @@ DrawnGalaxy draw_mixture(const Morphology& morphology, const std::vector<double>
                          RandomStream& stream, double pixel_scale, double zero_point,
                          double mag_limit, const DrawOptions& draw) {
     DrawnGalaxy g;
-    const double u = stream.uniform() * parents.back();
+    // The counts' magnitude from the deviate itself: the same whatever parents the limit admits.
+    const double deviate = stream.uniform();
+    const double u = deviate * parents.back();
     const std::size_t mag_parent = parent_at(parents, u);
     if (draw.counts) {
-        g.mag = draw.counts->magnitude(u / parents.back());
+        g.mag = draw.counts->magnitude(deviate);
     } else {
         const MorphologyPoint& p = morphology.points[mag_parent];
         const double spread = conditional_mag_spread(p, morphology.lambda.mag, draw);
@@ -445,13 +463,14 @@ DrawnGalaxy draw_galaxy(const Morphology& morphology, const std::vector<double>&
     if (conditional && draw.mix >= 2)
         return draw_mixture(morphology, parents, stream, pixel_scale, zero_point, mag_limit, draw);
     DrawnGalaxy g;
-    const double u = stream.uniform() * parents.back();
+    const double deviate = stream.uniform();
+    const double u = deviate * parents.back();
     g.parent = parent_at(parents, u);
     // Magnitudes from the fitted counts: drawn once (the same deviate), the shape parent the
     // only parent.
     const bool counted = conditional && draw.counts.has_value();
     if (counted) {
-        g.mag = draw.counts->magnitude(u / parents.back());
+        g.mag = draw.counts->magnitude(deviate);
         g.parent = near_in_magnitude(morphology, draw, g.mag, stream.uniform());
     }
     g.mag_parent = g.parent;

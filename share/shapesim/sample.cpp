@@ -111,13 +111,16 @@ void SampleOptions::validate() const {
 }
 
 
-void apply_model_counts(SampleOptions& options, const Morphology& morphology, bool fit_counts,
-                        bool density_given, const std::string& model_path) {
+void apply_model_counts(SampleOptions& options, const Morphology& morphology, CountSource source,
+                        bool density_given, const std::string& model_path, const CountModel& law) {
     // Refused before anything is fitted or said.
     options.draw.validate();
     if (options.faint_limit && !(*options.faint_limit > options.mag_limit))
         throw Error("must be fainter than the magnitude limit", "", 0, "faint_limit");
-    if (fit_counts) {
+    if (source == CountSource::law) {
+        options.draw.counts = law_counts(morphology, options.draw, law, options.mag_limit);
+        if (!density_given && options.draw.counts) options.density = options.draw.counts->density();
+    } else if (source == CountSource::fit) {
         try {
             options.draw.counts = conditional_counts(morphology, options.draw, options.mag_limit);
         } catch (const Error& e) {
@@ -125,13 +128,14 @@ void apply_model_counts(SampleOptions& options, const Morphology& morphology, bo
         }
     }
     const std::optional<CountModel>& counts = options.draw.counts;
-    if (!density_given && !morphology.source_fields.empty())
+    if (!density_given && !morphology.source_fields.empty() &&
+        !(source == CountSource::law && counts))
         options.density = counts ? counts->density()
                                  : field_density(morphology.source_fields, options.mag_limit);
     if (!options.faint_limit) return;
     // The unresolved galaxies' counts: the conditional draw's fit, or one made for them over
     // every parent's range, extrapolated past the limit.
-    if (morphology.source_fields.empty())
+    if (morphology.source_fields.empty() && !counts)
         throw Error("--faint-limit needs a model that recorded its fields (shapesim-smooth "
                     "--like, --area or --field) for the counts it extrapolates", model_path);
     CountModel faint;
@@ -382,6 +386,72 @@ std::uint64_t for_each_placed(const Cells& cells, const std::vector<std::uint64_
     return read;
 }
 
+// Galaxies drawn from a count law (CountModel::tabulated) come in fixed 0.5-mag slices from
+// the law's bright end: each cell's count in slice s is Poisson from the stream of (seed, cell ·
+// 2^16 + s), its objects numbered after the brighter slices' and their magnitudes drawn within
+// it; the slice holding the limit is drawn whole and its galaxies past the limit dropped. So
+// a galaxy brighter than any limit is the same galaxy (id, magnitude, place, shape) whatever
+// the limit: the counts do not move with --mag-limit.
+struct LawSlices {
+    static constexpr double width = 0.5;
+    std::vector<double> edges;                        ///< slice s is [edges[s], edges[s + 1])
+    std::vector<DrawOptions> draws;                   ///< the draw with its slice's counts
+    std::vector<std::vector<std::uint64_t>> starts;   ///< per cell, each slice's first object
+    std::vector<std::uint64_t> totals;                ///< per cell, objects of every slice
+    const Cells* cells = nullptr;
+    std::uint64_t seed = 0;
+
+    LawSlices(const DrawOptions& draw, const SampleOptions& options, const Cells& c)
+        : cells(&c), seed(options.seed) {
+        const CountModel& law = *draw.counts;
+        for (int s = 0;; ++s) {
+            edges.push_back(law.bright + width * s);
+            if (edges.back() >= options.mag_limit) break;
+        }
+        // A --density given scales the law; the law's own density otherwise.
+        const double scale = options.density / law.density(law.bright, options.mag_limit);
+        const std::uint64_t ring = std::uint64_t(options.ring);
+        for (std::size_t s = 0; s + 1 < edges.size(); ++s) {
+            DrawOptions d = draw;
+            d.counts->bright = edges[s];
+            d.counts->faint = edges[s + 1];
+            draws.push_back(d);
+        }
+        starts.assign(c.count(), {});
+        totals.assign(c.count(), 0);
+        for (std::uint64_t cell = 0; cell < c.count(); ++cell)
+            for (std::size_t s = 0; s < draws.size(); ++s) {
+                RandomStream r(seed, object_key(cell, s), "galaxy count slice");
+                const double mean = scale * draws[s].counts->density() * c.area_arcmin2(cell);
+                starts[cell].push_back(totals[cell]);
+                totals[cell] += r.poisson(mean / double(ring)) * ring;
+                require(totals[cell] < (std::uint64_t(1) << 32),
+                        "more than 2^32 objects in a sky cell");
+            }
+    }
+    double faint(std::size_t s) const { return edges[s + 1]; }
+    std::size_t slice_of(std::uint64_t cell, std::uint64_t j) const {
+        const std::vector<std::uint64_t>& st = starts[cell];
+        return std::size_t(std::upper_bound(st.begin(), st.end(), j) - st.begin()) - 1;
+    }
+    // The galaxies of the whole field within the limit: every slice's but the last, whose
+    // magnitudes (the first deviate of each ring's stream, as the draw takes it) are checked.
+    std::uint64_t within_limit(const SampleOptions& options) const {
+        const std::uint64_t ring = std::uint64_t(options.ring);
+        std::uint64_t n = 0;
+        const std::size_t last = draws.size() - 1;
+        for (std::uint64_t cell = 0; cell < cells->count(); ++cell) {
+            n += starts[cell][last];
+            for (std::uint64_t j = starts[cell][last]; j < totals[cell]; j += ring) {
+                RandomStream stream(seed, object_key(cell, j), "galaxy");
+                if (draws[last].counts->magnitude(stream.uniform()) <= options.mag_limit)
+                    n += ring;
+            }
+        }
+        return n;
+    }
+};
+
 // The galaxies below the magnitude limit (SampleOptions::faint_limit), each cell's after its
 // galaxies, keyed apart from them: a field drawn with them holds the same galaxies as without.
 void sample_faint(const Morphology& morphology, const FieldGeometry& field,
@@ -469,21 +539,37 @@ SampleSummary sample_field(const Morphology& morphology, const FieldGeometry& fi
     const Cells cells(field, options.cell);
     // Rings: whole rings per cell, the copies of one draw keyed by the ring's first object.
     const std::uint64_t ring = std::uint64_t(options.ring);
-    std::vector<std::uint64_t> galaxies = cell_counts(
-        cells, options.seed, options.density / double(ring),
-        options.count ? std::optional(*options.count / ring) : std::nullopt, "galaxy count");
-    for (std::uint64_t& n : galaxies) n *= ring;
-    for (const std::uint64_t n : galaxies) summary.galaxies += n;
+    const std::optional<LawSlices> slices =
+        draw.counts && draw.counts->tabulated() && !options.count
+            ? std::optional(LawSlices(draw, options, cells))
+            : std::nullopt;
+    std::vector<std::uint64_t> galaxies;
+    if (slices) {
+        galaxies = slices->totals;
+        summary.galaxies = slices->within_limit(options);
+    } else {
+        galaxies = cell_counts(cells, options.seed, options.density / double(ring),
+                               options.count ? std::optional(*options.count / ring) : std::nullopt,
+                               "galaxy count");
+        for (std::uint64_t& n : galaxies) n *= ring;
+        for (const std::uint64_t n : galaxies) summary.galaxies += n;
+    }
     const double reach_bound = galaxy_reach_bound(morphology, draw, options, scale);
     summary.cells = cells.count();
     summary.cells_read = for_each_placed(
         cells, galaxies, options.seed, "galaxy position", tile, reach_bound,
         [&](std::uint64_t cell, std::uint64_t j, std::uint64_t k, const PixelPosition& p) {
+            // A slice's rings start at multiples of `ring`: members stay in one slice.
             const std::uint64_t member = j % ring;
             RandomStream stream(options.seed, ring > 1 ? object_key(cell, j - member) : k,
                                 "galaxy");
-            DrawnGalaxy g = draw_galaxy(morphology, parents, stream, scale, options.zero_point,
-                                        options.mag_limit, draw);
+            const std::size_t slice = slices ? slices->slice_of(cell, j) : 0;
+            DrawnGalaxy g =
+                slices ? draw_galaxy(morphology, parents, stream, scale, options.zero_point,
+                                     slices->faint(slice), slices->draws[slice])
+                       : draw_galaxy(morphology, parents, stream, scale, options.zero_point,
+                                     options.mag_limit, draw);
+            if (g.mag > options.mag_limit) return;  // the last slice, past the limit
             const double reach = model_reach(g.model.beta_pix, g.model.n_max) + options.margin;
             if (tile && !tile->reaches(p.x, p.y, reach)) return;
             if (member > 0) {  // turned by member·π/ring: its ellipticity by 2π member/ring

@@ -77,14 +77,23 @@ struct SampleOptions {
     void validate() const;
 };
 
-/// The model's say in a draw. With `fit_counts` (--counts fit), `options.draw.counts` are the
+/// Where a conditional draw's magnitudes come from (shapesim-sample --counts).
+enum class CountSource {
+    law,      ///< a count law (count_law(), or a file's): the same at every magnitude limit
+    fit,      ///< a power law fitted to the model's fields up to the limit (fit_counts)
+    parents,  ///< a parent's magnitude, perturbed
+};
+
+/// The model's say in a draw. With CountSource::law, `options.draw.counts` are `law` up to the
+/// limit (law_counts); with CountSource::fit (--counts fit), the
 /// counts fitted to its real fields (conditional_counts; when they cannot be, an Error naming
 /// `model_path` points to --counts parents). Unless `density_given`, `options.density` becomes
 /// the real fields' own, when the model recorded any: the fitted counts', else field_density().
 /// With `options.faint_limit`, `options.faint_counts` are those counts (or ones fitted for them)
 /// extrapolated past the limit. The draw options and the faint limit are checked first (Error).
-void apply_model_counts(SampleOptions& options, const Morphology& morphology, bool fit_counts,
-                        bool density_given, const std::string& model_path);
+void apply_model_counts(SampleOptions& options, const Morphology& morphology, CountSource source,
+                        bool density_given, const std::string& model_path,
+                        const CountModel& law = count_law());
 
 /// Counts of what sample_field() drew and emitted.
 struct SampleSummary {

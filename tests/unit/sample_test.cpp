@@ -283,7 +283,7 @@ TEST(Sample, ModelCountsWithoutFieldsKeepTheDensity) {
     const Morphology m = test_morphology();
     ASSERT_TRUE(m.source_fields.empty());
     SampleOptions o = crowded_options(1);
-    apply_model_counts(o, m, false, false, "model.json");
+    apply_model_counts(o, m, CountSource::parents, false, "model.json");
     EXPECT_EQ(o.density, 3000.0);
     EXPECT_FALSE(o.draw.counts.has_value());
     EXPECT_EQ(count_shape_only(m), 0);
@@ -399,7 +399,7 @@ TEST(Sample, GalaxiesBelowTheLimitFollowTheExtrapolatedCounts) {
     o.draw.mix = 3;
     SampleOptions faint = o;
     faint.faint_limit = 29.5;
-    apply_model_counts(faint, m, false, true, "model");
+    apply_model_counts(faint, m, CountSource::parents, true, "model");
     ASSERT_TRUE(faint.faint_counts);
     const CountModel counts = *faint.faint_counts;
     EXPECT_EQ(counts.bright, 27.0);
@@ -474,7 +474,7 @@ TEST(Sample, GalaxiesBelowTheLimitFollowTheExtrapolatedCounts) {
     bare.source_fields.clear();
     SampleOptions refused = o;
     refused.faint_limit = 29.5;
-    EXPECT_THROW(apply_model_counts(refused, bare, false, true, "model"), Error);
+    EXPECT_THROW(apply_model_counts(refused, bare, CountSource::parents, true, "model"), Error);
     refused.faint_limit = 26.0;  // not below the limit
     refused.faint_counts = counts;
     EXPECT_THROW(refused.validate(), Error);

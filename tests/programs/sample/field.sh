@@ -13,12 +13,12 @@ hdf_morphology
 "$BIN/shapesim-smooth" -q --delta <shapelets.jsonl >delta.json || fail "shapesim-smooth --delta failed"
 
 # A 4× larger field than the cut (its pixel scale and a 1024² square) for the statistics.
-"$BIN/$prog" morph.json --size 0.6797 --pixel-scale 0.03985 --seed 7 --star-count 5 \
+"$BIN/$prog" morph.json --size 0.6797 --pixel-scale 0.03985 --seed 7 --star-count 5 --density 700 \
   >a.jsonl 2>err || fail "exit $?: $(cat err)"
-"$BIN/$prog" morph.json --size 0.6797 --pixel-scale 0.03985 --seed 7 --star-count 5 -q >b.jsonl ||
+"$BIN/$prog" morph.json --size 0.6797 --pixel-scale 0.03985 --seed 7 --star-count 5 --density 700 -q >b.jsonl ||
   fail "second run failed"
 cmp -s a.jsonl b.jsonl || fail "the same seed gave different output"
-"$BIN/$prog" morph.json --size 0.6797 --pixel-scale 0.03985 --seed 8 -q >c.jsonl || fail "seed 8 failed"
+"$BIN/$prog" morph.json --size 0.6797 --pixel-scale 0.03985 --seed 8 --density 700 -q >c.jsonl || fail "seed 8 failed"
 ! cmp -s a.jsonl c.jsonl || fail "seeds 7 and 8 gave the same output"
 python3 - <<'PY' || fail "the records break the checks"
 import json, math
@@ -53,7 +53,7 @@ for y in "1 342" "343 684" "685 1024"; do
   for x in "1 342" "343 684" "685 1024"; do
     set -- $x $y
     "$BIN/$prog" morph.json --size 0.6797 --pixel-scale 0.03985 --seed 7 --star-count 5 -q \
-      --tile "$1" "$3" "$2" "$4" >>tiles.jsonl || fail "tile $x $y failed"
+      --density 700 --tile "$1" "$3" "$2" "$4" >>tiles.jsonl || fail "tile $x $y failed"
   done
 done
 sort -u tiles.jsonl >tiles_union
@@ -86,9 +86,10 @@ for r in map(json.loads, open("delta.jsonl")):
 PY
 
 # The real field's density: smooth --like records the HDF's area and every galaxy's magnitude;
-# sample then draws as many galaxies per arcmin² as the HDF has brighter than --mag-limit.
+# sample then draws as many galaxies per arcmin² as the HDF has brighter than --mag-limit
+# (--counts fit: the power law fitted to them, or the parents' magnitudes).
 "$BIN/shapesim-smooth" -q --like "$hdf" <shapelets.jsonl >dense.json || fail "smooth --like failed"
-"$BIN/$prog" dense.json --size 0.6797 --pixel-scale 0.03985 --seed 7 >d.jsonl 2>err || fail "exit $?: $(cat err)"
+"$BIN/$prog" dense.json --size 0.6797 --pixel-scale 0.03985 --seed 7 --counts fit >d.jsonl 2>err || fail "exit $?: $(cat err)"
 python3 - <<'PY' || fail "the drawn density is not the HDF's"
 import json, math
 f = json.load(open("dense.json"))["source_field"]
@@ -112,14 +113,14 @@ rc=0; "$BIN/$prog" --area 1 >out 2>err || rc=$?
 expect_error "$rc" 2 'MODEL'
 
 # Bad input.
-# Shapes conditional on magnitude (perturbed, --mix 1): a 6 arcmin² field's bright end no longer
+# Shapes conditional on magnitude (perturbed, --mix 1, the parents' magnitudes): a 6 arcmin² field's bright end no longer
 # copies one parent alone as the paper's draw (--neighbours 0) does (the summary's largest share
 # at I < 22 falls), tiles still reproduce the field, and a shape taken from another parent than
 # the magnitude names both.
 "$BIN/$prog" morph.json --area 6 --pixel-scale 0.03985 --seed 7 --neighbours 0 >paper6.jsonl 2>paper6.err ||
   fail "6 arcmin² failed"
 "$BIN/$prog" morph.json --area 6 --pixel-scale 0.03985 --seed 7 --neighbours 16 --mix 1 \
-  >cond6.jsonl 2>cond6.err || fail "--neighbours 16 failed"
+  --counts parents >cond6.jsonl 2>cond6.err || fail "--neighbours 16 failed"
 python3 - <<'PY' || fail "--neighbours does not spread the bright end: $(cat paper6.err cond6.err)"
 import json, re
 def share(path):  # "I < 22: 43/63 from 117"
@@ -134,12 +135,12 @@ PY
 rc=0; "$BIN/$prog" morph.json --area 1 --neighbours -1 >out 2>err || rc=$?
 expect_error "$rc" 2 'neighbours'
 
-# With the real field recorded (smooth --like), conditional draws take their magnitudes from a
-# power law fitted to its counts (--counts fit, the default): the one I = 20.7 galaxy of a
+# With the real field recorded (smooth --like), conditional draws can take their magnitudes from
+# a power law fitted to its counts (--counts fit): the one I = 20.7 galaxy of a
 # 0.12 arcmin² cut no longer puts 1/64 of a 6 arcmin² field's draws at I ≈ 21 (73 brighter
 # than 22 where the fitted slope, 0.27 dex/mag, expects 28), and every draw's shape
 # parent is its one parent. --counts parents keeps the parents' magnitudes.
-"$BIN/$prog" dense.json --area 6 --pixel-scale 0.03985 --seed 7 --neighbours 16 \
+"$BIN/$prog" dense.json --area 6 --pixel-scale 0.03985 --seed 7 --neighbours 16 --counts fit \
   >fit6.jsonl 2>fit6.err || fail "--counts fit failed: $(cat fit6.err)"
 "$BIN/$prog" dense.json --area 6 --pixel-scale 0.03985 --seed 7 --neighbours 16 --counts parents \
   >parents6.jsonl 2>parents6.err || fail "--counts parents failed: $(cat parents6.err)"
@@ -164,14 +165,14 @@ print("  [measured] galaxies brighter than I = 22 in 6 arcmin^2: fitted counts",
 assert bright_par > 1.5 * bright_fit + 5, (bright_fit, bright_par)
 PY
 # Tiles of a fitted-counts field give its records back, byte for byte (2×2 over 1024²).
-"$BIN/$prog" dense.json --size 0.6797 --pixel-scale 0.03985 --seed 7 --neighbours 16 -q >fitw.jsonl ||
+"$BIN/$prog" dense.json --size 0.6797 --pixel-scale 0.03985 --seed 7 --neighbours 16 --counts fit -q >fitw.jsonl ||
   fail "--counts fit on 1024² failed"
 : >fitt.jsonl
 for y in "1 512" "513 1024"; do
   for x in "1 512" "513 1024"; do
     set -- $x $y
     "$BIN/$prog" dense.json --size 0.6797 --pixel-scale 0.03985 --seed 7 --neighbours 16 -q \
-      --tile "$1" "$3" "$2" "$4" >>fitt.jsonl || fail "fitted-counts tile $x $y failed"
+      --counts fit --tile "$1" "$3" "$2" "$4" >>fitt.jsonl || fail "fitted-counts tile $x $y failed"
   done
 done
 cmp -s <(sort -u fitt.jsonl) <(sort fitw.jsonl) || fail "fitted-counts tiles differ from their field"
@@ -182,7 +183,7 @@ m = json.load(open("dense.json"))
 m["source_field"]["mags"] = m["source_field"]["mags"][:1]
 json.dump(m, open("thin.json", "w"))
 PY
-rc=0; "$BIN/$prog" thin.json --area 1 --neighbours 4 >out 2>err || rc=$?
+rc=0; "$BIN/$prog" thin.json --area 1 --neighbours 4 --counts fit >out 2>err || rc=$?
 expect_error "$rc" 1 'thin.json: .*too few to fit counts to; draw with --counts parents'
 [ ! -s out ] || fail "a failed fit wrote objects"
 "$BIN/$prog" thin.json --area 1 --neighbours 4 --counts parents -q >out || fail "--counts parents on a thin field failed"
@@ -214,7 +215,7 @@ expect_error "$rc" 1 'mix: a mixture of 5 parents needs neighbours ≥ 5'
 [ ! -s out ] || fail "a refused mixture wrote objects"
 rc=0; "$BIN/$prog" dense.json --area 1 --faint-limit 28 >out 2>err || rc=$?
 expect_error "$rc" 1 'faint_limit: must be fainter than the magnitude limit'
-rc=0; "$BIN/$prog" morph.json --area 1 --faint-limit 31 >out 2>err || rc=$?
+rc=0; "$BIN/$prog" morph.json --area 1 --faint-limit 31 --counts fit >out 2>err || rc=$?
 expect_error "$rc" 1 'morph.json: --faint-limit needs a model that recorded its fields'
 "$BIN/shapesim-smooth" -q --delta --like "$hdf" <shapelets.jsonl >ddense.json || fail "smooth --delta --like failed"
 "$BIN/$prog" ddense.json --area 1 --faint-limit 31 -q >dfaint.jsonl || fail "δ with --faint-limit failed"
@@ -223,6 +224,48 @@ rows = [json.loads(l) for l in open("dfaint.jsonl")]
 below = [r for r in rows if r.get("below_limit")]
 assert below and all(len(r["parents"]) == 1 for r in below), len(below)' ||
   fail "δ galaxies below the limit are not scaled copies of one parent"
+
+# The count law (--counts law, the default): the galaxies brighter than any magnitude are the
+# same galaxies (ids, magnitudes, places, parents) whatever --mag-limit, and the density drawn is
+# the law's; tiles give the field back; a law from a file draws its own counts; a bad file is
+# refused naming its line.
+for L in 25 27.5 30; do
+  "$BIN/$prog" dense.json --area 6 --pixel-scale 0.03985 --seed 7 --mag-limit $L >law$L.jsonl 2>law$L.err ||
+    fail "--mag-limit $L failed: $(cat law$L.err)"
+done
+grep -q 'galaxy counts: .* per arcmin^2 over 16 - 25, COSMOS2020' law25.err || fail "law not reported: $(cat law25.err)"
+python3 - <<'PY' || fail "the count law's galaxies move with --mag-limit"
+import json
+def bright(path, m=25):
+    return sorted((r["id"], r["mag"], r["x"], r["y"]) for r in map(json.loads, open(path))
+                  if r["kind"] == "galaxy" and r["mag"] <= m)
+a, b, c = bright("law25.jsonl"), bright("law27.5.jsonl"), bright("law30.jsonl")
+assert a == b == c and len(a) > 150, (len(a), len(b), len(c))
+n30 = sum(1 for l in open("law30.jsonl") if '"galaxy"' in l)
+print("  [measured] 6 arcmin^2: I <= 25:", len(a), "(law 44.6/arcmin^2: 268); I <= 30:", n30, "(law 935: 5608)")
+assert abs(len(a) - 6 * 44.63) < 5 * (6 * 44.63) ** 0.5 and abs(n30 - 6 * 934.7) < 5 * (6 * 934.7) ** 0.5
+PY
+: >lawt.jsonl
+for x in "1 1500" "1501 3688"; do
+  set -- $x
+  "$BIN/$prog" dense.json --area 6 --pixel-scale 0.03985 --seed 7 --mag-limit 25 -q \
+    --tile "$1" 1 "$2" 3688 >>lawt.jsonl || fail "law tile $x failed"
+done
+cmp -s <(sort -u lawt.jsonl) <(sort law25.jsonl) || fail "the law's tiles differ from their field"
+printf '# mag log10(N per deg^2 per mag)\n20 3.0\n24 4.0\n' >flat.law
+"$BIN/$prog" dense.json --area 6 --pixel-scale 0.03985 --seed 7 --mag-limit 24 --counts flat.law \
+  >filelaw.jsonl 2>err || fail "--counts FILE failed: $(cat err)"
+python3 - <<'PY' || fail "a count law file is not drawn"
+import json, math
+n = sum(1 for l in open("filelaw.jsonl") if '"galaxy"' in l)
+# dN/dm = 10^(3 + (m - 20)/4) per deg^2, from 17 to 24: the integral over 3600 arcmin^2/deg^2
+k = 0.25 * math.log(10)
+expect = 6 / 3600 * 1e3 * (math.exp(k * 4) - math.exp(-k * 3)) / k
+assert abs(n - expect) < 5 * math.sqrt(expect), (n, expect)
+PY
+printf '20 3.0\n19 4.0\n' >bad.law
+rc=0; "$BIN/$prog" dense.json --area 1 --counts bad.law >out 2>err || rc=$?
+expect_error "$rc" 1 'bad.law:2: magnitudes must ascend'
 
 rc=0; "$BIN/$prog" nosuch.json --area 1 >out 2>err || rc=$?
 expect_error "$rc" 1 'nosuch.json: cannot open'
