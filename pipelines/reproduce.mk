@@ -183,10 +183,31 @@ $(OUT)/stamps/%.jsonl: $(OUT)/stamps/%.psf.jsonl $$(stamp_file_$$*) $(call prog,
 	$(call prog,decompose) --psf $< < $(OUT)/stamps/$*.sources.jsonl > $(tmp)
 	mv $(tmp) $@
 
-$(OUT)/merged.json: $(OUT)/intrinsic.jsonl $(OUT)/xdf/intrinsic.jsonl $(STAMPS:%=$(OUT)/stamps/%.jsonl) $(call prog,smooth)
-	cat $(OUT)/intrinsic.jsonl $(OUT)/xdf/intrinsic.jsonl $(STAMPS:%=$(OUT)/stamps/%.jsonl) | \
+# The COSMOS catalogues (share/data/cosmos_catalog/README.md): 113 real ACS galaxies in
+# GalSim's RealGalaxyCatalog layout, each fitted through its own PSF image; where a catalogue's
+# PSF file is not shipped, through a stated real COSMOS PSF (COSMOS_PSF; flagged
+# psf_substituted). Shape-only parents: most of the bright end's shapes.
+COSMOS_DATA ?= $(R)share/data/cosmos_catalog
+COSMOS_PSF  ?= $(COSMOS_DATA)/real_galaxy_PSF_images.fits[0]
+COSMOS_SAMPLES := extension_26 sample_23.5_n1 bright_pair galsim_test_100533
+cosmos_catalogue_extension_26 := $(COSMOS_DATA)/extension_26/real_galaxy_catalog_26_extension_example.fits
+cosmos_catalogue_sample_23.5_n1 := $(COSMOS_DATA)/sample_23.5_n1/real_galaxy_catalog_23.5.fits
+cosmos_catalogue_bright_pair := $(COSMOS_DATA)/bright_pair/real_galaxy_catalog_23.5.fits
+cosmos_catalogue_galsim_test_100533 := $(COSMOS_DATA)/galsim_test_100533/real_galaxy_catalog_100533.fits
+INPUTS += $(foreach c,$(COSMOS_SAMPLES),$(cosmos_catalogue_$(c)))
+$(OUT)/cosmos/%.jsonl: $$(cosmos_catalogue_$$*) $(call prog,decompose)
+	@mkdir -p $(@D)
+	$(call prog,decompose) -j $(THREADS) --real-galaxy-catalog $< --real-galaxy-psf '$(COSMOS_PSF)' \
+	  > $(tmp)
+	mv $(tmp) $@
+
+MERGED_INPUTS := $(OUT)/intrinsic.jsonl $(OUT)/xdf/intrinsic.jsonl $(STAMPS:%=$(OUT)/stamps/%.jsonl) \
+  $(COSMOS_SAMPLES:%=$(OUT)/cosmos/%.jsonl)
+$(OUT)/merged.json: $(MERGED_INPUTS) $(call prog,smooth)
+	cat $(MERGED_INPUTS) | \
 	  $(call prog,smooth) -v --weight-left-out --field $(IMAGE)=$(HDF_AREA) --field $(XDF_IMAGE)=$(XDF_AREA) \
-	  $(foreach s,$(STAMPS),--field '$(call stamp_image,$(s))=shapes') > $(tmp)
+	  $(foreach s,$(STAMPS),--field '$(call stamp_image,$(s))=shapes') \
+	  $(foreach c,$(COSMOS_SAMPLES),--field '$(cosmos_catalogue_$(c))=shapes') > $(tmp)
 	mv $(tmp) $@
 MERGED_SAMPLE = $(call prog,sample) $(OUT)/merged.json $(LARGE_FIELD) --zero-point $(ZERO_POINT) \
   --neighbours $(NEIGHBOURS) --max-mag-shift $(MAX_MAG_SHIFT) --mix $(MIX)

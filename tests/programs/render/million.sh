@@ -9,7 +9,7 @@ models=$(cd ../../../share/data/models && pwd)
 cd "$TMPDIR"
 field=(--pixels 16384 --pixel-scale 0.03 --ra 150 --dec 2)
 "$BIN/shapesim-sample" -q "$models/merged.json" "${field[@]}" \
-  --zero-point 25.94 --mag-limit 32.9 --seed 1 -o sampled.jsonl || fail "sample failed"
+  --zero-point 25.94 --mag-limit 32.9 --density 16000 --seed 1 -o sampled.jsonl || fail "sample failed"
 head -n 1000000 sampled.jsonl >objects.jsonl && rm sampled.jsonl
 count=$(wc -l <objects.jsonl)
 [ "$count" -eq 1000000 ] || fail "only $count objects sampled"
