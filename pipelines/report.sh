@@ -28,13 +28,10 @@ parent_counts() {
 parent_share() {
   parent_counts "$1" "$2" | awk '{ if ($1 == 0) printf "0/0"; else printf "%d/%d (%.0f%%) from %s", $3, $1, 100 * $3 / $1, $4 }'
 }
-# The merged run's fitted counts, from shapesim-sample's line in the log: "slope S dex/mag,
-# D per arcmin² over A–B, fitted to N galaxies".
+# The merged run's counts, from shapesim-sample's line in the log: "D per arcmin^2 over A - B,
+# SOURCE" (a count law) or "... fitted to N galaxies" (--counts fit).
 counts_fit() {
-  grep -a 'galaxy counts:' "$1" | tail -1 |
-    awk '{ for (i = 1; i <= NF; i++) { if ($i == "dm") s = $(i + 2); if ($i == "over") { d = $(i - 3); a = $(i + 1); b = $(i + 3) }
-                                       if ($i == "to") n = $(i + 1) }
-           printf "slope %.3f dex/mag, %.0f per arcmin² over I = %.2f–%g, fitted to %d galaxies", s, d, a, b + 0, n }'
+  grep -a 'galaxy counts:' "$1" | tail -1 | sed 's/.*galaxy counts: //; s/ per arcmin^2 over / per arcmin² over I = /; s/ - /–/'
 }
 # The merged run's draw options from its command in the log ("--neighbours K --max-mag-shift S").
 merged_option() { grep -a -o -- "--$2 [0-9.]*" "$1" | tail -1 | cut -d' ' -f2; }
@@ -210,18 +207,19 @@ holds few bright ones.
 ## Every shipped field, one model
 
 The same 6 arcmin² field drawn from a model trained on every shipped F814W-like image: the HDF
-cut (WFPC2, 0.04″), the XDF cutout (ACS, 0.06″, PSF-matched to the infrared) and six COSMOS/AEGIS
-cutouts of single galaxies (ACS, 0.03″). Each galaxy is fitted through its own image's PSF
-(\`shapesim-decompose --psf\`: intrinsic models), so the cameras live in one model;
+cut (WFPC2, 0.04″), the XDF cutout (ACS, 0.06″, PSF-matched to the infrared), six COSMOS/AEGIS
+cutouts of single galaxies and the four COSMOS RealGalaxyCatalogs (ACS, 0.03″). Each galaxy is
+fitted through its own image's PSF (\`shapesim-decompose --psf\`, \`--real-galaxy-catalog\`:
+intrinsic models), so the cameras live in one model;
 \`shapesim-smooth --field\` combines the two fields' counts where each is complete
 ($(grep -o '"completeness":[0-9.]*' "$out/merged.json" | cut -d: -f2 | paste -sd/ -) mag) and takes the cutouts as shape-only parents (\`IMAGE=shapes\`: they
 shape the draws near their magnitude but are not counted), and \`shapesim-sample --neighbours\`
-draws shapes conditional on magnitude, each a mixture of $(merged_option "$out/pipeline.log" mix) real galaxies. The magnitudes come from a power law fitted to the two
-fields' counts (\`--counts fit\`, Poisson maximum likelihood: $(counts_fit "$out/pipeline.log")), not from
-their few bright galaxies' luck: each bright draw then takes the shape of one of the
+draws shapes conditional on magnitude, each a mixture of $(merged_option "$out/pipeline.log" mix) real galaxies. The magnitudes come from the
+I-band count law (\`--counts law\`: $(counts_fit "$out/pipeline.log")), not from
+the fields' few bright galaxies' luck: each bright draw then takes the shape of one of the
 $(merged_option "$out/pipeline.log" neighbours) parents nearest its magnitude, at most $(merged_option "$out/pipeline.log" max-mag-shift) mag away, its β scaled as L^0.3. Rendered through the HDF's PSF and noise, measured in
 the Table above as \`merged6\`. The model has $(morph_points "$out/merged.json") parents, $(grep -o '"shape_only":true' "$out/merged.json" | grep -c .) of them shape-only, from
-$(grep -c . "$out/intrinsic.jsonl") HDF, $(grep -c . "$out/xdf/intrinsic.jsonl") XDF and $(cat "$out"/stamps/{aegis?,cosmos}.jsonl | grep -c .) cutout models fitted.
+$(grep -c . "$out/intrinsic.jsonl") HDF, $(grep -c . "$out/xdf/intrinsic.jsonl") XDF, $(cat "$out"/stamps/{aegis?,cosmos}.jsonl | grep -c .) cutout and $(cat "$out"/cosmos/*.jsonl | grep -c .) COSMOS catalogue models fitted.
 
 The largest share of one real parent among the galaxies brighter than each magnitude:
 
