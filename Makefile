@@ -14,6 +14,8 @@
 #                        out/colour/ (pipelines/colour.mk; OUT=, SEED=, AREA=, MAG_LIMIT=)
 #   make lensing         a weak-lensing shear calibration end to end into out/lensing/
 #                        (pipelines/lensing.mk; OUT=, SEED=, AREA=, NOISE=, SHEAR=, HALO=)
+#   make cosmos CATALOGS="FILE..."  a morphology model trained on GalSim RealGalaxyCatalogs
+#                        (the COSMOS training samples) into out/cosmos/ (pipelines/cosmos.mk)
 #   make slurm-test      a 4-tile survey through a one-node Slurm cluster = make -j (root; CI)
 #   make install         programs, libshapesim.a, public headers, shapesim.pc and man pages
 #                        into PREFIX (/usr/local); DESTDIR= stages them
@@ -79,7 +81,7 @@ include detect/module.mk decompose/module.mk smooth/module.mk sample/module.mk
 include render/module.mk measure/module.mk survey/module.mk table/module.mk lens/module.mk calibrate/module.mk
 include tests/module.mk
 
-.PHONY: all deps test unit-test program-test bench stress install clean reproduce colour lensing slurm-test
+.PHONY: all deps test unit-test program-test bench stress install clean reproduce colour lensing cosmos slurm-test
 all: $(PROGRAMS:%=$(BIN)/%)
 
 # Every first target installs what is missing (as root) or prints the apt line.
@@ -132,6 +134,11 @@ colour: deps all examples
 # SHEAR, HALO pass on.
 lensing: deps all
 	$(MAKE) --no-print-directory -f pipelines/lensing.mk BIN=$(BIN)
+
+# A morphology model trained on RealGalaxyCatalogs (pipelines/cosmos.mk): CATALOGS, OUT, PSF,
+# THREADS, GAIN pass on.
+cosmos: deps all
+	$(MAKE) --no-print-directory -f pipelines/cosmos.mk BIN=$(BIN)
 
 # A 4-tile survey on a throw-away one-node Slurm cluster equals make -j (CI; root; installs Slurm).
 slurm-test: all
