@@ -11,7 +11,7 @@ source "$(dirname "${BASH_SOURCE[0]}")/../lib.sh"
 models=$(cd ../../../share/data/models && pwd)
 cd "$TMPDIR"
 field=(--pixels 2048 --pixel-scale 0.03 --ra 150 --dec 2)
-"$BIN/shapesim-sample" -q "$models/merged.json" "${field[@]}" --zero-point 25.94 --mag-limit 31 \
+"$BIN/shapesim-sample" -q "$models/merged.json" "${field[@]}" --zero-point 25.94 --mag-limit 31 --density 3200 \
   --seed 2 -o objects.jsonl || fail "sample failed"
 "$BIN/shapesim-render" -q objects.jsonl --psf-analytic gaussian:0.1 "${field[@]}" \
   --noise-rms 0.0003 -j 2 -o image.fits || fail "render failed"
