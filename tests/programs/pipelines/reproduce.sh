@@ -123,8 +123,8 @@ for sim in sim sim6 merged6; do
     fail "report.md: $sim's galaxies lose 1% of their light to the clip: $(grep "^| $sim |" "$out/report.md")"
 done
 grep -q '^| delta (the real fits) | [0-9]* of [0-9]* ' "$out/report.md" || fail "report.md lacks the δ's clipped light"
-grep -q 'Poisson maximum likelihood: slope 0\.[0-9]* dex/mag, [0-9]* per arcmin² over I = [0-9.]*–29, fitted to [0-9]* galaxies)' \
-  "$out/report.md" || fail "report.md lacks the fitted counts: $(grep -a 'galaxy counts' "$out/pipeline.log")"
+grep -q 'I-band count law (`--counts law`: [0-9.]* per arcmin² over I = 16–29, COSMOS2020 i-band counts' \
+  "$out/report.md" || fail "report.md lacks the count law: $(grep -a 'galaxy counts' "$out/pipeline.log")"
 
 # Nothing changed: nothing runs.
 run
