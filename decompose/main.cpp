@@ -139,18 +139,22 @@ int run_catalogue(const app::DecomposeSettings& s, const app::ProgramOptions& op
     const std::string& catalogue = s.real_galaxy_catalog;
     std::vector<RealGalaxy> galaxies = read_real_galaxy_catalog(catalogue, s.real_galaxy_folder);
     log.info(galaxies.size(), " galaxies in ", catalogue, " (", log.elapsed(), " s)");
-    if (s.real_galaxy_psf.empty())  // refused before any fit, with the way out
-        for (const RealGalaxy& g : galaxies)
-            if (!real_galaxy_psf_present(g))
-                throw Error(g.psf + ": no such file (the catalogue's PSF file is not here: "
-                                "give one with --real-galaxy-psf IMAGE[HDU])",
-                            catalogue, g.row, "PSF_FILENAME");
-    if (const long n = use_substitute_psf(galaxies, s.real_galaxy_psf))
-        log.warn(n, " of ", galaxies.size(), " galaxies' PSF files are absent (first: ",
-                 std::find_if(galaxies.begin(), galaxies.end(), [](const RealGalaxy& g) {
-                     return g.psf_substituted;
-                 })->ident, "): fitted through --real-galaxy-psf ", s.real_galaxy_psf,
+    // A PSF file the catalogue names but that is not here: refused before any fit, with the way
+    // out, or every such galaxy through the stated substitute.
+    if (const std::vector<std::size_t> absent = absent_psf_files(galaxies); !absent.empty()) {
+        const RealGalaxy& first = galaxies[absent.front()];
+        if (s.real_galaxy_psf.empty())
+            throw Error(first.psf + ": no such file (the catalogue's PSF file is not here: "
+                                    "give one with --real-galaxy-psf IMAGE[HDU])",
+                        catalogue, first.row, "PSF_FILENAME");
+        log.warn(absent.size(), " of ", galaxies.size(), " galaxies' PSF files are absent (first: ",
+                 first.ident, "): fitted through --real-galaxy-psf ", s.real_galaxy_psf,
                  " instead (flagged psf_substituted)");
+        for (std::size_t k : absent) {
+            galaxies[k].psf = s.real_galaxy_psf;
+            galaxies[k].psf_substituted = true;
+        }
+    }
     const int side = odd_psf_stamp(s);
     const std::unique_ptr<FitsWriter> models = models_file(s, options);
     const std::vector<std::string> listed = app::split_list(s.ids);

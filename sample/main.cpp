@@ -4,12 +4,13 @@
 #include "app/field_options.hpp"
 #include "app/options.hpp"
 #include "app/run_main.hpp"
-#include <fstream>
 #include "shapesim/atomic_file.hpp"
 #include "shapesim/geometry.hpp"
 #include "shapesim/jsonl.hpp"
 #include "shapesim/morphology.hpp"
 #include "shapesim/sample.hpp"
+
+#include <fstream>
 
 namespace {
 
@@ -185,9 +186,8 @@ int run(int argc, const char* const argv[]) {
     const CountSource source = s.counts == "fit"       ? CountSource::fit
                                : s.counts == "parents" ? CountSource::parents
                                                        : CountSource::law;
-    const CountModel law = s.counts == "law" || source != CountSource::law
-                               ? count_law()
-                               : read_count_law(s.counts);
+    const bool law_file = source == CountSource::law && s.counts != "law";
+    const CountModel law = law_file ? read_count_law(s.counts) : count_law();
     if (!options.given("mix")) o.draw.mix = std::min(o.draw.mix, o.draw.neighbours);
     apply_model_counts(o, morphology, source, options.given("density"), s.model, law);
     if (const std::optional<CountModel>& counts = o.draw.counts; counts && counts->tabulated())

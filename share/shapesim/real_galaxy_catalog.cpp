@@ -8,6 +8,7 @@
 #include <cmath>
 #include <cstdio>
 #include <fstream>
+#include <map>
 #include <utility>
 
 namespace shapesim {
@@ -129,21 +130,16 @@ std::vector<RealGalaxy> read_real_galaxy_catalog(const std::string& path,
     return galaxies;
 }
 
-bool real_galaxy_psf_present(const RealGalaxy& galaxy) {
-    const std::string file = galaxy.psf.substr(0, galaxy.psf.find('['));
-    return std::ifstream(file).good();
-}
-
-long use_substitute_psf(std::vector<RealGalaxy>& galaxies, const std::string& substitute) {
-    if (substitute.empty()) return 0;
-    long substituted = 0;
-    for (RealGalaxy& g : galaxies)
-        if (!real_galaxy_psf_present(g)) {
-            g.psf = substitute;
-            g.psf_substituted = true;
-            ++substituted;
-        }
-    return substituted;
+std::vector<std::size_t> absent_psf_files(const std::vector<RealGalaxy>& galaxies) {
+    std::map<std::string, bool> present;  // a catalogue names a few PSF files many times
+    std::vector<std::size_t> absent;
+    for (std::size_t i = 0; i < galaxies.size(); ++i) {
+        const std::string file = galaxies[i].psf.substr(0, galaxies[i].psf.find('['));
+        auto [at, fresh] = present.try_emplace(file, false);
+        if (fresh) at->second = std::ifstream(file).good();
+        if (!at->second) absent.push_back(i);
+    }
+    return absent;
 }
 
 PsfImage read_real_galaxy_psf(const RealGalaxy& galaxy, const std::string& catalogue) {

@@ -24,7 +24,7 @@ struct RealGalaxy {
     std::optional<double> ra, dec;  ///< degrees
     std::string image;      ///< cfitsio path of the stamp: `folder/GAL_FILENAME[GAL_HDU]`
     std::string psf;        ///< cfitsio path of the PSF image: `folder/PSF_FILENAME[PSF_HDU]`
-    /// The catalogue's PSF file is absent: `psf` is a stated substitute (use_substitute_psf).
+    /// The catalogue's PSF file is absent (absent_psf_files): `psf` is a stated substitute.
     bool psf_substituted = false;
     double pixel_scale = 0.0;     ///< arcsec per pixel, > 0
     double noise_mean = 0.0;      ///< image units
@@ -39,14 +39,10 @@ struct RealGalaxy {
 std::vector<RealGalaxy> read_real_galaxy_catalog(const std::string& path,
                                                  const std::string& image_folder = {});
 
-/// Whether the file of `galaxy.psf` (its path before any `[HDU]`) exists. The COSMOS samples
-/// are often copied without their PSF files; a caller then states a substitute.
-bool real_galaxy_psf_present(const RealGalaxy& galaxy);
-
-/// Every galaxy whose PSF file is absent (real_galaxy_psf_present) takes `substitute` (a
-/// cfitsio path of a PSF image, e.g. one real COSMOS PSF) and is marked psf_substituted; an
-/// empty `substitute` changes nothing. Returns how many were substituted.
-long use_substitute_psf(std::vector<RealGalaxy>& galaxies, const std::string& substitute);
+/// The galaxies (indices) whose PSF file, `psf` before any `[HDU]`, is absent, in order; each
+/// file is looked up once. The COSMOS samples are often copied without their PSF files: a caller
+/// then states a substitute (psf_substituted) or refuses the catalogue.
+std::vector<std::size_t> absent_psf_files(const std::vector<RealGalaxy>& galaxies);
 
 /// The PSF image of `galaxy` (its sky removed: read_psf_image()), read on the caller's thread.
 /// Errors name the catalogue, the row and the file's column.

@@ -119,7 +119,6 @@ void apply_model_counts(SampleOptions& options, const Morphology& morphology, Co
         throw Error("must be fainter than the magnitude limit", "", 0, "faint_limit");
     if (source == CountSource::law) {
         options.draw.counts = law_counts(morphology, options.draw, law, options.mag_limit);
-        if (!density_given && options.draw.counts) options.density = options.draw.counts->density();
     } else if (source == CountSource::fit) {
         try {
             options.draw.counts = conditional_counts(morphology, options.draw, options.mag_limit);
@@ -128,8 +127,8 @@ void apply_model_counts(SampleOptions& options, const Morphology& morphology, Co
         }
     }
     const std::optional<CountModel>& counts = options.draw.counts;
-    if (!density_given && !morphology.source_fields.empty() &&
-        !(source == CountSource::law && counts))
+    // The counts' density (a law's needs no field), else the real fields'.
+    if (!density_given && (counts || !morphology.source_fields.empty()))
         options.density = counts ? counts->density()
                                  : field_density(morphology.source_fields, options.mag_limit);
     if (!options.faint_limit) return;
@@ -387,8 +386,8 @@ std::uint64_t for_each_placed(const Cells& cells, const std::vector<std::uint64_
 }
 
 // Galaxies drawn from a count law (CountModel::tabulated) come in fixed 0.5-mag slices from
-// the law's bright end: each cell's count in slice s is Poisson from the stream of (seed, cell ·
-// 2^16 + s), its objects numbered after the brighter slices' and their magnitudes drawn within
+// the law's bright end: each cell's count in slice s is Poisson from the stream of (seed,
+// object_key(cell, s), "galaxy count slice"), its objects numbered after the brighter slices' and their magnitudes drawn within
 // it; the slice holding the limit is drawn whole and its galaxies past the limit dropped. So
 // a galaxy brighter than any limit is the same galaxy (id, magnitude, place, shape) whatever
 // the limit: the counts do not move with --mag-limit.

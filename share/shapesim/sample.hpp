@@ -88,7 +88,8 @@ enum class CountSource {
 /// limit (law_counts); with CountSource::fit (--counts fit), the
 /// counts fitted to its real fields (conditional_counts; when they cannot be, an Error naming
 /// `model_path` points to --counts parents). Unless `density_given`, `options.density` becomes
-/// the real fields' own, when the model recorded any: the fitted counts', else field_density().
+/// the counts' (the law's or the fit's), else the real fields' own (field_density()) when the
+/// model recorded any.
 /// With `options.faint_limit`, `options.faint_counts` are those counts (or ones fitted for them)
 /// extrapolated past the limit. The draw options and the faint limit are checked first (Error).
 void apply_model_counts(SampleOptions& options, const Morphology& morphology, CountSource source,
