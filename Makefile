@@ -81,7 +81,7 @@ include detect/module.mk decompose/module.mk smooth/module.mk sample/module.mk
 include render/module.mk measure/module.mk survey/module.mk table/module.mk lens/module.mk calibrate/module.mk
 include tests/module.mk
 
-.PHONY: all deps test unit-test program-test bench stress install clean reproduce colour lensing cosmos slurm-test
+.PHONY: all deps test unit-test program-test bench stress install clean reproduce colour lensing cosmos shapes slurm-test
 all: $(PROGRAMS:%=$(BIN)/%)
 
 # Every first target installs what is missing (as root) or prints the apt line.
@@ -129,6 +129,11 @@ reproduce: deps all examples
 # The XDF's nine bands end to end (pipelines/colour.mk); OUT, SEED, AREA, MAG_LIMIT pass on.
 colour: deps all examples
 	$(MAKE) --no-print-directory -f pipelines/colour.mk BIN=$(BIN) EXAMPLES=$(BUILD)/examples
+
+# Ellipticities of the survey's galaxies against the real COSMOS/AEGIS stamps', measured alike
+# (pipelines/shapes.sh, docs/sample.md#ellipticities); SEEDS, MAG_CUT pass on.
+shapes: deps all
+	pipelines/shapes.sh $(BIN) out/shapes
 
 # A weak-lensing shear calibration end to end (pipelines/lensing.mk); OUT, SEED, AREA, NOISE,
 # SHEAR, HALO pass on.

@@ -1,12 +1,14 @@
 #include "shapesim/morphology.hpp"
 
 #include "shapesim/constants.hpp"
+#include "shapesim/convolve.hpp"
 #include "shapesim/deconvolution.hpp"
 #include "shapesim/error.hpp"
 #include "shapesim/jsonl.hpp"
 #include "shapesim/moments.hpp"
 #include "shapesim/positivity.hpp"
 #include "shapesim/render.hpp"
+#include "shapesim/shear_estimate.hpp"
 #include "shapesim/transform.hpp"
 #include "shapesim/version.hpp"
 
@@ -295,8 +297,42 @@ MorphologyPoint aligned_point(const ShapeletRecord& r, Morphology& out) {
     return p;
 }
 
+}  // namespace
+
+Complex adaptive_epsilon(const std::vector<Complex>& shape, int n_max, double psf_scale) {
+    const double nan = std::numeric_limits<double>::quiet_NaN();
+    if (n_max < 0 || shape.size() != std::size_t(polar_count(n_max)) || !(psf_scale >= 0.0))
+        return {nan, nan};
+    constexpr double beta_pix = 3.0;
+    ShapeletModel m(0.0, 0.0, beta_pix, n_max);
+    m.coeffs = shape;
+    if (!(flux(m) > 0.0)) return {nan, nan};
+    try {
+        AdaptiveMoments a, psf;
+        if (psf_scale > 0.0) {
+            ShapeletModel gaussian(0.0, 0.0, beta_pix * psf_scale, 0);
+            gaussian.coeffs[0] = 1.0;
+            a = psf_adaptive_moments(convolve(m, gaussian));
+            psf = psf_adaptive_moments(gaussian);
+        } else {
+            a = psf_adaptive_moments(m);
+        }
+        const double s11 = a.m11 - psf.m11, s22 = a.m22 - psf.m22, s12 = a.m12 - psf.m12;
+        if (!(s11 + s22 > 0.0) || !(s11 * s22 - s12 * s12 > 0.0)) return {nan, nan};
+        const Complex chi((s11 - s22) / (s11 + s22), 2.0 * s12 / (s11 + s22));
+        return chi / (1.0 + std::sqrt(1.0 - std::norm(chi)));
+    } catch (const Error&) {
+        return {nan, nan};
+    }
+}
+
+namespace {
+
 // The nearest shape of `p` (and band shapes) whose light is nowhere below zero (positivity.hpp),
-// c_{0,0} kept at 1; a shape the projection cannot keep positive in flux stays as fitted.
+// c_{0,0} kept at 1; a shape the projection cannot keep positive in flux stays as fitted. Then
+// sheared back to the fitted shape's adaptive ellipticity as seen through its PSF
+// (docs/algorithms.md#positive-models): at a fixed order the nearest non-negative image of a
+// small elongated galaxy is rounder.
 void make_positive(MorphologyPoint& p) {
     const auto nearest = [&](const std::vector<Complex>& shape) {
         ShapeletModel m(0.0, 0.0, 1.0, p.n_max);
@@ -308,6 +344,10 @@ void make_positive(MorphologyPoint& p) {
     const double c00 = reference.model.coeffs[0].real();
     if (reference.iterations == 0 || !(c00 > 0.0) || !(even_sum(reference.model.coeffs) > 0.0))
         return;
+    // Seen through the PSF it was fitted through (a Gaussian of its psf_beta), as the data saw
+    // it: the outer light a round positive shape gains counts for more there.
+    const double psf_scale = p.psf_beta > 0.0 && p.beta > 0.0 ? p.psf_beta / p.beta : 0.0;
+    const Complex fitted = adaptive_epsilon(p.shape, p.n_max, psf_scale);
     for (std::size_t k = 0; k < p.shape.size(); ++k) p.shape[k] = reference.model.coeffs[k] / c00;
     p.shape[0] = 1.0;
     p.positivity_change = reference.change;
@@ -327,6 +367,43 @@ void make_positive(MorphologyPoint& p) {
         }
         for (Complex& c : band) c *= sum / sum_before;  // no light to keep positive: ratio kept
     }
+    // The shear A that gives the positive shape the fitted seen ε: A ← S(ε_fit) S(−ε) A
+    // from A = I, each time the positive shape projected through A afresh, until |ε − ε_fit|
+    // ≤ 1e-3 (adaptive moments are not exactly covariant under a shear: a few passes). A shear
+    // keeps the light non-negative (to the projection's truncation) and the area.
+    if (!std::isfinite(std::abs(fitted)) || !(std::abs(fitted) < 1.0)) return;
+    ShapeletModel positive(0.0, 0.0, 1.0, p.n_max);
+    positive.coeffs = p.shape;
+    // To 10⁻⁴ of the norm (1% of the light, as faint fits are known) and at most n_max 12, or
+    // the fit's own: every mixture takes its parents' largest order, so a parent's order is
+    // paid for by its mixtures (a million of them must fit in 1 GiB).
+    ProjectionOptions options;
+    options.tolerance = 1e-4;
+    options.n_out_max = std::max(p.n_max, 12);
+    Eigen::Matrix2d a = Eigen::Matrix2d::Identity();
+    ShapeletModel sheared = positive;
+    for (int pass = 0; pass < 6; ++pass) {
+        const Complex now = adaptive_epsilon(sheared.coeffs, sheared.n_max, psf_scale);
+        if (!std::isfinite(std::abs(now)) || std::abs(now - fitted) <= 1e-3) break;
+        a = shear_matrix(fitted.real(), fitted.imag()) * shear_matrix(-now.real(), -now.imag()) * a;
+        sheared = affine_transform(positive, a, Eigen::Vector2d::Zero(), options).model;
+    }
+    if (sheared.n_max == p.n_max && sheared.coeffs == p.shape) return;
+    const Complex s00 = sheared.coeffs[0];
+    options.n_out = sheared.n_max;
+    p.shape = sheared.coeffs;
+    for (Complex& c : p.shape) c /= s00;
+    p.shape[0] = 1.0;
+    const double sheared_sum = even_sum(p.shape);
+    for (std::vector<Complex>& band : p.band_shapes) {
+        ShapeletModel b(0.0, 0.0, 1.0, p.n_max);
+        b.coeffs = band;
+        const double ratio = even_sum(band) / sum;
+        band = affine_transform(b, a, Eigen::Vector2d::Zero(), options).model.coeffs;
+        const double band_sum = even_sum(band);
+        for (Complex& c : band) c *= band_sum != 0.0 ? ratio * sheared_sum / band_sum : 0.0;
+    }
+    p.n_max = sheared.n_max;
 }
 
 // λ of every axis: k × the mean nearest-neighbour separation of the points along it, unless
@@ -404,7 +481,10 @@ Morphology build_morphology(const std::vector<ShapeletRecord>& records,
         out.points.push_back(std::move(p));
     }
     if (!options.delta && !options.keep_negative)
-        for (MorphologyPoint& p : out.points) make_positive(p);
+        for (MorphologyPoint& p : out.points) {
+            make_positive(p);
+            out.n_max = std::max(out.n_max, p.n_max);  // a shear back may raise it
+        }
     if (!out.bands.empty() && out.points.size() != records.size())
         throw Error("internal: band points lost", "", 0, "bands");
     if (!out.bands.empty()) out.reference_band = reference_band(records.front());
@@ -434,6 +514,9 @@ void Morphology::prepare() {
         m.coeffs = p.shape;
         p.hole = hole_depth(m);
         const RawMoments raw = raw_moments(m);
+        const double nan = std::numeric_limits<double>::quiet_NaN();
+        p.adaptive_epsilon = p.n_max >= 2 ? shapesim::adaptive_epsilon(p.shape, p.n_max)
+                                          : Complex(nan, nan);
         const double size2 = raw.flux > 0.0 ? raw.r2 / raw.flux : 0.0;
         p.size2 = size2 > 0.0 && std::isfinite(size2) ? size2
                                                        : std::numeric_limits<double>::quiet_NaN();

@@ -60,10 +60,20 @@ struct MorphologyPoint {
     /// The shape's mean |z|² about its centre over its flux, in units of β² (derived,
     /// prepare(); NaN when not positive): a mixture's size is set from it (draw_galaxy, mix).
     double size2 = 0.0;
+    /// adaptive_epsilon() of the shape, for n_max ≥ 2 (derived, prepare(); NaN otherwise): the
+    /// ellipticity a round parent borrows.
+    Complex adaptive_epsilon;
     /// How far the shape was moved to be non-negative, ‖c' − c‖/‖c‖ (0: as fitted).
     double positivity_change = 0.0;
 };
 
+/// ε (reduced-shear form) of the adaptive moments (shear_estimate.hpp) of a unit-β shape drawn
+/// at β = 3 pixels: the ellipticity a moments-based measurement sees, where the unweighted
+/// moments weigh a model's faint outskirts. With psf_scale > 0, as the reference estimator sees
+/// it through a round Gaussian PSF of β = psf_scale (in the shape's β): the shape convolved, its
+/// adaptive moments less the PSF's (the linear correction). NaN when its flux is not positive,
+/// the moments do not converge or the corrected ones are not positive definite.
+Complex adaptive_epsilon(const std::vector<Complex>& shape, int n_max, double psf_scale = 0.0);
 /// Smoothing length of every axis.
 struct SmoothingLengths {
     double phase_deg = 15.0;

@@ -1226,6 +1226,67 @@ TEST(MorphologyMixture, DeterministicNewAndSpreadOverTheParents) {
     EXPECT_LT(double(largest) / bright, 0.3);
 }
 
+// A parent fitted as a round Gaussian (n_max 0: its data held no more than flux and size) is
+// exactly round; its mixtures take the adaptive ε of one of the window's resolved parents (to 3%
+// of their light) and keep its area. Mixtures of resolved parents are not sheared.
+TEST(MorphologyMixture, RoundParentsBorrowAResolvedNeighboursEllipticity) {
+    std::vector<ShapeletRecord> records;
+    for (int i = 0; i < 40; ++i) {
+        const bool round = i % 4 == 3;  // every fourth parent a round Gaussian
+        ShapeletModel m = test::random_model(round ? 0 : 4, 2.5, 0.0, 0.0, 400 + i, true, 0.3);
+        m.coeffs[0] = 5.0;
+        records.push_back(record_of(m, "p" + std::to_string(i), 20.0 + 0.25 * i));
+    }
+    Morphology morph = build_morphology(records, SmoothOptions{});
+    for (auto& c : morph.lambda.coefficient) c = 0.0;
+    morph.lambda.beta = 0.0;
+    morph.lambda.mag = 0.3;
+    const std::vector<double> parents = parent_table(morph, 99.0);
+    const DrawOptions draw = mixture_options(morph, 8, 3);
+    double borrowed2 = 0.0, donors2 = 0.0;
+    int borrowed = 0, donors = 0;
+    for (const MorphologyPoint& q : morph.points)
+        if (q.n_max >= 2) donors2 += std::norm(q.adaptive_epsilon), ++donors;
+    for (int i = 0; i < 400; ++i) {
+        RandomStream stream(24, std::uint64_t(i), "galaxy");
+        const DrawnGalaxy g = draw_galaxy(morph, parents, stream, 0.04, 25.0, 99.0, draw);
+        const MorphologyPoint& p0 = morph.points[g.parent];
+        if (p0.n_max >= 2) {
+            // The plain weighted sum of the parents' shapes, as before.
+            ShapeletModel sum(0.0, 0.0, 1.0, morph.n_max);
+            for (std::size_t j = 0; j < g.parents.size(); ++j) {
+                const MorphologyPoint& p = morph.points[g.parents[j]];
+                for (std::size_t k = 0; k < p.shape.size(); ++k)
+                    sum.coeffs[k] += g.weights[j] / even_sum(p.shape) * p.shape[k];
+            }
+            ShapeletModel drawn = aligned_frame(g);
+            const Complex c00 = drawn.coeffs[0];
+            for (Complex& c : drawn.coeffs) c /= c00;
+            for (std::size_t k = 0; k < drawn.coeffs.size(); ++k)
+                EXPECT_NEAR(std::abs(drawn.coeffs[k] - sum.coeffs[k] / sum.coeffs[0]), 0.0, 1e-9)
+                    << i;
+            continue;
+        }
+        ++borrowed;
+        const Moments drawn = moments(aligned_frame(g));
+        double nearest = 1.0;
+        for (const MorphologyPoint& q : morph.points)
+            if (q.n_max >= 2 && std::abs(q.mag - g.mag) <= 2.0 + 1e-9)
+                nearest = std::min(nearest, std::abs(drawn.epsilon - q.adaptive_epsilon));
+        EXPECT_LT(nearest, 4e-2) << i;  // its unweighted ε (a mixture), to 3% of its light
+        borrowed2 += std::norm(drawn.epsilon);
+        const double det = drawn.q11 * drawn.q22 - drawn.q12 * drawn.q12;
+        const double sigma = p0.beta * std::pow(10.0, -0.4 * 0.3 * (g.mag - p0.mag)) / 0.04;
+        EXPECT_NEAR(std::pow(det, 0.25), sigma, 1e-2 * sigma) << i;  // round: Q = σ² I
+    }
+    const double rms = std::sqrt(borrowed2 / (2 * borrowed)),
+                 own = std::sqrt(donors2 / (2 * donors));
+    std::cout << "  [measured] " << borrowed << " draws of round parents: rms ε per component "
+              << rms << ", the resolved parents' adaptive " << own << "\n";
+    EXPECT_GT(borrowed, 40);
+    EXPECT_NEAR(rms, own, 0.25 * own);
+}
+
 // A mixture needs K ≥ M neighbours (K = 0 is the paper's draw, unmixed); mix ≤ 1 draws as
 // before, bit for bit.
 TEST(MorphologyMixture, OptionsAndTheDrawsItLeavesAlone) {
