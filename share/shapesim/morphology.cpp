@@ -389,6 +389,11 @@ void make_positive(MorphologyPoint& p) {
         sheared = affine_transform(positive, a, Eigen::Vector2d::Zero(), options).model;
     }
     if (sheared.n_max == p.n_max && sheared.coeffs == p.shape) return;
+    // Where the projection (cut at its order) rings below zero by more than positivity allows,
+    // the sheared shape is made non-negative again, at its own order.
+    if (const PositiveModel again = nearest_non_negative(sheared); again.iterations > 0 &&
+        again.model.coeffs[0].real() > 0.0 && even_sum(again.model.coeffs) > 0.0)
+        sheared = again.model;
     const Complex s00 = sheared.coeffs[0];
     options.n_out = sheared.n_max;
     p.shape = sheared.coeffs;
