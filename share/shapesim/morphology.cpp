@@ -317,10 +317,9 @@ Complex adaptive_epsilon(const std::vector<Complex>& shape, int n_max, double ps
         } else {
             a = psf_adaptive_moments(m);
         }
-        const double s11 = a.m11 - psf.m11, s22 = a.m22 - psf.m22, s12 = a.m12 - psf.m12;
-        if (!(s11 + s22 > 0.0) || !(s11 * s22 - s12 * s12 > 0.0)) return {nan, nan};
-        const Complex chi((s11 - s22) / (s11 + s22), 2.0 * s12 / (s11 + s22));
-        return chi / (1.0 + std::sqrt(1.0 - std::norm(chi)));
+        // The reference estimator's own correction (no PSF: its moments are zero).
+        const std::optional<ShearEstimate> e = linear_shear_estimate(a, psf);
+        return e ? e->epsilon : Complex(nan, nan);
     } catch (const Error&) {
         return {nan, nan};
     }

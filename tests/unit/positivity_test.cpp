@@ -30,6 +30,14 @@ double distance(const ShapeletModel& f, const ShapeletModel& g) {
     return std::sqrt(squared_norm(d));
 }
 
+// A one-galaxy record of `m` at I = 24 (zero point 25), as shapesim-smooth reads them.
+ShapeletRecord record_at_24(const ShapeletModel& m, const std::string& id) {
+    ShapeletRecord r = ShapeletRecord::from_model(m, 0.04, id);
+    r.mag = 24.0;
+    r.extra["zero_point"] = 25.0;
+    return r;
+}
+
 }  // namespace
 
 // Ringing models (random n_max 4–10 galaxies with large high-order terms) come back with at most
@@ -86,9 +94,7 @@ TEST(Positivity, PositiveModelsAreLeftAlone) {
 // exactly; the points record how far they moved.
 TEST(Positivity, MorphologyParentsAreNonNegative) {
     const ShapeletModel m = test::random_model(8, 2.0, 0.0, 0.0, 17, true, 0.45);
-    ShapeletRecord r = ShapeletRecord::from_model(m, 0.04, "ringing");
-    r.mag = 24.0;
-    r.extra["zero_point"] = 25.0;
+    const ShapeletRecord r = record_at_24(m, "ringing");
     const Morphology fitted = build_morphology({r}, SmoothOptions{});
     SmoothOptions keep;
     keep.keep_negative = true;
@@ -131,9 +137,7 @@ TEST(Positivity, MovedShapesKeepTheirFittedEllipticity) {
         ShapeletModel m =
             affine_transform(round, shear_matrix(e, 0.0), Eigen::Vector2d::Zero(), truncated).model;
         m.beta_pix = 2.0;
-        ShapeletRecord r = ShapeletRecord::from_model(m, 0.04, "elongated" + std::to_string(i));
-        r.mag = 24.0;
-        r.extra["zero_point"] = 25.0;
+        const ShapeletRecord r = record_at_24(m, "elongated" + std::to_string(i));
         const Morphology fitted = build_morphology({r}, SmoothOptions{});
         SmoothOptions as_fitted;
         as_fitted.keep_negative = true;
