@@ -93,6 +93,26 @@ public:
             o.noise_correlation = b.noise_correlation;
             options_.push_back(std::move(o));
         }
+        // The sharpest band's PSF variance (½ the trace of its second moments); none when a
+        // band is fitted in the observed frame.
+        for (const DecomposeOptions& o : options_) {
+            double v = 0.0;
+            if (o.psf) {
+                const Moments m = moments(*o.psf);
+                v = std::isfinite(m.q11 + m.q22) ? std::max(0.0, 0.5 * (m.q11 + m.q22)) : 0.0;
+            }
+            psf_variance_ = std::min(psf_variance_, v);
+        }
+        if (options_.empty()) psf_variance_ = 0.0;
+    }
+    // The smallest β of order n (pixels): the resolution limit θ_min·√(n+1) on the scale the
+    // data see. An observed-frame model is seen at its own β; an intrinsic one through its PSF,
+    // at √(β² + σ²) (second moments add under convolution; σ² the sharpest band's PSF
+    // variance), so a galaxy smaller than the PSF keeps its small β rather than the pixel's.
+    // A point source is a twentieth of the limit (the fit cannot tell it from one smaller).
+    double smallest_beta(int n, const DecomposeOptions& o) const {
+        const double limit2 = o.theta_min * o.theta_min * (n + 1.0);
+        return std::sqrt(std::max(limit2 - psf_variance_, limit2 / 400.0));
     }
     std::size_t size() const { return bands_.size(); }
     const DecomposeOptions& options(std::size_t b) const { return options_[b]; }
@@ -234,6 +254,7 @@ public:
 private:
     const std::vector<BandStamp>& bands_;
     std::vector<DecomposeOptions> options_;
+    double psf_variance_ = std::numeric_limits<double>::infinity();
 };
 
 // One order's search state: joint fits at (x, y, β), scored by the effective χ²_r.
@@ -327,7 +348,7 @@ struct EllipticalFit {
 std::optional<EllipticalFit> fit_elliptical(const JointProblem& problem, const JointFit& round,
                                             double reach, const DecomposeOptions& options,
                                             long& fits) {
-    const double theta_min = options.theta_min;
+    const double theta_min = problem.smallest_beta(0, options);
     const double x = round.model().x, y = round.model().y;
     std::optional<EllipticalFit> best;
     const auto chi2 = [&](const std::array<double, 3>& v) {
@@ -491,7 +512,7 @@ ScoredFit search_orders(const JointProblem& problem, Centre start, double reach,
     Centre at = start;
     for (int n = options.n_max_min; n <= options.n_max_cap; ++n) {
         const double root = std::sqrt(n + 1.0);
-        const double lo = options.theta_min * root, hi = reach / root;
+        const double lo = problem.smallest_beta(n, options), hi = reach / root;
         if (lo > hi) {
             out.stop = "stamp_small";
             break;
