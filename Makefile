@@ -16,6 +16,10 @@
 #                        (pipelines/lensing.mk; OUT=, SEED=, AREA=, NOISE=, SHEAR=, HALO=)
 #   make cosmos CATALOGS="FILE..."  a morphology model trained on GalSim RealGalaxyCatalogs
 #                        (the COSMOS training samples) into out/cosmos/ (pipelines/cosmos.mk)
+#   make shapes          the survey's ellipticities against the real COSMOS/AEGIS stamps'
+#                        into out/shapes/ (pipelines/shapes.sh)
+#   make kids            the real KiDS r frame fitted, replayed and δ-simulated, measured
+#                        alike, into out/kids/ (pipelines/kids.sh; BAND=, SEEDS=, JOBS=)
 #   make slurm-test      a 4-tile survey through a one-node Slurm cluster = make -j (root; CI)
 #   make install         programs, libshapesim.a, public headers, shapesim.pc and man pages
 #                        into PREFIX (/usr/local); DESTDIR= stages them
@@ -81,7 +85,7 @@ include detect/module.mk decompose/module.mk smooth/module.mk sample/module.mk
 include render/module.mk measure/module.mk survey/module.mk table/module.mk lens/module.mk calibrate/module.mk
 include tests/module.mk
 
-.PHONY: all deps test unit-test program-test bench stress install clean reproduce colour lensing cosmos shapes slurm-test
+.PHONY: all deps test unit-test program-test bench stress install clean reproduce colour lensing cosmos shapes kids slurm-test
 all: $(PROGRAMS:%=$(BIN)/%)
 
 # Every first target installs what is missing (as root) or prints the apt line.
@@ -134,6 +138,11 @@ colour: deps all examples
 # (pipelines/shapes.sh, docs/sample.md#ellipticities); SEEDS, MAG_CUT pass on.
 shapes: deps all
 	pipelines/shapes.sh $(BIN) out/shapes
+
+# A real ground-based frame through the whole chain (pipelines/kids.sh): the KiDS r frame's fits
+# replayed and δ-simulated, measured alike; BAND, SEEDS, JOBS pass on.
+kids: deps all
+	pipelines/kids.sh $(BIN) out/kids
 
 # A weak-lensing shear calibration end to end (pipelines/lensing.mk); OUT, SEED, AREA, NOISE,
 # SHEAR, HALO pass on.
