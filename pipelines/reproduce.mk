@@ -388,6 +388,12 @@ $(OUT)/figures/sim6.png: $(OUT)/sim6.fits $(EXAMPLES)/panels
 	@mkdir -p $(@D)
 	$(EXAMPLES)/panels $(@:.png=.pgm) $<
 	pnmscale -xsize 1200 $(@:.png=.pgm) | pnmtopng > $(tmp) && rm $(@:.png=.pgm) && mv $(tmp) $@
+# The real HDF cut | the full simulation (merged6, the product: every galaxy new): the field's
+# first 512² (any AREA holds it), at the HDF's scale and stretch (README's figure).
+$(OUT)/figures/hdf_merged.png: $(IMAGE) $(OUT)/merged6.fits $(EXAMPLES)/panels
+	@mkdir -p $(@D)
+	$(EXAMPLES)/panels $(@:.png=.pgm) $(IMAGE) '$(OUT)/merged6.fits[1:512,1:512]'
+	pnmtopng $(@:.png=.pgm) > $(tmp) && rm $(@:.png=.pgm) && mv $(tmp) $@
 # The paper's Fig. 3 and its negative-flux diagnostic (a fixed seed of its own).
 $(OUT)/figures/perturbations.png $(OUT)/perturbations.md &: $(OUT)/morphology.json $(EXAMPLES)/perturbations
 	@mkdir -p $(OUT)/figures
@@ -422,7 +428,8 @@ $(OUT)/figures/brightest.png: $(OUT)/sources.jsonl $(OUT)/xdf/sources.jsonl $(ST
 	rm $(BRIGHTEST_ROWS:%=$(OUT)/figures/brightest/%.pgm)
 	mv $(tmp) $@
 
-FIGURES := $(OUT)/figures/hdf_delta_sim.png $(OUT)/figures/sim6.png $(OUT)/figures/perturbations.png \
+FIGURES := $(OUT)/figures/hdf_delta_sim.png $(OUT)/figures/hdf_merged.png $(OUT)/figures/sim6.png \
+           $(OUT)/figures/perturbations.png \
            $(OUT)/figures/brightest.png
 $(OUT)/report.md: $(R)pipelines/report.sh $(OUT)/table.md $(OUT)/sky.md $(OUT)/morphology.json $(OUT)/perturbations.md \
     $(OUT)/xdf/table.md $(OUT)/xdf/sky.md \
