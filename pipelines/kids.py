@@ -31,7 +31,7 @@ def fits(intrinsic, sources, stars):
     print("|---|---|---|---|---|---|")
     for m in sorted((m for m in models if "mag" in m), key=lambda m: m["mag"])[:10]:
         flags = ", ".join(f for f in m["flags"] if f not in ("converged", "not_converged"))
-        print(f"| {m['id']} | {m['mag']:.2f} | {m['n_max']} | {m['chi2r']:.2f} | {m['stop']} | "
+        print(f"| {m['id']} | {m['mag']:.2f} | {m['n_max']} | {m['chi2r']:.3f} | {m['stop']} | "
               f"{flags or '–'} |")
     print()
     print(f"converged_fraction {converged / max(n, 1):.4f}")

@@ -1,7 +1,7 @@
 #!/bin/bash
 # pipelines/kids.sh BIN_DIR OUT_DIR (make kids) — a real ground-based frame through the whole
 # chain, as a new user would run it: the KiDS r frame (share/data/kids/README.md: 2600² at
-# 0.339″, ~0.85″ seeing, in maggies) detected, fitted through its own PSF, replayed where it
+# 0.339″, 0.87″ seeing, in maggies) detected, fitted through its own PSF, replayed where it
 # was fitted and simulated (δ: the fits drawn at new places), each measured as the frame is.
 #
 # What it reports (OUT_DIR/report.md), the acceptance of issue 49 §6:
@@ -13,7 +13,7 @@
 #   KS p of magnitude, FWHM and e, per seed and pooled.
 #
 # Environment (defaults in brackets):
-#   KIDS_DATA [BIN_DIR/../share/data/kids]  BAND [r]  JOBS [2]  SEEDS ["1 2 3"]
+#   KIDS_DATA [the shipped share/data/kids]  BAND [r]  JOBS [2]  SEEDS ["1 2 3"]
 #   STAR ["1778 262"]: an isolated unsaturated star (r = 17.0), its 33² cutout the PSF image.
 #   SATURATION [2.5e-8]: the frame has no SATURATE card; the brightest stars' cores are flat at
 #     2.8e-8 to 6e-8 maggies (read off the image), no galaxy's peak comes near.
@@ -23,7 +23,7 @@ if [ $# -ne 2 ]; then echo "usage: $0 BIN_DIR OUT_DIR" >&2; exit 2; fi
 BIN=$(cd "$1" && pwd)
 OUT=$2
 HERE=$(cd "$(dirname "$0")" && pwd)
-DATA=${KIDS_DATA:-$BIN/../share/data/kids}
+DATA=$(cd "${KIDS_DATA:-$HERE/../share/data/kids}" && pwd)
 BAND=${BAND:-r}
 JOBS=${JOBS:-2}
 SEEDS=${SEEDS:-"1 2 3"}
@@ -42,6 +42,7 @@ LOG="$OUT/commands.log"
 run() { echo "$*" >>"$LOG"; "$@"; }
 T0=$(date +%s)
 cd "$OUT"
+rm -f delta_*.morph.jsonl replay_*.morph.jsonl   # a run with other SEEDS leaves none behind
 
 # The PSF: the star's 33² cutout, modelled at the frame's pixel scale.
 read -r sx sy <<<"$STAR"
@@ -64,7 +65,7 @@ for s in $SEEDS; do
   run "$BIN/shapesim-render" -q --psf psf.jsonl --noise-model noise.jsonl "${GEOMETRY[@]}" \
     --saturation "$SATURATION" --seed "$s" -o replay_$s.fits <replay.objects.jsonl
   run "$BIN/shapesim-measure" replay_$s.fits "${MEASURE[@]}" -o replay_$s.morph.jsonl
-  rm -f replay_$s.fits   # 27 MB each; commands.log reruns it
+  rm -f replay_$s.fits   # 27 MB each
   paired+=("replay$s=replay_$s.morph.jsonl")
 done
 run "$BIN/shapesim-measure" --compare-paired real=real.morph.jsonl "${paired[@]}" >paired.md
@@ -77,10 +78,12 @@ for s in $SEEDS; do
   run "$BIN/shapesim-render" -q --psf psf.jsonl --noise-model noise.jsonl "${GEOMETRY[@]}" \
     --saturation "$SATURATION" --seed "$s" -o delta_$s.fits <delta_$s.objects.jsonl
   run "$BIN/shapesim-measure" delta_$s.fits "${MEASURE[@]}" -o delta_$s.morph.jsonl
-  [ "$s" = "${SEEDS%% *}" ] || rm -f delta_$s.fits   # the first kept to look at
+  [ "$s" = "$(echo $SEEDS | cut -d' ' -f1)" ] || rm -f delta_$s.fits   # the first kept to look at
   compared+=("delta$s=delta_$s.morph.jsonl")
 done
-cat delta_*.morph.jsonl >delta_pooled.morph.jsonl
+pooled=()
+for s in $SEEDS; do pooled+=("delta_$s.morph.jsonl"); done
+cat "${pooled[@]}" >delta_pooled.morph.jsonl
 run "$BIN/shapesim-measure" -q --compare real=real.morph.jsonl "${compared[@]}" \
   pooled=delta_pooled.morph.jsonl -o compare >/dev/null
 T2=$(date +%s); echo "replays and δ simulations: $((T2 - T1)) s" >&2
