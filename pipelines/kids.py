@@ -15,13 +15,13 @@ def records(path):
 
 
 def fits(intrinsic, sources, stars):
-    models = records(intrinsic)
+    models, detected, set_aside = records(intrinsic), records(sources), records(stars)
     n = len(models)
     converged = sum("converged" in m["flags"] for m in models)
-    saturated = sum("saturated" in s.get("flags", []) for s in records(stars))
+    saturated = sum("saturated" in s.get("flags", []) for s in set_aside)
     print("## The fits")
     print()
-    print(f"{len(records(sources))} galaxies detected ({len(records(stars))} stars set aside, "
+    print(f"{len(detected)} galaxies detected ({len(set_aside)} stars set aside, "
           f"{saturated} of them saturated); {n} fitted through the PSF; "
           f"converged {converged} ({100.0 * converged / max(n, 1):.1f}%).")
     print()

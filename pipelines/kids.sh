@@ -72,17 +72,17 @@ run "$BIN/shapesim-measure" --compare-paired real=real.morph.jsonl "${paired[@]}
 
 # The δ simulation at each seed, measured alike; compared per seed and pooled.
 run "$BIN/shapesim-smooth" -q --delta --stars stars.jsonl "${GEOMETRY[@]}" -o delta.json <intrinsic.jsonl
-compared=()
+compared=() pooled=()
+read -r first _ <<<"$SEEDS"
 for s in $SEEDS; do
   run "$BIN/shapesim-sample" -q delta.json "${GEOMETRY[@]}" --seed "$s" -o delta_$s.objects.jsonl
   run "$BIN/shapesim-render" -q --psf psf.jsonl --noise-model noise.jsonl "${GEOMETRY[@]}" \
     --saturation "$SATURATION" --seed "$s" -o delta_$s.fits <delta_$s.objects.jsonl
   run "$BIN/shapesim-measure" delta_$s.fits "${MEASURE[@]}" -o delta_$s.morph.jsonl
-  [ "$s" = "$(echo $SEEDS | cut -d' ' -f1)" ] || rm -f delta_$s.fits   # the first kept to look at
+  [ "$s" = "$first" ] || rm -f delta_$s.fits   # the first kept to look at
   compared+=("delta$s=delta_$s.morph.jsonl")
+  pooled+=("delta_$s.morph.jsonl")
 done
-pooled=()
-for s in $SEEDS; do pooled+=("delta_$s.morph.jsonl"); done
 cat "${pooled[@]}" >delta_pooled.morph.jsonl
 run "$BIN/shapesim-measure" -q --compare real=real.morph.jsonl "${compared[@]}" \
   pooled=delta_pooled.morph.jsonl -o compare >/dev/null

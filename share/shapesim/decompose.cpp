@@ -226,14 +226,14 @@ public:
         }
         return sum + o.order_sigmas * std::sqrt(2.0 * squares);
     }
-    // The χ² two more parameters (the shear) would take up from noise in every band:
-    // F²·(2 + order_sigmas·2) for one band.
     // The bands' mean F²: the χ² a fitted parameter's noise takes up, per parameter.
     double mean_noise_factor2() const {
         double f2 = 0.0;
         for (const DecomposeOptions& b : options_) f2 += b.noise_correlation * b.noise_correlation;
         return f2 / double(size());
     }
+    // The χ² two more parameters (the shear) would take up from noise in every band:
+    // F²·(2 + order_sigmas·2) for one band.
     double shear_uptake(const DecomposeOptions& o) const {
         double f2 = 0.0, f4 = 0.0;
         for (const DecomposeOptions& b : options_) {
@@ -347,6 +347,9 @@ namespace {
 // The elliptical lowest order (see decompose.hpp): the sheared Gaussian of least χ² at the
 // round fit's centre, (g1, g2, ln β) by Nelder–Mead (optimize.hpp) from the round fit's β;
 // in several bands one shape, each band its own amplitude.
+// The largest reduced shear the elliptical lowest order is fitted at (its axis ratio 19).
+constexpr double max_elliptical_shear = 0.9;
+
 struct EllipticalFit {
     JointFit fit;
     double g1 = 0.0, g2 = 0.0;
@@ -360,7 +363,7 @@ std::optional<EllipticalFit> fit_elliptical(const JointProblem& problem, const J
     const auto chi2 = [&](const std::array<double, 3>& v) {
         const double g = std::hypot(v[0], v[1]), beta = std::exp(v[2]);
         // The minor axis resolved as n_max 0's β must be, the major axis inside the stamp.
-        if (!(g < 0.9) || beta * std::sqrt((1.0 - g) / (1.0 + g)) < theta_min ||
+        if (!(g < max_elliptical_shear) || beta * std::sqrt((1.0 - g) / (1.0 + g)) < theta_min ||
             beta * std::sqrt((1.0 + g) / (1.0 - g)) > reach)
             return infinite;
         fits += long(problem.size());
@@ -575,7 +578,7 @@ void try_elliptical(const JointProblem& problem, ScoredFit& kept, double reach,
     };
     double trace_c = std::numeric_limits<double>::quiet_NaN();
     constexpr double h = 0.02;
-    if (std::hypot(e->g1, e->g2) + 2.0 * h < 0.9) {
+    if (std::hypot(e->g1, e->g2) + 2.0 * h < max_elliptical_shear) {
         try {
             const double f0 = e->fit.chi2;
             const double fx1 = chi2_at(e->g1 + h, e->g2), fx0 = chi2_at(e->g1 - h, e->g2);

@@ -37,7 +37,7 @@ paired = text.split("## Each fit replayed")[1].split("## The δ simulation")[0]
 ratios = {}
 for l in paired.splitlines():
     c = [x.strip() for x in l.strip("|").split("|")]
-    if len(c) == 7 and c[0][:1].isdigit() or c[0].startswith("all"):
+    if len(c) == 7 and (c[0][:1].isdigit() or c[0].startswith("all")):
         try:
             ratios[c[0]] = float(c[3].split(" ± ")[0])
         except ValueError:
